@@ -1,0 +1,253 @@
+"""Extended Kalman filter PPP: the dissertation's reference estimator (Ch. 4, Table 4.4.2).
+
+State: ``[x, y, z, clock_m, zwd_m, B_0 .. B_{S-1}]`` with one float carrier-phase
+bias slot per satellite that appears in the data (``S`` <= 32 for GPS). A slot
+holds the bias of its satellite's *current* arc; when the satellite starts a
+new arc (first tracking, a gap, or a loss-of-lock flag) the slot's mean is set
+to ``phase - predicted range`` and its row and column of the covariance are
+reset to the a-priori variance with no correlation. A fixed-size state keeps
+the bookkeeping trivial and the matrices small (at most 37 x 37 for GPS), while the biases
+of a continuous arc are still constants (dissertation's "landmark" view).
+
+With ``estimate_iono`` (single frequency only; not part of Table 4.4.2) a second
+block of per-satellite slots holds a slant ionosphere residual (code ``+I``,
+phase ``-I``, random walk, reset with the arc): after the Klobuchar correction
+the residual ionosphere changes by metres per hour, and without such a state
+the phase, trusted at centimetres, turns that code-phase divergence into
+position error (several metres on the simulator's open-sky scenario).
+
+Stochastic model (Table 4.4.2): position random walk, zenith wet delay random
+walk, phase biases constant. The receiver clock has "correlation time 0", i.e.
+it is white noise: with ``clock_model="white"`` (default) it is re-initialised
+every epoch (correlations removed, variance ``clock_noise_m_rts^2 dt``, the
+previous estimate kept as the linearisation point, which the linear clock
+term makes irrelevant); ``"random_walk"`` adds that variance instead. The a
+priori 3e6 m is the variance at the first epoch.
+
+Filter mechanics come from filterpy's :class:`~filterpy.kalman.ExtendedKalmanFilter`
+(``update`` with a Joseph-form covariance update, variable-length measurement
+vectors through the ``HJacobian``/``Hx`` callables). The time update is done
+here on the covariance diagonal (the state transition is the identity, so
+filterpy's ``F P F^T + Q`` would only cost a full matrix product) together with
+the slot resets filterpy has no notion of.
+
+Each epoch is updated sequentially: the code block first, then the phase
+block relinearised at the code-updated state. For uncorrelated measurement
+noise this equals the joint update, and it keeps the first epoch well
+conditioned: with the 3e6 m clock prior a joint innovation covariance would mix
+9e12 m^2 with 6e-4 m^2 phase variances, beyond double precision.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from filterpy.kalman import ExtendedKalmanFilter
+
+from simbench.contract import ReceiverData
+from simbench.errors import SimbenchError
+from simbench.sim import atmosphere
+
+from estimators import register
+from estimators.base import Estimator, solution_frame
+from estimators.measurement import (N_BASE_STATES, geodetic, predict_given_troposphere, prepare_ppp,
+                                    single_point_solution, troposphere_terms)
+
+#: Indices of the base states.
+_POS, _CLK, _ZWD = slice(0, 3), 3, 4
+
+
+@dataclass
+class EkfPppConfig:
+    """EKF-PPP parameters; defaults are dissertation Table 4.4.2 and Sec. 4.4."""
+
+    pos_sigma_m: float = 1.0  #: a priori position sigma per axis [m]
+    pos_rw_m_rts: float = 5.0  #: position random walk [m/sqrt(s)]
+    zwd_sigma_m: float = 0.3  #: a priori zenith wet delay sigma [m] (about the Saastamoinen value)
+    zwd_rw_m_rts: float = 3e-5  #: zenith wet delay random walk [m/sqrt(s)]
+    clock_sigma_m: float = 3e6  #: a priori receiver clock sigma [m]
+    clock_noise_m_rts: float = 2000.0  #: receiver clock process noise [m/sqrt(s)]
+    clock_model: str = "white"  #: white (re-initialised each epoch, Table 4.4.2) | random_walk
+    ambiguity_sigma_m: float = 100.0  #: a priori phase bias sigma [m]; biases are constant within an arc
+    code_sigma_m: float = 2.5  #: zenith code sigma [m], scaled by 1/sin(el)
+    phase_sigma_m: float = 0.025  #: zenith phase sigma [m], scaled by 1/sin(el)
+    elevation_mask_deg: float = 7.0
+    min_satellites: int = 4  #: epochs with fewer usable satellites are skipped
+    max_gap_epochs: int = 1  #: a larger epoch step in a satellite's rows starts a new phase arc
+    ionosphere_free: bool = False  #: L1/L2 ionosphere-free combination (needs dual-frequency data)
+    use_phase: bool = True  #: False: code-only filter (no bias states)
+    #: L1 with phase only (not in Table 4.4.2): one slant ionosphere residual state per satellite
+    #: (code +I, phase -I) so that code-phase divergence does not drag the position
+    estimate_iono: bool = True
+    iono_sigma_m: float = 2.0  #: a priori sigma of the slant residual after Klobuchar [m]
+    iono_rw_m_rts: float = 0.03  #: random walk of the slant residual [m/sqrt(s)]
+
+
+@register
+class EkfPpp(Estimator):
+    """Kinematic PPP with an extended Kalman filter (code + carrier phase, float biases)."""
+
+    name = "ekf_ppp"
+    Config = EkfPppConfig
+
+    def _estimate(self, data: ReceiverData) -> tuple[pd.DataFrame, dict[str, Any]]:
+        cfg: EkfPppConfig = self.config
+        _validate(cfg)
+        obs = prepare_ppp(data, ionosphere_free=cfg.ionosphere_free, code_sigma_m=cfg.code_sigma_m,
+                          phase_sigma_m=cfg.phase_sigma_m, elevation_mask_deg=cfg.elevation_mask_deg,
+                          min_satellites=cfg.min_satellites, max_gap_epochs=cfg.max_gap_epochs)
+        n_slots = len(obs.sat_names) if cfg.use_phase else 0
+        # slant-ionosphere slots follow the bias slots, one per satellite, reset with the arc
+        n_iono = n_slots if cfg.estimate_iono and not cfg.ionosphere_free else 0
+        iono0 = N_BASE_STATES + n_slots
+        nx = N_BASE_STATES + n_slots + n_iono
+        kf = ExtendedKalmanFilter(dim_x=nx, dim_z=1)
+
+        # ---- initialisation from a single point solution at the first epoch
+        rows = obs.epoch_slice(0)
+        pos0, clock0 = single_point_solution(obs.sat_pos[rows], obs.code[rows], obs.sigma_code[rows],
+                                             el=obs.el[rows], doy=obs.doy)
+        lat0, _, h0 = geodetic(pos0)
+        _, zwd0 = atmosphere.saastamoinen_zenith_m(lat0, h0)
+        x = np.zeros(nx)
+        x[_POS], x[_CLK], x[_ZWD] = pos0, clock0, float(zwd0)
+        p_diag = np.full(nx, cfg.ambiguity_sigma_m**2)
+        p_diag[_POS] = cfg.pos_sigma_m**2
+        p_diag[_CLK] = cfg.clock_sigma_m**2
+        p_diag[_ZWD] = cfg.zwd_sigma_m**2
+        p_diag[iono0:] = cfg.iono_sigma_m**2
+        kf.x = x
+        kf.P = np.diag(p_diag)
+
+        slot_arc = np.full(n_slots, -1, np.int64)  # arc currently held by each slot
+        amb_var = cfg.ambiguity_sigma_m**2
+        q_pos, q_zwd, q_clk = cfg.pos_rw_m_rts**2, cfg.zwd_rw_m_rts**2, cfg.clock_noise_m_rts**2
+        q_iono, iono_var = cfg.iono_rw_m_rts**2, cfg.iono_sigma_m**2
+        iono_diag = np.arange(iono0, nx)
+        white_clock = cfg.clock_model == "white"
+        diag = np.arange(3)
+
+        n = obs.n_epochs
+        pos_out = np.empty((n, 3))
+        update_s = np.empty(n)
+        n_resets = 0
+        arc_bias = np.full(obs.n_arcs, np.nan)  # final bias estimate of each arc [m]
+        arc_sat = np.empty(obs.n_arcs, dtype=object)
+        arc_sat[obs.arc] = obs.sat
+        t_prev = obs.epoch_t[0]
+        for k, rows in obs.iter_epochs():
+            tic = time.perf_counter()
+            # ---- time update (identity transition)
+            dt = obs.epoch_t[k] - t_prev
+            t_prev = obs.epoch_t[k]
+            P = kf.P
+            if dt > 0:
+                P[diag, diag] += q_pos * dt
+                P[_ZWD, _ZWD] += q_zwd * dt
+                P[iono_diag, iono_diag] += q_iono * dt
+                if white_clock:
+                    P[_CLK, :] = 0.0
+                    P[:, _CLK] = 0.0
+                    P[_CLK, _CLK] = q_clk * dt
+                else:
+                    P[_CLK, _CLK] += q_clk * dt
+
+            sat_pos, el = obs.sat_pos[rows], obs.el[rows]
+            lat, _, h = geodetic(kf.x[_POS])
+            hydro, m_w = troposphere_terms(el, lat, h, obs.doy)  # once per epoch (insensitive to metres)
+            m = len(el)
+            H = np.zeros((m, nx))
+            rng_m = np.arange(m)
+
+            if n_slots:
+                # ---- new arcs get a fresh bias: mean phase - predicted range, no correlations
+                slots = obs.sat_index[rows]
+                arcs = obs.arc[rows]
+                fresh = slot_arc[slots] != arcs
+                if fresh.any():
+                    idx = N_BASE_STATES + slots[fresh]
+                    ended = slot_arc[slots[fresh]]
+                    arc_bias[ended[ended >= 0]] = kf.x[idx[ended >= 0]]
+                    pred, _ = predict_given_troposphere(sat_pos[fresh], kf.x[_POS], kf.x[_CLK], kf.x[_ZWD],
+                                                        hydro[fresh], m_w[fresh])
+                    _reset(kf, idx, obs.phase[rows][fresh] - pred, amb_var)
+                    if n_iono:
+                        _reset(kf, iono0 + slots[fresh], 0.0, iono_var)
+                    slot_arc[slots[fresh]] = arcs[fresh]
+                    n_resets += int(fresh.sum())
+
+            # ---- code update
+            pred, H5 = predict_given_troposphere(sat_pos, kf.x[_POS], kf.x[_CLK], kf.x[_ZWD], hydro, m_w)
+            H[:, :N_BASE_STATES] = H5
+            if n_iono:
+                H[rng_m, iono0 + slots] = 1.0
+                pred = pred + kf.x[iono0 + slots]
+            kf.update(obs.code[rows], _const(H), _const(pred), R=np.diag(obs.sigma_code[rows] ** 2))
+
+            if n_slots:
+                # ---- phase update, relinearised at the code-updated state
+                pred, H5 = predict_given_troposphere(sat_pos, kf.x[_POS], kf.x[_CLK], kf.x[_ZWD], hydro, m_w)
+                H[:, :N_BASE_STATES] = H5
+                H[rng_m, N_BASE_STATES + slots] = 1.0
+                pred = pred + kf.x[N_BASE_STATES + slots]
+                if n_iono:
+                    H[rng_m, iono0 + slots] = -1.0
+                    pred = pred - kf.x[iono0 + slots]
+                kf.update(obs.phase[rows], _const(H), _const(pred), R=np.diag(obs.sigma_phase[rows] ** 2))
+
+            pos_out[k] = kf.x[_POS]
+            update_s[k] = time.perf_counter() - tic
+
+        held = slot_arc >= 0
+        arc_bias[slot_arc[held]] = kf.x[N_BASE_STATES + np.flatnonzero(held)]
+        frame = solution_frame(obs.epoch_ids, obs.epoch_t, pos_out, update_s)
+        diagnostics = {
+            "n_epochs": int(n),
+            "n_observations": int(obs.n_obs),
+            "n_satellites": len(obs.sat_names),
+            "n_arcs": int(obs.n_arcs) if cfg.use_phase else 0,
+            "n_ambiguity_resets": n_resets,
+            "ionosphere_free": bool(cfg.ionosphere_free),
+            "iono_states": bool(n_iono),
+            "arc_sat": [str(v) for v in arc_sat] if n_slots else [],
+            "arc_bias_m": [float(v) for v in arc_bias] if n_slots else [],
+            "final_clock_m": float(kf.x[_CLK]),
+            "final_zwd_m": float(kf.x[_ZWD]),
+            "final_pos_sigma_m": [float(s) for s in np.sqrt(np.diag(kf.P)[_POS])],
+            "config": asdict(cfg),
+        }
+        return frame, diagnostics
+
+
+def _reset(kf: ExtendedKalmanFilter, idx: np.ndarray, mean: np.ndarray | float, var: float) -> None:
+    """Re-initialise states ``idx``: new mean, a-priori variance, no correlation with the rest."""
+    kf.x[idx] = mean
+    kf.P[idx, :] = 0.0
+    kf.P[:, idx] = 0.0
+    kf.P[idx, idx] = var
+
+
+def _const(value: np.ndarray):
+    """filterpy wants callables for H(x) and h(x); ours are computed before the call."""
+    return lambda _x: value
+
+
+def _validate(cfg: EkfPppConfig) -> None:
+    where = "estimator.ekf_ppp"
+    if cfg.clock_model not in ("white", "random_walk"):
+        raise SimbenchError(f"{where}.clock_model", f"unknown model '{cfg.clock_model}'", "use white or random_walk")
+    for name in ("pos_sigma_m", "zwd_sigma_m", "clock_sigma_m", "ambiguity_sigma_m", "code_sigma_m",
+                 "phase_sigma_m", "iono_sigma_m"):
+        if not getattr(cfg, name) > 0:
+            raise SimbenchError(f"{where}.{name}", f"must be positive, got {getattr(cfg, name)}",
+                                "give a standard deviation in metres (see conf/estimator/ekf_ppp.yaml)")
+    for name in ("pos_rw_m_rts", "zwd_rw_m_rts", "clock_noise_m_rts", "iono_rw_m_rts"):
+        if not getattr(cfg, name) >= 0:
+            raise SimbenchError(f"{where}.{name}", f"must be non-negative, got {getattr(cfg, name)}",
+                                "give a noise density in m/sqrt(s)")
+    if cfg.max_gap_epochs < 1:
+        raise SimbenchError(f"{where}.max_gap_epochs", f"must be at least 1, got {cfg.max_gap_epochs}",
+                            "1 means every epoch must be present within one arc")

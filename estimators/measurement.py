@@ -1,0 +1,455 @@
+"""The shared PPP measurement model (dissertation eqs. 4.1-4.4).
+
+Every PPP estimator (the EKF, the GTSAM batch and incremental graphs) uses the
+same observation preparation and the same prediction, so differences between
+estimators come from the estimators, not from the model.
+
+Model, per satellite ``j`` at one epoch (metres)::
+
+    code_j  = r_j(x) + c dt_r + ZHD m_h(el_j) + ZWD m_w(el_j)            + e
+    phase_j = r_j(x) + c dt_r + ZHD m_h(el_j) + ZWD m_w(el_j) + B_arc(j) + e
+
+``r_j`` is the geometric range with the Earth-rotation (Sagnac) term
+(:func:`simbench.sim.geometry.sagnac_range`), ``ZHD`` the Saastamoinen zenith
+hydrostatic delay at the current position estimate, ``m_h``/``m_w`` the Niell
+mappings, ``ZWD`` the estimated zenith wet delay and ``B`` a float carrier-phase
+bias (metres) per continuous phase arc. The observations are corrected before:
+the product satellite clock is added, and either the ionosphere-free
+combination is formed (dual frequency, eq. 4.1) or the broadcast Klobuchar
+delay is removed (subtracted from code, added to phase).
+
+State order used by :func:`predict`'s Jacobian: ``[x, y, z, clock_m, zwd_m]``
+(ECEF metres, receiver clock times c in metres, zenith wet delay in metres).
+"""
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from simbench.contract import ReceiverData
+from simbench.errors import SimbenchError
+from simbench.sim import atmosphere
+from simbench.sim.constants import (C_LIGHT, DEG, IF_A1, IF_A2, OMEGA_EARTH, SECONDS_PER_WEEK, WGS84_A, WGS84_E2,
+                                    WGS84_F)
+from simbench.sim.geometry import sagnac_range
+
+__all__ = ["PppObservations", "arc_ids", "prepare_ppp", "predict", "predict_given_troposphere",
+           "troposphere_terms", "single_point_solution", "geodetic", "day_of_year", "N_BASE_STATES"]
+
+#: Number of non-ambiguity states in :func:`predict`'s Jacobian: x, y, z, clock, zwd.
+N_BASE_STATES = 5
+
+_REQUIRED = ("epoch", "t", "sat", "code_l1", "phase_l1", "lli_l1", "sat_x", "sat_y", "sat_z", "sat_clock",
+             "el", "az")
+_REQUIRED_L2 = ("code_l2", "phase_l2", "lli_l2")
+#: Interval between the rough single-point positions used for the Klobuchar pierce points [s].
+_ROUGH_POSITION_INTERVAL_S = 60.0
+
+
+# --------------------------------------------------------------------------- small helpers
+
+
+def geodetic(pos: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """ECEF to geodetic latitude, longitude [rad] and ellipsoidal height [m] (Bowring, one step).
+
+    Accurate to well below a millimetre in height for points within ~10 km of
+    the Earth's surface, which is all the troposphere model needs; about 20x
+    faster than :func:`pymap3d.ecef2geodetic` for one point.
+
+    Parameters
+    ----------
+    pos : array_like, shape (..., 3)
+        ECEF position [m].
+    """
+    p3 = np.asarray(pos, dtype=float)
+    x, y, z = p3[..., 0], p3[..., 1], p3[..., 2]
+    b = WGS84_A * (1.0 - WGS84_F)
+    ep2 = WGS84_E2 / (1.0 - WGS84_E2)
+    p = np.hypot(x, y)
+    theta = np.arctan2(z * WGS84_A, p * b)
+    st, ct = np.sin(theta), np.cos(theta)
+    lat = np.arctan2(z + ep2 * b * st**3, p - WGS84_E2 * WGS84_A * ct**3)
+    lon = np.arctan2(y, x)
+    sl, cl = np.sin(lat), np.cos(lat)
+    n = WGS84_A / np.sqrt(1.0 - WGS84_E2 * sl * sl)
+    # p / cos(lat) - N loses precision near the poles; this form does not.
+    h = p * cl + z * sl - WGS84_A * WGS84_A / n
+    return lat, lon, h
+
+
+def day_of_year(gps_week: int, sow_s: float) -> float:
+    """Day of year (1-based, fractional) of a GPS time, as the Niell mapping wants it."""
+    t = np.datetime64("1980-01-06") + np.timedelta64(int(round(gps_week * SECONDS_PER_WEEK + sow_s)), "s")
+    return float((t - t.astype("datetime64[Y]")) / np.timedelta64(1, "D")) + 1.0
+
+
+def _geometry(sat_pos: np.ndarray, rx_pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Range with the Sagnac term and its gradient w.r.t. the receiver position."""
+    d = sat_pos - rx_pos
+    dist = np.sqrt(np.einsum("ij,ij->i", d, d))
+    rng = sagnac_range(sat_pos, rx_pos)
+    grad = -d / dist[:, None]
+    # d/dr of omega (s_x r_y - s_y r_x) / c
+    w = OMEGA_EARTH / C_LIGHT
+    grad[:, 0] -= w * sat_pos[:, 1]
+    grad[:, 1] += w * sat_pos[:, 0]
+    return rng, grad
+
+
+# --------------------------------------------------------------------------- prediction
+
+
+def troposphere_terms(el: np.ndarray, lat: float, h: float, doy: float) -> tuple[np.ndarray, np.ndarray]:
+    """Modelled slant hydrostatic delay ``ZHD m_h`` [m] and wet mapping ``m_w`` [-] per satellite.
+
+    The expensive, position-insensitive part of :func:`predict` (a metre of
+    position changes it by well under a millimetre); estimators that predict
+    several times per epoch compute it once and call :func:`predict_given_troposphere`.
+    """
+    zhd, _ = atmosphere.saastamoinen_zenith_m(lat, h)
+    m_h, m_w = atmosphere.niell_mapping(el, lat, h, doy)
+    return zhd * m_h, m_w
+
+
+def predict_given_troposphere(sat_pos: np.ndarray, rx_pos: np.ndarray, clock_m: float, zwd_m: float,
+                              slant_hydrostatic_m: np.ndarray, m_wet: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`predict` with the troposphere terms of :func:`troposphere_terms` given."""
+    rng, grad = _geometry(sat_pos, rx_pos)
+    H = np.empty((len(rng), N_BASE_STATES))
+    H[:, :3] = grad
+    H[:, 3] = 1.0
+    H[:, 4] = m_wet
+    return rng + clock_m + slant_hydrostatic_m + zwd_m * m_wet, H
+
+
+def predict(sat_pos: np.ndarray, rx_pos: np.ndarray, clock_m: float, zwd_m: float, el: np.ndarray,
+            lat: float, h: float, doy: float) -> tuple[np.ndarray, np.ndarray]:
+    """Predicted code (= phase minus its bias) and Jacobian for one epoch.
+
+    ``prediction = sagnac_range + clock_m + ZHD(lat, h) m_h(el) + zwd_m m_w(el)``.
+
+    Parameters
+    ----------
+    sat_pos : ndarray, shape (k, 3)
+        Satellite ECEF positions at transmit time [m].
+    rx_pos : ndarray, shape (3,)
+        Receiver ECEF position (linearisation point) [m].
+    clock_m : float
+        Receiver clock offset times c [m].
+    zwd_m : float
+        Zenith wet delay [m].
+    el : ndarray, shape (k,)
+        Elevations [rad] (for the mapping functions).
+    lat, h : float
+        Geodetic latitude [rad] and height [m] of the receiver (for the
+        troposphere; held fixed in the Jacobian).
+    doy : float
+        Day of year (Niell seasonal term).
+
+    Returns
+    -------
+    predicted : ndarray, shape (k,)
+        Predicted range including clock and troposphere [m].
+    H : ndarray, shape (k, 5)
+        Partials w.r.t. ``[x, y, z, clock_m, zwd_m]``: ``[-los_unit (+ Sagnac), 1, m_w]``.
+    """
+    return predict_given_troposphere(sat_pos, rx_pos, clock_m, zwd_m, *troposphere_terms(el, lat, h, doy))
+
+
+def single_point_solution(sat_pos: np.ndarray, code: np.ndarray, sigma: np.ndarray | None = None, *,
+                          el: np.ndarray | None = None, doy: float | None = None,
+                          x0: np.ndarray | None = None, iterations: int = 10,
+                          tol_m: float = 1e-4) -> tuple[np.ndarray, float]:
+    """Code-only iterative weighted least squares position and clock of one epoch.
+
+    Starts from ``x0`` (default: the Earth's centre). When ``el`` and ``doy``
+    are given, the hydrostatic troposphere (Saastamoinen + Niell) is modelled
+    once the iterate lies near the Earth's surface; the wet delay is ignored.
+
+    Parameters
+    ----------
+    sat_pos : ndarray, shape (k, 3)
+        Satellite positions at transmit time [m].
+    code : ndarray, shape (k,)
+        Corrected code observations [m] (satellite clock applied, ionosphere
+        removed or combined away).
+    sigma : ndarray, shape (k,), optional
+        Standard deviations [m]; unit weights when omitted.
+    el : ndarray, shape (k,), optional
+        Elevations [rad].
+    doy : float, optional
+        Day of year.
+    x0 : ndarray, shape (3,), optional
+        Initial position [m].
+    iterations : int
+        Maximum Gauss-Newton iterations.
+    tol_m : float
+        Stop when the position step is below this [m].
+
+    Returns
+    -------
+    pos : ndarray, shape (3,)
+        ECEF position [m].
+    clock_m : float
+        Receiver clock times c [m].
+
+    Raises
+    ------
+    SimbenchError
+        With fewer than 4 observations.
+    """
+    k = len(code)
+    if k < 4:
+        raise SimbenchError("observations", f"a single point solution needs 4 satellites, got {k}",
+                            "drop epochs with fewer than 4 satellites (prepare_ppp does)")
+    w = np.ones(k) if sigma is None else 1.0 / np.asarray(sigma, dtype=float)
+    pos = np.zeros(3) if x0 is None else np.array(x0, dtype=float)
+    clock = 0.0
+    A = np.empty((k, 4))
+    A[:, 3] = 1.0
+    for _ in range(iterations):
+        rng, grad = _geometry(sat_pos, pos)
+        model = rng + clock
+        if el is not None and doy is not None:
+            lat, _, h = geodetic(pos)
+            if -1_000.0 < h < 50_000.0:
+                model = model + troposphere_terms(el, lat, h, doy)[0]
+        A[:, :3] = grad
+        dx, *_ = np.linalg.lstsq(A * w[:, None], (code - model) * w, rcond=None)
+        pos += dx[:3]
+        clock += dx[3]
+        if np.linalg.norm(dx[:3]) < tol_m:
+            break
+    return pos, float(clock)
+
+
+# --------------------------------------------------------------------------- arcs
+
+
+def arc_ids(obs: pd.DataFrame, max_gap_epochs: int = 1, *, use_l2: bool = False) -> np.ndarray:
+    """Identify continuous carrier-phase arcs.
+
+    A new arc starts at a satellite's first row, where the epoch index jumps by
+    more than ``max_gap_epochs`` since the satellite's previous row (1: every
+    epoch must be present), and where the loss-of-lock flag is set
+    (``lli_l1``, or ``lli_l1 | lli_l2`` with ``use_l2``).
+
+    Parameters
+    ----------
+    obs : pandas.DataFrame
+        Observation rows with ``epoch``, ``sat``, ``lli_l1`` (and ``lli_l2``), any order.
+    max_gap_epochs : int
+        Largest epoch step within one arc.
+    use_l2 : bool
+        Also break arcs at L2 loss of lock (dual-frequency processing).
+
+    Returns
+    -------
+    numpy.ndarray of int64, shape (len(obs),)
+        Arc id per row, numbered 0.. in order of arc start (epoch, then satellite).
+    """
+    n = len(obs)
+    if n == 0:
+        return np.zeros(0, np.int64)
+    epoch = obs["epoch"].to_numpy(np.int64)
+    _, sat_code = np.unique(obs["sat"].to_numpy(), return_inverse=True)
+    lli = obs["lli_l1"].fillna(False).to_numpy(bool)
+    if use_l2 and "lli_l2" in obs:
+        lli = lli | obs["lli_l2"].fillna(False).to_numpy(bool)
+    order = np.lexsort((epoch, sat_code))  # by satellite, then epoch
+    e, s = epoch[order], sat_code[order]
+    new = lli[order].copy()
+    new[0] = True
+    new[1:] |= (s[1:] != s[:-1]) | (np.diff(e) > max_gap_epochs)
+    run = np.cumsum(new) - 1
+    # renumber the arcs by (start epoch, satellite)
+    rank = np.lexsort((s[new], e[new]))
+    remap = np.empty_like(rank)
+    remap[rank] = np.arange(len(rank))
+    out = np.empty(n, np.int64)
+    out[order] = remap[run]
+    return out
+
+
+# --------------------------------------------------------------------------- preparation
+
+
+@dataclass(frozen=True)
+class PppObservations:
+    """Usable, corrected observations as flat arrays sorted by (epoch, satellite).
+
+    Row arrays have shape (N,); per-epoch arrays shape (n_epochs,). Rows of
+    solved epoch ``k`` are ``slice(epoch_start[k], epoch_stop[k])``
+    (:meth:`epoch_slice`, :meth:`iter_epochs`).
+    """
+
+    epoch: np.ndarray  #: int, GNSS epoch index of each row
+    t: np.ndarray  #: s, time since scenario start
+    sat: np.ndarray  #: str, satellite id
+    sat_index: np.ndarray  #: int, index into ``sat_names``
+    sat_pos: np.ndarray  #: m, (N, 3) satellite ECEF position at transmit time
+    code: np.ndarray  #: m, corrected code (sat clock applied; Klobuchar removed or IF)
+    phase: np.ndarray  #: m, corrected phase (same corrections; contains the arc bias)
+    el: np.ndarray  #: rad, elevation
+    az: np.ndarray  #: rad, azimuth
+    arc: np.ndarray  #: int, phase arc id 0..n_arcs-1, numbered in order of arc start
+    sigma_code: np.ndarray  #: m, code sigma / sin(el)
+    sigma_phase: np.ndarray  #: m, phase sigma / sin(el)
+    epoch_ids: np.ndarray  #: int, (n_epochs,) GNSS epoch index of each solved epoch
+    epoch_t: np.ndarray  #: s, (n_epochs,) time of each solved epoch
+    epoch_start: np.ndarray  #: int, (n_epochs,) first row of each solved epoch
+    epoch_stop: np.ndarray  #: int, (n_epochs,) one past the last row
+    sat_names: tuple[str, ...]  #: satellites appearing in the rows, sorted
+    n_arcs: int  #: number of distinct arcs among the rows
+    ionosphere_free: bool  #: IF combination (True) or L1 with Klobuchar (False)
+    doy: float  #: day of year of the scenario start (Niell)
+
+    @property
+    def n_epochs(self) -> int:
+        return len(self.epoch_ids)
+
+    @property
+    def n_obs(self) -> int:
+        return len(self.code)
+
+    def epoch_slice(self, k: int) -> slice:
+        """Rows of the ``k``-th solved epoch (not GNSS epoch index ``k``)."""
+        return slice(int(self.epoch_start[k]), int(self.epoch_stop[k]))
+
+    def iter_epochs(self) -> Iterator[tuple[int, slice]]:
+        """Yield ``(k, rows)`` for every solved epoch in time order."""
+        for k, (a, b) in enumerate(zip(self.epoch_start.tolist(), self.epoch_stop.tolist())):
+            yield k, slice(a, b)
+
+
+def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: float, phase_sigma_m: float,
+                elevation_mask_deg: float, min_satellites: int = 4, max_gap_epochs: int = 1) -> PppObservations:
+    """Select, correct and weight the observations for PPP.
+
+    Rows with missing values in the columns used, or below the elevation mask,
+    are dropped; then epochs with fewer than ``min_satellites`` rows. Phase
+    arcs are identified on all rows with valid observables (before the mask and
+    the epoch selection: a satellite that dips under the mask while the
+    receiver keeps lock keeps its arc).
+
+    Parameters
+    ----------
+    data : ReceiverData
+    ionosphere_free : bool
+        Form the L1/L2 ionosphere-free combination (needs dual-frequency data);
+        otherwise use L1 with the broadcast Klobuchar delay removed.
+    code_sigma_m, phase_sigma_m : float
+        Zenith standard deviations [m] of the (combined) code and phase; scaled by 1/sin(el).
+    elevation_mask_deg : float
+        Elevation mask [deg].
+    min_satellites : int
+        Epochs with fewer usable satellites are dropped.
+    max_gap_epochs : int
+        See :func:`arc_ids`.
+
+    Raises
+    ------
+    SimbenchError
+        Missing columns, ionosphere-free requested on single-frequency data,
+        bad sigmas, or no epoch with enough satellites.
+    """
+    obs = data.observations
+    need = _REQUIRED + (_REQUIRED_L2 if ionosphere_free else ())
+    missing = [c for c in need if c not in obs.columns]
+    if missing:
+        raise SimbenchError("observations", f"missing columns {missing}",
+                            "give an observation table with the columns of simbench.contract.OBSERVATION_COLUMNS")
+    if ionosphere_free and not (data.nav.dual_frequency and obs["code_l2"].notna().any()):
+        raise SimbenchError("ionosphere_free", "requested, but the data are single-frequency (no L2)",
+                            "set ionosphere_free=false, or simulate with scenario.dual_frequency=true")
+    for name, value in (("code_sigma_m", code_sigma_m), ("phase_sigma_m", phase_sigma_m)):
+        if not value > 0:
+            raise SimbenchError(name, f"must be positive, got {value}", "give a standard deviation in metres")
+    if min_satellites < 4:
+        raise SimbenchError("min_satellites", f"must be at least 4, got {min_satellites}",
+                            "4 unknowns (position, clock) need 4 satellites")
+
+    cols = ["code_l1", "phase_l1", "sat_x", "sat_y", "sat_z", "sat_clock", "el", "az", "t"]
+    if ionosphere_free:
+        cols += ["code_l2", "phase_l2"]
+    valid = np.isfinite(obs[cols].to_numpy(float)).all(axis=1)
+    obs = obs.loc[valid]
+    arc = arc_ids(obs, max_gap_epochs, use_l2=ionosphere_free)
+
+    el = obs["el"].to_numpy(float) * DEG
+    keep = el > elevation_mask_deg * DEG
+    epoch = obs["epoch"].to_numpy(np.int64)
+    if len(epoch):
+        counts = np.bincount(epoch[keep], minlength=int(epoch.max()) + 1)
+        keep &= counts[epoch] >= min_satellites
+    if not keep.any():
+        raise SimbenchError("observations",
+                            f"no epoch has {min_satellites} satellites above the {elevation_mask_deg} deg mask",
+                            "lower elevation_mask_deg, or check the scenario (open sky, duration)")
+
+    sat = obs["sat"].to_numpy()[keep]
+    epoch = epoch[keep]
+    order = np.lexsort((sat, epoch))
+    sel = np.flatnonzero(keep)[order]
+    sub = obs.iloc[sel]
+    sat, epoch, el, arc = sat[order], epoch[order], el[keep][order], arc[keep][order]
+    t = sub["t"].to_numpy(float)
+    az = sub["az"].to_numpy(float) * DEG
+    sat_pos = sub[["sat_x", "sat_y", "sat_z"]].to_numpy(float)
+    sat_clock = sub["sat_clock"].to_numpy(float)
+    doy = day_of_year(data.nav.gps_week, data.nav.start_sow_s)
+
+    if ionosphere_free:
+        code = IF_A1 * sub["code_l1"].to_numpy(float) - IF_A2 * sub["code_l2"].to_numpy(float) + sat_clock
+        phase = IF_A1 * sub["phase_l1"].to_numpy(float) - IF_A2 * sub["phase_l2"].to_numpy(float) + sat_clock
+    else:
+        code = sub["code_l1"].to_numpy(float) + sat_clock
+        phase = sub["phase_l1"].to_numpy(float) + sat_clock
+
+    epoch_ids, epoch_start, n_per = np.unique(epoch, return_index=True, return_counts=True)
+    epoch_stop = epoch_start + n_per
+    sigma_scale = 1.0 / np.sin(el)
+
+    if not ionosphere_free:
+        lat, lon = _rough_lat_lon(sat_pos, code, sigma_scale, el, doy, t, epoch_start, epoch_stop)
+        iono = atmosphere.klobuchar_l1_delay_m(data.nav.start_sow_s + t, lat, lon, el, az,
+                                               np.asarray(data.nav.iono_alpha), np.asarray(data.nav.iono_beta))
+        code = code - iono
+        phase = phase + iono
+
+    sat_names, sat_index = np.unique(sat, return_inverse=True)
+    _, arc = np.unique(arc, return_inverse=True)  # monotone: keeps the start order
+    return PppObservations(
+        epoch=epoch, t=t, sat=sat, sat_index=sat_index.astype(np.int64), sat_pos=sat_pos, code=code,
+        phase=phase, el=el, az=az, arc=arc.astype(np.int64), sigma_code=code_sigma_m * sigma_scale,
+        sigma_phase=phase_sigma_m * sigma_scale, epoch_ids=epoch_ids, epoch_t=t[epoch_start],
+        epoch_start=epoch_start, epoch_stop=epoch_stop, sat_names=tuple(str(s) for s in sat_names),
+        n_arcs=int(arc.max()) + 1, ionosphere_free=ionosphere_free, doy=doy)
+
+
+def _rough_lat_lon(sat_pos: np.ndarray, code: np.ndarray, sigma: np.ndarray, el: np.ndarray, doy: float,
+                   t: np.ndarray, start: np.ndarray, stop: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Receiver latitude/longitude per row for the Klobuchar pierce points.
+
+    Single point solutions every ~60 s (each epoch takes the latest one before
+    it, the first one before that); the Klobuchar delay changes by far less
+    than a centimetre over the kilometres a receiver moves in a minute.
+    """
+    t_epoch = t[start]
+    n = len(start)
+    solve_at = np.unique(np.searchsorted(t_epoch, np.arange(t_epoch[0], t_epoch[-1] + 1e-9,
+                                                            _ROUGH_POSITION_INTERVAL_S)))
+    solve_at = solve_at[solve_at < n]
+    lats, lons = np.empty(len(solve_at)), np.empty(len(solve_at))
+    x0 = None
+    for i, k in enumerate(solve_at):
+        rows = slice(start[k], stop[k])
+        pos, _ = single_point_solution(sat_pos[rows], code[rows], sigma[rows], el=el[rows], doy=doy, x0=x0)
+        x0 = pos
+        lats[i], lons[i], _ = geodetic(pos)
+    which = np.maximum(np.searchsorted(solve_at, np.arange(n), side="right") - 1, 0)
+    per_row = np.repeat(which, stop - start)
+    return lats[per_row], lons[per_row]

@@ -1,0 +1,45 @@
+"""simbench: simulation-and-benchmark harness for robust GNSS and GNSS/INS estimation.
+
+The notebook entry point is :func:`simulate`; the command line is
+``python -m simbench`` (a Hydra app, configs in the repository's ``conf/``).
+"""
+from __future__ import annotations
+
+from typing import Any
+
+from simbench.contract import NavInfo, ReceiverData, Scenario
+from simbench.errors import SimbenchError
+
+__all__ = ["simulate", "Scenario", "ReceiverData", "NavInfo", "SimbenchError"]
+
+
+def simulate(scenario: str = "urban", receiver: str = "low", seed: int = 0, imu: str = "consumer",
+             **overrides: Any) -> Scenario:
+    """Generate a scenario from the presets in ``conf/``.
+
+    Parameters
+    ----------
+    scenario : str
+        A file name in ``conf/scenario/`` (``urban``, ``open_sky``, ``flight``, ``replay``).
+    receiver : str
+        A tracking preset in ``conf/receiver/`` (``low``, ``high``, ``geodetic``).
+    seed : int
+        Random seed; the scenario is a deterministic function of config and seed.
+    imu : str
+        IMU grade in ``conf/imu/`` (``consumer``, ``industrial``, ``tactical``).
+    **overrides
+        Dotted config keys, e.g. ``**{"scenario.duration_s": 60}``, or with
+        ``__`` for dots: ``scenario__duration_s=60``.
+
+    Returns
+    -------
+    Scenario
+    """
+    from simbench.compose import compose_config, overrides_from_kwargs
+    from simbench.config import SimConfig, to_typed
+    from simbench.sim.generator import generate
+
+    cfg = compose_config([f"scenario={scenario}", f"receiver={receiver}", f"imu={imu}", f"seed={seed}",
+                          *overrides_from_kwargs(overrides)])
+    sim = to_typed({k: cfg[k] for k in ("scenario", "receiver", "imu", "seed")}, SimConfig, "config")
+    return generate(sim)

@@ -1,0 +1,305 @@
+"""Typed configuration schema.
+
+Hydra composes YAML from ``conf/``; :func:`to_typed` merges the result into
+these dataclasses, so code reads attributes with known types and units, and a
+malformed value fails early with a one-line :class:`~simbench.errors.SimbenchError`.
+Units are in the field names or in the comments.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, TypeVar
+
+from omegaconf import DictConfig, OmegaConf
+from omegaconf.errors import OmegaConfBaseException
+
+from simbench.errors import SimbenchError
+
+# --------------------------------------------------------------------------- trajectory
+
+
+@dataclass
+class UrbanDriveConfig:
+    """A drive on a rectangular street grid with stops at intersections."""
+
+    block_length_m: float = 120.0  #: distance between intersections
+    n_blocks_east: int = 4  #: grid size (blocks) east-west
+    n_blocks_north: int = 4  #: grid size (blocks) north-south
+    cruise_speed_mps: float = 10.0
+    turn_speed_mps: float = 4.0
+    max_accel_mps2: float = 1.5
+    turn_radius_m: float = 8.0
+    stop_probability: float = 0.3  #: chance to stop at an intersection
+    stop_duration_s: tuple[float, float] = (5.0, 30.0)  #: uniform range of a stop
+    start_static_s: float = 30.0  #: standing still before driving (alignment)
+
+
+@dataclass
+class FlightConfig:
+    """A small fixed-wing UAV: take-off climb, banked loiter turns, figure eights."""
+
+    airspeed_mps: float = 22.0
+    cruise_altitude_m: float = 120.0  #: above the origin
+    climb_rate_mps: float = 3.0
+    turn_radius_m: float = 150.0  #: loiter radius; bank = atan(v^2 / (g R))
+    leg_length_m: float = 600.0
+    start_static_s: float = 30.0
+
+
+@dataclass
+class ReplayConfig:
+    """Replay of a recorded trajectory file (``SOW X Y Z``, ECEF metres)."""
+
+    path: str = ""
+    gps_week: int = 2032
+    max_gap_s: float = 2.0  #: gaps longer than this are not interpolated (no epochs there)
+
+
+@dataclass
+class TrajectoryConfig:
+    kind: str = "urban_drive"  #: urban_drive | flight | replay
+    origin_lat_deg: float = 39.6295  #: Morgantown, WV
+    origin_lon_deg: float = -79.9559
+    origin_h_m: float = 290.0
+    urban_drive: UrbanDriveConfig = field(default_factory=UrbanDriveConfig)
+    flight: FlightConfig = field(default_factory=FlightConfig)
+    replay: ReplayConfig = field(default_factory=ReplayConfig)
+
+
+# --------------------------------------------------------------------------- sky
+
+
+@dataclass
+class ConstellationConfig:
+    kind: str = "nominal"  #: nominal (GPS 24-slot, no files) | broadcast (RINEX nav file)
+    nav_path: str = ""  #: RINEX 2/3 GPS navigation file, for kind=broadcast
+    elevation_mask_deg: float = 7.0
+    #: Klobuchar coefficients handed to the receiver with the nominal constellation
+    #: (those of ``wvu_drives/brdc.18n``); broadcast files bring their own.
+    iono_alpha: tuple[float, float, float, float] = (8.382e-09, -1.490e-08, -5.960e-08, 1.192e-07)
+    iono_beta: tuple[float, float, float, float] = (9.421e04, -1.311e05, -1.311e05, 8.520e05)
+
+
+# --------------------------------------------------------------------------- errors
+
+
+@dataclass
+class ReceiverClockConfig:
+    enabled: bool = True
+    bias0_sigma_s: float = 30e-9  #: Table 4.4.1
+    drift0_sigma_sps: float = 1e-7  #: initial frequency offset (100 ppb, TCXO)
+    h0: float = 2e-19  #: white frequency noise (Allan h0) [s]
+    h_2: float = 2e-20  #: random-walk frequency noise (Allan h-2) [1/s]
+
+
+@dataclass
+class TroposphereConfig:
+    enabled: bool = True
+    #: true zenith wet delay = Saastamoinen wet value * scale, scale ~ N(1, sigma)
+    wet_scale_sigma: float = 0.3
+    wet_rw_mps: float = 3e-5  #: random walk of the zenith wet delay [m/sqrt(s)]
+
+
+@dataclass
+class IonosphereConfig:
+    enabled: bool = True
+    #: true delay = Klobuchar * scale (scale ~ N(1, sigma), per scenario) + per-satellite GM
+    scale_sigma: float = 0.3
+    residual_sigma_m: float = 0.5  #: per-satellite L1 zenith-equivalent residual
+    residual_tau_s: float = 1800.0
+
+
+@dataclass
+class OrbitClockErrorConfig:
+    """Error of the orbit/clock product handed to the receiver (truth minus product)."""
+
+    enabled: bool = True
+    orbit_sigma_m: float = 0.05  #: per axis
+    clock_sigma_m: float = 0.05
+    tau_s: float = 3600.0
+
+
+@dataclass
+class MultipathConfig:
+    enabled: bool = True
+    code_sigma_m: float = 0.4  #: Gauss-Markov std (elevation-independent model)
+    tau_s: float = 15.0
+    elevation_dependent: bool = False  #: sigma = a + b exp(-el / c)
+    el_a_m: float = 0.47
+    el_b_m: float = 0.78
+    el_c_deg: float = 20.9
+    phase_sigma_m: float = 0.003  #: carrier multipath (mm-level)
+
+
+@dataclass
+class NlosConfig:
+    """Street canyon: buildings along the road mask LOS; reflections arrive late."""
+
+    enabled: bool = True
+    building_height_m: tuple[float, float] = (10.0, 40.0)  #: uniform per block side
+    wall_distance_m: tuple[float, float] = (8.0, 20.0)  #: road centre to facade
+    open_fraction: float = 0.2  #: fraction of block sides with no building
+    reflection_probability: float = 0.5  #: masked satellite received via a reflection
+    reflection_loss_db: float = 8.0  #: C/N0 loss of a reflected-only signal
+
+
+@dataclass
+class AttitudeMaskingConfig:
+    enabled: bool = True
+    #: satellites further than this from the antenna boresight are not tracked
+    max_off_boresight_deg: float = 95.0
+
+
+@dataclass
+class CycleSlipConfig:
+    enabled: bool = True
+    cn0_threshold_dbhz: float = 35.0
+    low_cn0_probability: float = 0.2  #: per epoch below the threshold
+    pll_jitter_threshold_deg: float = 15.0
+    rate_per_s: float = 1e-4  #: random slips on healthy channels (Poisson)
+    flagged_fraction: float = 0.9  #: slips the receiver flags with LLI
+    max_jump_cycles: int = 20
+
+
+@dataclass
+class Cn0Config:
+    received_power_dbw: float = -158.5
+    constant_db: float = 201.0  #: -N0 minus implementation losses [dB]
+    noise_db: float = 1.0  #: white N(0, sigma) per epoch
+    fade_sigma_db: float = 1.0  #: slow Gauss-Markov fading per satellite
+    fade_tau_s: float = 10.0
+
+
+@dataclass
+class ErrorsConfig:
+    receiver_clock: ReceiverClockConfig = field(default_factory=ReceiverClockConfig)
+    troposphere: TroposphereConfig = field(default_factory=TroposphereConfig)
+    ionosphere: IonosphereConfig = field(default_factory=IonosphereConfig)
+    orbit_clock: OrbitClockErrorConfig = field(default_factory=OrbitClockErrorConfig)
+    multipath: MultipathConfig = field(default_factory=MultipathConfig)
+    nlos: NlosConfig = field(default_factory=NlosConfig)
+    attitude_masking: AttitudeMaskingConfig = field(default_factory=AttitudeMaskingConfig)
+    cycle_slips: CycleSlipConfig = field(default_factory=CycleSlipConfig)
+    cn0: Cn0Config = field(default_factory=Cn0Config)
+    tracking_noise: bool = True  #: DLL/PLL thermal jitter
+
+
+# --------------------------------------------------------------------------- scenario
+
+
+@dataclass
+class ScenarioConfig:
+    name: str = "urban"
+    duration_s: float = 600.0
+    rate_hz: float = 1.0  #: GNSS epoch rate
+    gps_week: int = 2032
+    start_sow_s: float = 475_200.0  #: 2018-12-21 12:00 GPST
+    dual_frequency: bool = False  #: also generate L2 code and phase
+    trajectory: TrajectoryConfig = field(default_factory=TrajectoryConfig)
+    constellation: ConstellationConfig = field(default_factory=ConstellationConfig)
+    errors: ErrorsConfig = field(default_factory=ErrorsConfig)
+
+
+@dataclass
+class ReceiverConfig:
+    """Tracking-loop preset (dissertation Table 5.3.1)."""
+
+    name: str = "low"
+    sampling_mhz: float = 4.092
+    front_end_bw_mhz: float = 4.092  #: double-sided
+    correlator_spacing_chips: float = 0.5
+    dll_bw_hz: float = 2.0
+    pll_bw_hz: float = 50.0
+    integration_s: float = 0.001
+    doppler_sigma_hz: float = 0.5  #: at the reference C/N0, scales as 10^((ref - C/N0)/20)
+    doppler_ref_cn0_dbhz: float = 45.0
+
+
+@dataclass
+class ImuConfig:
+    """IMU grade (Groves, Table 4.1 ranges). Noise densities per sqrt(Hz)."""
+
+    grade: str = "consumer"
+    rate_hz: float = 100.0
+    accel_bias_sigma_mps2: float = 0.1  #: turn-on bias, per axis
+    gyro_bias_sigma_dph: float = 100.0  #: turn-on bias [deg/h]
+    accel_noise_mps2_rthz: float = 2e-3  #: velocity random walk density
+    gyro_noise_dph_rthz: float = 60.0  #: angle random walk density [deg/h/sqrt(Hz)] (=1 deg/sqrt(h))
+    accel_bias_instability_mps2: float = 1e-3  #: Gauss-Markov bias drift std
+    gyro_bias_instability_dph: float = 10.0
+    bias_tau_s: float = 300.0
+
+
+@dataclass
+class SimConfig:
+    """What :func:`simbench.simulate` needs: a scenario, a receiver, an IMU and a seed."""
+
+    scenario: ScenarioConfig = field(default_factory=ScenarioConfig)
+    receiver: ReceiverConfig = field(default_factory=ReceiverConfig)
+    imu: ImuConfig = field(default_factory=ImuConfig)
+    seed: int = 0
+
+
+T = TypeVar("T")
+
+
+def to_typed(cfg: DictConfig | dict[str, Any], schema: type[T], where: str = "config") -> T:
+    """Merge a (Hydra) config into a dataclass schema and return the typed object.
+
+    Parameters
+    ----------
+    cfg : DictConfig or dict
+        Composed configuration; unknown keys are rejected.
+    schema : type
+        Dataclass to validate against.
+    where : str
+        Name of the config node, used in error messages.
+
+    Raises
+    ------
+    SimbenchError
+        With the full key of the first malformed value.
+    """
+    try:
+        merged = OmegaConf.merge(OmegaConf.structured(schema), cfg)
+        return OmegaConf.to_object(merged)  # type: ignore[return-value]
+    except OmegaConfBaseException as exc:
+        key = getattr(exc, "full_key", None) or where
+        msg = str(exc).splitlines()[0]
+        raise SimbenchError(f"{where}.{key}" if where not in str(key) else str(key), msg,
+                            "check the value and its type in conf/ or on the command line") from None
+
+
+def validate_sim(cfg: SimConfig) -> SimConfig:
+    """Check value ranges that the type system cannot (rates, durations, names)."""
+    s = cfg.scenario
+    if s.duration_s <= 0:
+        raise SimbenchError("scenario.duration_s", f"must be positive, got {s.duration_s}",
+                            "give the scenario length in seconds, e.g. scenario.duration_s=600")
+    if s.rate_hz <= 0:
+        raise SimbenchError("scenario.rate_hz", f"must be positive, got {s.rate_hz}",
+                            "give the GNSS epoch rate in Hz, e.g. scenario.rate_hz=1")
+    if not 100.0 <= cfg.imu.rate_hz <= 1000.0:
+        raise SimbenchError("imu.rate_hz", f"must be within 100..1000 Hz, got {cfg.imu.rate_hz}",
+                            "set e.g. imu.rate_hz=100")
+    if s.trajectory.kind not in ("urban_drive", "flight", "replay"):
+        raise SimbenchError("scenario.trajectory.kind", f"unknown kind '{s.trajectory.kind}'",
+                            "use urban_drive, flight or replay")
+    if s.constellation.kind not in ("nominal", "broadcast"):
+        raise SimbenchError("scenario.constellation.kind", f"unknown kind '{s.constellation.kind}'",
+                            "use nominal or broadcast")
+    if s.trajectory.kind == "replay" and not s.trajectory.replay.path:
+        raise SimbenchError("scenario.trajectory.replay.path", "no trajectory file given",
+                            "set it to a 'SOW X Y Z' file, e.g. ../shared/data/wvu_drives/drive_1.xyz")
+    if s.constellation.kind == "broadcast" and not s.constellation.nav_path:
+        raise SimbenchError("scenario.constellation.nav_path", "no navigation file given",
+                            "set it to a RINEX GPS navigation file, e.g. ../shared/data/wvu_drives/brdc.18n")
+    for name, value in (("receiver.dll_bw_hz", cfg.receiver.dll_bw_hz),
+                        ("receiver.pll_bw_hz", cfg.receiver.pll_bw_hz),
+                        ("receiver.front_end_bw_mhz", cfg.receiver.front_end_bw_mhz),
+                        ("receiver.correlator_spacing_chips", cfg.receiver.correlator_spacing_chips),
+                        ("receiver.integration_s", cfg.receiver.integration_s)):
+        if value <= 0:
+            raise SimbenchError(name, f"must be positive, got {value}", "see conf/receiver/ for presets")
+    return cfg
+

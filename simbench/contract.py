@@ -1,0 +1,243 @@
+"""The data contract between generator, estimators and metrics.
+
+A :class:`Scenario` holds four tables. Two of them are what a receiver gives an
+estimator (:class:`ReceiverData`): the observation table and the IMU table.
+The other two are truth: the trajectory and the per-observation error labels.
+Estimators only ever receive :class:`ReceiverData`; the runner hands labels
+only to estimators that declare ``uses_labels`` (the oracle).
+
+Every column, its unit and its meaning is listed in the ``*_COLUMNS`` dicts
+below; README's column table is generated from the same dicts.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from simbench.errors import SimbenchError
+
+#: Observation table, one row per (epoch, satellite) that the receiver tracks.
+OBSERVATION_COLUMNS: dict[str, str] = {
+    "epoch": "int, GNSS epoch index (0-based)",
+    "t": "s, receive time since scenario start (GPS time scale)",
+    "sat": "str, satellite id, e.g. 'G05'",
+    "code_l1": "m, L1 C/A pseudorange",
+    "phase_l1": "m, L1 carrier phase (cycles times wavelength; contains an integer ambiguity)",
+    "doppler_l1": "Hz, L1 Doppler (positive for an approaching satellite)",
+    "cn0_l1": "dB-Hz, L1 carrier-to-noise density",
+    "lli_l1": "bool, loss-of-lock indicator: the receiver flags a possible slip since the last epoch",
+    "code_l2": "m, L2 pseudorange (NaN when single-frequency)",
+    "phase_l2": "m, L2 carrier phase (NaN when single-frequency)",
+    "lli_l2": "bool, L2 loss-of-lock indicator",
+    "sat_x": "m, satellite ECEF x at transmit time, Earth-fixed frame of transmit time (product)",
+    "sat_y": "m, satellite ECEF y (as sat_x)",
+    "sat_z": "m, satellite ECEF z (as sat_x)",
+    "sat_vx": "m/s, satellite ECEF velocity x",
+    "sat_vy": "m/s, satellite ECEF velocity y",
+    "sat_vz": "m/s, satellite ECEF velocity z",
+    "sat_clock": "m, satellite clock offset times c (product, relativistic term included; add to code)",
+    "sat_clock_drift": "m/s, satellite clock drift times c",
+    "el": "deg, elevation from the receiver's approximate position",
+    "az": "deg, azimuth clockwise from north",
+}
+
+#: IMU table, one row per IMU sample; body axes x forward, y right, z down.
+IMU_COLUMNS: dict[str, str] = {
+    "t": "s, sample time since scenario start",
+    "ax": "m/s^2, specific force along body x", "ay": "m/s^2, specific force along body y",
+    "az": "m/s^2, specific force along body z",
+    "gx": "rad/s, angular rate about body x (w.r.t. inertial space)",
+    "gy": "rad/s, angular rate about body y", "gz": "rad/s, angular rate about body z",
+}
+
+#: Truth trajectory, one row per GNSS epoch.
+TRUTH_COLUMNS: dict[str, str] = {
+    "epoch": "int, GNSS epoch index", "t": "s, time since scenario start",
+    "x": "m, antenna ECEF x", "y": "m, antenna ECEF y", "z": "m, antenna ECEF z",
+    "vx": "m/s, ECEF velocity x", "vy": "m/s, ECEF velocity y", "vz": "m/s, ECEF velocity z",
+    "roll": "rad, body roll w.r.t. local NED", "pitch": "rad, body pitch", "yaw": "rad, heading from north",
+    "rx_clock": "m, true receiver clock offset times c",
+    "zwd": "m, true zenith wet delay",
+    "n_visible": "int, satellites above the elevation mask before any masking",
+}
+
+#: Error labels, one row per observation row (same order, same epoch and sat).
+LABEL_COLUMNS: dict[str, str] = {
+    "epoch": "int, GNSS epoch index", "sat": "str, satellite id",
+    "sigma_code_l1": "m, true DLL tracking jitter std of this observation",
+    "sigma_phase_l1": "m, true PLL tracking jitter std",
+    "multipath_code_l1": "m, true code multipath error",
+    "multipath_phase_l1": "m, true carrier multipath error",
+    "nlos": "bool, reflected-only (non-line-of-sight) reception",
+    "nlos_delay": "m, extra path length of the NLOS reception (0 if LOS)",
+    "iono_l1": "m, true slant ionospheric delay on L1 (code +, phase -)",
+    "tropo": "m, true slant tropospheric delay",
+    "orbit_clock_error": "m, line-of-sight projection of (true - product) orbit plus clock error",
+    "ambiguity_l1": "cycles, true integer L1 ambiguity",
+    "ambiguity_l2": "cycles, true integer L2 ambiguity (0 when single-frequency)",
+    "slip": "bool, a true cycle slip happened at this epoch",
+    "noise_code_l1": "m, the thermal noise sample added to the code",
+    "noise_phase_l1": "m, the thermal noise sample added to the phase",
+}
+
+RECEIVER_COLUMNS = frozenset(OBSERVATION_COLUMNS) | frozenset(IMU_COLUMNS)
+TRUTH_ONLY_COLUMNS = (frozenset(TRUTH_COLUMNS) | frozenset(LABEL_COLUMNS)) - frozenset(OBSERVATION_COLUMNS)
+
+
+@dataclass(frozen=True)
+class NavInfo:
+    """Broadcast information a receiver decodes besides the observables.
+
+    Attributes
+    ----------
+    gps_week : int
+        GPS week of the scenario start.
+    start_sow_s : float
+        GPS seconds of week at ``t = 0`` [s].
+    iono_alpha, iono_beta : tuple of 4 float
+        Klobuchar coefficients (IS-GPS-200 units).
+    dual_frequency : bool
+        Whether L2 observables are present.
+    """
+
+    gps_week: int
+    start_sow_s: float
+    iono_alpha: tuple[float, ...]
+    iono_beta: tuple[float, ...]
+    dual_frequency: bool
+
+
+@dataclass(frozen=True)
+class ReceiverData:
+    """Everything an estimator may see: observations, IMU and navigation info."""
+
+    observations: pd.DataFrame
+    imu: pd.DataFrame
+    nav: NavInfo
+
+    def __post_init__(self) -> None:
+        leaked = (set(self.observations.columns) | set(self.imu.columns)) - RECEIVER_COLUMNS
+        if leaked:
+            raise ValueError(f"receiver data carries non-receiver columns {sorted(leaked)}")
+
+    @property
+    def epoch_times(self) -> np.ndarray:
+        """Receive time of each epoch index 0..n-1 [s]; NaN for epochs with no observation."""
+        obs = self.observations
+        n = int(obs["epoch"].max()) + 1 if len(obs) else 0
+        out = np.full(n, np.nan)
+        out[obs["epoch"].to_numpy()] = obs["t"].to_numpy()
+        return out
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A generated (or ingested) scenario: receiver view plus truth.
+
+    Attributes
+    ----------
+    observations, imu : pandas.DataFrame
+        Receiver view, columns :data:`OBSERVATION_COLUMNS`, :data:`IMU_COLUMNS`.
+    truth : pandas.DataFrame
+        Per-epoch truth, :data:`TRUTH_COLUMNS`.
+    labels : pandas.DataFrame or None
+        Per-observation error labels, :data:`LABEL_COLUMNS`, row-aligned with
+        ``observations``; None for real data.
+    nav : NavInfo
+    meta : dict
+        ``name``, ``seed``, ``config`` (the resolved simulation config as a
+        plain dict) and anything else worth keeping with the data.
+    """
+
+    observations: pd.DataFrame
+    imu: pd.DataFrame
+    truth: pd.DataFrame
+    labels: pd.DataFrame | None
+    nav: NavInfo
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    def receiver_view(self) -> ReceiverData:
+        """What an estimator receives: no truth and no labels."""
+        return ReceiverData(self.observations, self.imu, self.nav)
+
+    @property
+    def n_epochs(self) -> int:
+        return len(self.truth)
+
+    # ------------------------------------------------------------------ Parquet I/O
+
+    def save(self, directory: str | Path) -> Path:
+        """Write the four tables as Parquet files into ``directory`` (atomic per file).
+
+        The nav info and ``meta`` go into each file's key-value metadata under
+        ``simbench.scenario``.
+        """
+        out = Path(directory)
+        out.mkdir(parents=True, exist_ok=True)
+        meta = {"nav": self.nav.__dict__, "meta": self.meta}
+        for name in ("observations", "imu", "truth", "labels"):
+            table = getattr(self, name)
+            if table is not None:
+                write_parquet(table, out / f"{name}.parquet", {"simbench.scenario": meta})
+        return out
+
+    @classmethod
+    def load(cls, directory: str | Path) -> "Scenario":
+        """Read a scenario written by :meth:`save`."""
+        src = Path(directory)
+        if not (src / "observations.parquet").is_file():
+            raise SimbenchError("scenario", f"no observations.parquet in {src}",
+                                "point to a directory written by Scenario.save")
+        tables = {n: pd.read_parquet(src / f"{n}.parquet") if (src / f"{n}.parquet").is_file() else None
+                  for n in ("observations", "imu", "truth", "labels")}
+        meta = read_parquet_metadata(src / "observations.parquet")["simbench.scenario"]
+        nav = meta["nav"]
+        nav = NavInfo(**{**nav, "iono_alpha": tuple(nav["iono_alpha"]), "iono_beta": tuple(nav["iono_beta"])})
+        return cls(tables["observations"], tables["imu"], tables["truth"], tables["labels"], nav, meta["meta"])
+
+
+def write_parquet(df: pd.DataFrame, path: str | Path, metadata: dict[str, Any] | None = None) -> Path:
+    """Write ``df`` to Parquet atomically, with JSON ``metadata`` in the file's key-value metadata.
+
+    The file is written under a temporary name next to ``path`` and renamed, so
+    readers never see a half-written file.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    table = pa.Table.from_pandas(df, preserve_index=False)
+    extra = {k.encode(): json.dumps(v, default=_json_default).encode() for k, v in (metadata or {}).items()}
+    table = table.replace_schema_metadata({**(table.schema.metadata or {}), **extra})
+    tmp = path.with_name(f".{path.name}.tmp")
+    pq.write_table(table, tmp)
+    tmp.replace(path)
+    return path
+
+
+def read_parquet_metadata(path: str | Path) -> dict[str, Any]:
+    """Return the JSON key-value metadata written by :func:`write_parquet`."""
+    raw = pq.read_schema(path).metadata or {}
+    out = {}
+    for k, v in raw.items():
+        key = k.decode()
+        if key.startswith("simbench."):
+            out[key] = json.loads(v)
+    return out
+
+
+def _json_default(obj: Any) -> Any:
+    if isinstance(obj, (np.integer,)):
+        return int(obj)
+    if isinstance(obj, (np.floating,)):
+        return float(obj)
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, Path):
+        return str(obj)
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")

@@ -1,0 +1,1 @@
+"""Report building: figures and pages from the results store (no numerics here beyond plotting)."""

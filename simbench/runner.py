@@ -1,0 +1,118 @@
+"""Run estimators on a scenario and score them.
+
+A failing estimator does not stop the others: its exception becomes a status
+row (``status = "failed"`` and the one-line message) and the run goes on.
+"""
+from __future__ import annotations
+
+import traceback
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+import pandas as pd
+from tqdm.auto import tqdm
+
+import estimators
+from simbench.config import to_typed
+from simbench.contract import Scenario
+from simbench.errors import SimbenchError
+from simbench.metrics import enu_errors, summary_stats
+
+#: Columns of ``summary.parquet`` (one row per scenario x receiver x seed x estimator).
+SUMMARY_COLUMNS: dict[str, str] = {
+    "scenario": "str, scenario name", "receiver": "str, receiver preset", "seed": "int, scenario seed",
+    "estimator": "str, estimator name", "uses_labels": "bool, the estimator read error labels (oracle)",
+    "status": "str, ok | failed", "message": "str, error message when failed",
+    "n_epochs": "int, epochs in the scenario", "n_solved": "int, epochs with a solution",
+    "availability": "-, n_solved / n_epochs", "n_obs": "int, observation rows",
+    "horizontal_median": "m", "horizontal_mean": "m", "horizontal_var": "m^2", "horizontal_std": "m",
+    "horizontal_p95": "m", "horizontal_max": "m",
+    "error_3d_median": "m", "error_3d_mean": "m", "error_3d_var": "m^2", "error_3d_std": "m",
+    "error_3d_p95": "m", "error_3d_max": "m",
+    "total_s": "s, wall time of the estimator run", "time_per_obs_s": "s, total_s / n_obs",
+    "update_median_s": "s, median per-epoch update time", "update_p95_s": "s, 95th percentile update time",
+}
+
+#: Columns of ``epochs.parquet`` (one row per solved epoch).
+EPOCH_COLUMNS: dict[str, str] = {
+    "scenario": "str", "receiver": "str", "seed": "int", "estimator": "str",
+    "epoch": "int, epoch index", "t": "s, since scenario start",
+    "e": "m, east error", "n": "m, north error", "u": "m, up error",
+    "horizontal": "m, sqrt(e^2 + n^2)", "error_3d": "m", "update_s": "s, update wall time",
+}
+
+
+@dataclass
+class RunResult:
+    summary: pd.DataFrame
+    epochs: pd.DataFrame
+    diagnostics: dict[str, dict[str, Any]]
+
+
+def run_estimators(scenario: Scenario, estimator_configs: Mapping[str, Any], *, receiver: str = "",
+                   progress: bool = True) -> RunResult:
+    """Run each named estimator on ``scenario`` and score it against truth.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    estimator_configs : mapping of estimator name to its config node (dict or DictConfig)
+    receiver : str
+        Receiver preset name, recorded in the tables.
+    progress : bool
+        Show a progress bar over estimators.
+
+    Returns
+    -------
+    RunResult
+        Summary (:data:`SUMMARY_COLUMNS`), per-epoch errors (:data:`EPOCH_COLUMNS`)
+        and each estimator's diagnostics.
+    """
+    classes = {name: estimators.get(name) for name in estimator_configs}  # unknown names fail first
+    key = {"scenario": scenario.meta.get("name", ""), "receiver": receiver, "seed": int(scenario.meta.get("seed", -1))}
+    rows, frames, diagnostics = [], [], {}
+    data = scenario.receiver_view()
+    bar = tqdm(classes.items(), desc="estimators", disable=not progress, leave=False)
+    for name, cls in bar:
+        bar.set_postfix_str(name)
+        row: dict[str, Any] = {**key, "estimator": name, "uses_labels": bool(cls.uses_labels),
+                               "n_epochs": scenario.n_epochs, "n_obs": len(scenario.observations)}
+        try:
+            est = cls(to_typed(estimator_configs[name] or {}, cls.Config, f"estimator.{name}"))
+            if cls.uses_labels:
+                if scenario.labels is None:
+                    raise SimbenchError(f"estimator.{name}", "needs error labels, the scenario has none",
+                                        "run it on simulated scenarios only")
+                est.attach_labels(scenario.labels)
+            sol = est.estimate(data)
+        except Exception as exc:  # a failing estimator is a result, not a crash of the run
+            row.update(status="failed", message=_one_line(exc), n_solved=0, availability=0.0)
+            rows.append(row)
+            continue
+        err = enu_errors(sol.epochs, scenario.truth)
+        finite = np.isfinite(err["horizontal"].to_numpy())
+        ok = bool(finite.any())
+        row.update(status="ok" if ok else "failed", message="" if ok else "no finite solution",
+                   n_solved=int(finite.sum()), availability=float(finite.sum()) / max(scenario.n_epochs, 1),
+                   **summary_stats(err["horizontal"], "horizontal"), **summary_stats(err["error_3d"], "error_3d"),
+                   total_s=sol.total_s, time_per_obs_s=sol.total_s / max(len(scenario.observations), 1),
+                   update_median_s=float(np.nanmedian(sol.epochs["update_s"])) if len(sol.epochs) else np.nan,
+                   update_p95_s=float(np.nanpercentile(sol.epochs["update_s"], 95)) if len(sol.epochs) else np.nan)
+        rows.append(row)
+        ep = err[["epoch", "t", "e", "n", "u", "horizontal", "error_3d", "update_s"]].copy()
+        for k, v in {**key, "estimator": name}.items():
+            ep.insert(0, k, v)
+        frames.append(ep)
+        diagnostics[name] = sol.diagnostics
+    summary = pd.DataFrame(rows).reindex(columns=list(SUMMARY_COLUMNS))
+    epochs = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=list(EPOCH_COLUMNS))
+    return RunResult(summary=summary, epochs=epochs[list(EPOCH_COLUMNS)], diagnostics=diagnostics)
+
+
+def _one_line(exc: BaseException) -> str:
+    if isinstance(exc, SimbenchError):
+        return str(exc)
+    where = traceback.extract_tb(exc.__traceback__)[-1] if exc.__traceback__ else None
+    loc = f" (at {where.filename.rsplit('/', 1)[-1]}:{where.lineno})" if where else ""
+    return f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}{loc}"

@@ -1,0 +1,283 @@
+"""Scenario generation: trajectory, sky, error sources, observables, IMU.
+
+:func:`generate` turns a typed :class:`~simbench.config.SimConfig` into a
+:class:`~simbench.contract.Scenario`, deterministically: every error source
+draws from its own named random stream of the seed. All physics is
+vectorised over (epoch, satellite) arrays of shape (n, m).
+
+Measurement model (metres; ``rho`` geometric range with Earth rotation)::
+
+    code_l1  = rho + c dt_r - c dt_s + T + I1 + MP + NLOS + e_code
+    phase_l1 = rho + c dt_r - c dt_s + T - I1 + lambda1 N1 + mp + NLOS + e_phase
+
+L2 likewise with ``I2 = (f1/f2)^2 I1``. The receiver is handed the product
+satellite position and clock (truth plus orbit/clock error), the elevation and
+azimuth, C/N0 and loss-of-lock flags.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict
+
+import numpy as np
+import pandas as pd
+import pymap3d
+
+from simbench.config import SimConfig, validate_sim
+from simbench.contract import NavInfo, Scenario
+from simbench.errors import SimbenchError
+from simbench.sim import atmosphere, tracking
+from simbench.sim.canyon import canyon_visibility
+from simbench.sim.constants import (C_LIGHT, DEG, IONO_L2_SCALE, LAMBDA_L1, LAMBDA_L2, SECONDS_PER_WEEK,
+                                    WGS84_A)
+from simbench.sim.geometry import line_of_sight
+from simbench.sim.imu import simulate_imu
+from simbench.sim.orbits import BroadcastEphemeris, NominalConstellation
+from simbench.sim.processes import gauss_markov, random_walk, receiver_clock, stream
+from simbench.sim.slips import phase_arcs
+from simbench.sim.trajectory import Trajectory, flight, replay, urban_drive
+
+#: Ionospheric shell height of the obliquity factor [m].
+IONO_SHELL_M = 350e3
+#: L2 signals are weaker than L1 C/A (IS-GPS-200 minimum powers differ by 1.5-3 dB).
+L2_CN0_LOSS_DB = 3.0
+
+
+def generate(cfg: SimConfig) -> Scenario:
+    """Generate one scenario.
+
+    Parameters
+    ----------
+    cfg : SimConfig
+        Scenario, receiver and IMU configuration and the seed.
+
+    Returns
+    -------
+    Scenario
+        Receiver view (observations, IMU), truth and labels.
+    """
+    cfg = validate_sim(cfg)
+    sc, err, rx = cfg.scenario, cfg.scenario.errors, cfg.receiver
+    seed = cfg.seed
+
+    traj, start_sow = _trajectory(cfg)
+    step = cfg.imu.rate_hz / sc.rate_hz
+    if abs(step - round(step)) > 1e-9:
+        raise SimbenchError("scenario.rate_hz", f"IMU rate {cfg.imu.rate_hz} Hz is not a multiple of {sc.rate_hz} Hz",
+                            "choose rates such that imu.rate_hz / scenario.rate_hz is an integer")
+    idx = np.arange(0, len(traj.t), int(round(step)))
+    idx = idx[traj.valid[idx]]
+    t = traj.t[idx]
+    n = len(t)
+    dt = 1.0 / sc.rate_hz
+    pos, vel, att = traj.pos[idx], traj.vel[idx], traj.att[idx]
+    lat, lon, h = pymap3d.ecef2geodetic(pos[:, 0], pos[:, 1], pos[:, 2], deg=False)
+
+    # ------------------------------------------------------------------ sky
+    constellation, alpha, beta = _constellation(cfg)
+    t_gps = sc.gps_week * SECONDS_PER_WEEK + start_sow + t
+    los = line_of_sight(pos, vel, t_gps, constellation)
+    m = los.range_m.shape[1]
+    el, az = los.el_rad, los.az_rad
+    above = los.valid & (el > sc.constellation.elevation_mask_deg * DEG)
+
+    # ------------------------------------------------------------------ antenna, canyon, C/N0
+    off_boresight = _off_boresight(el, az, att)
+    tracked = above.copy()
+    if err.attitude_masking.enabled:
+        tracked &= off_boresight < err.attitude_masking.max_off_boresight_deg * DEG
+    else:
+        off_boresight = np.pi / 2 - el  # an antenna that always points up
+    nlos = np.zeros((n, m), bool)
+    nlos_delay = np.zeros((n, m))
+    if err.nlos.enabled and traj.street is not None:
+        st = traj.street
+        canyon = canyon_visibility(el, az, st.road_heading_rad[idx], st.wall_left_m[idx], st.wall_right_m[idx],
+                                   st.height_left_m[idx], st.height_right_m[idx], err.nlos, dt,
+                                   stream(seed, "nlos"))
+        tracked &= ~canyon.blocked | canyon.nlos
+        nlos, nlos_delay = canyon.nlos & tracked, np.where(tracked, canyon.nlos_delay_m, 0.0)
+
+    c0 = err.cn0
+    cn0 = (tracking.cn0_mean_dbhz(off_boresight, c0.received_power_dbw, c0.constant_db)
+           + gauss_markov(n, m, c0.fade_sigma_db, c0.fade_tau_s, dt, stream(seed, "cn0_fade"))
+           + c0.noise_db * stream(seed, "cn0_noise").standard_normal((n, m))
+           - np.where(nlos, err.nlos.reflection_loss_db, 0.0))
+
+    # ------------------------------------------------------------------ tracking noise
+    fe_bw = rx.front_end_bw_mhz * 1e6
+    sig_code = tracking.dll_jitter_m(cn0, rx.dll_bw_hz, rx.correlator_spacing_chips, fe_bw, rx.integration_s)
+    pll_rad = tracking.pll_jitter_rad(cn0, rx.pll_bw_hz, rx.integration_s)
+    sig_phase = pll_rad * LAMBDA_L1 / (2 * np.pi)
+    noise_rng = stream(seed, "tracking")
+    gain = 1.0 if err.tracking_noise else 0.0
+    e_code = gain * sig_code * noise_rng.standard_normal((n, m))
+    e_phase = gain * sig_phase * noise_rng.standard_normal((n, m))
+    sig_doppler = rx.doppler_sigma_hz * 10 ** ((rx.doppler_ref_cn0_dbhz - cn0) / 20.0)
+    e_doppler = gain * sig_doppler * noise_rng.standard_normal((n, m))
+
+    # ------------------------------------------------------------------ clocks
+    if err.receiver_clock.enabled:
+        rc = err.receiver_clock
+        clk_s, drift = receiver_clock(t, rc.bias0_sigma_s, rc.drift0_sigma_sps, rc.h0, rc.h_2,
+                                      stream(seed, "receiver_clock"))
+    else:
+        clk_s, drift = np.zeros(n), np.zeros(n)
+    rx_clock_m, rx_drift_mps = C_LIGHT * clk_s, C_LIGHT * drift
+
+    # ------------------------------------------------------------------ atmosphere
+    doy = _day_of_year(sc.gps_week, start_sow)
+    if err.troposphere.enabled:
+        zhd, zwd_model = atmosphere.saastamoinen_zenith_m(lat, h)
+        trng = stream(seed, "troposphere")
+        zwd = (zwd_model * max(0.0, 1.0 + err.troposphere.wet_scale_sigma * trng.standard_normal())
+               + random_walk(n, 1, err.troposphere.wet_rw_mps, dt, trng)[:, 0])
+        zwd = np.maximum(zwd, 0.0)
+        m_h, m_w = atmosphere.niell_mapping(el, lat[:, None], h[:, None], doy)
+        tropo = zhd[:, None] * m_h + zwd[:, None] * m_w
+    else:
+        zwd, tropo = np.zeros(n), np.zeros((n, m))
+    if err.ionosphere.enabled:
+        io = err.ionosphere
+        irng = stream(seed, "ionosphere")
+        klob = atmosphere.klobuchar_l1_delay_m((start_sow + t)[:, None], lat[:, None], lon[:, None], el, az,
+                                               np.asarray(alpha), np.asarray(beta))
+        obliquity = 1.0 / np.sqrt(1.0 - (WGS84_A * np.cos(el) / (WGS84_A + IONO_SHELL_M)) ** 2)
+        scale = max(0.0, 1.0 + io.scale_sigma * irng.standard_normal())
+        residual = gauss_markov(n, m, io.residual_sigma_m, io.residual_tau_s, dt, irng)
+        iono = np.maximum(klob * scale + residual * obliquity, 0.0)
+    else:
+        iono = np.zeros((n, m))
+
+    # ------------------------------------------------------------------ orbit/clock product error
+    sat_pos_product = los.sat_pos_tx.copy()
+    sat_clock_true_m = C_LIGHT * los.sat_clock_tx
+    sat_clock_product_m = sat_clock_true_m.copy()
+    if err.orbit_clock.enabled:
+        oc = err.orbit_clock
+        orng = stream(seed, "orbit_clock")
+        # one process per satellite, shared by all epochs (the product is the same for everyone)
+        d_orbit = gauss_markov(n, 3 * m, oc.orbit_sigma_m, oc.tau_s, dt, orng).reshape(n, m, 3)
+        d_clock = gauss_markov(n, m, oc.clock_sigma_m, oc.tau_s, dt, orng)
+        sat_pos_product += d_orbit
+        sat_clock_product_m += d_clock
+        orbit_clock_error = np.einsum("nmk,nmk->nm", los.los_unit, d_orbit) + d_clock
+    else:
+        orbit_clock_error = np.zeros((n, m))
+
+    # ------------------------------------------------------------------ multipath
+    mp = err.multipath
+    if mp.enabled:
+        mrng = stream(seed, "multipath")
+        sigma_mp = (mp.el_a_m + mp.el_b_m * np.exp(-np.degrees(el) / mp.el_c_deg)) if mp.elevation_dependent \
+            else mp.code_sigma_m
+        unit = gauss_markov(n, 2 * m, 1.0, mp.tau_s, dt, mrng)
+        mp_code = sigma_mp * unit[:, :m]
+        mp_code_l2 = sigma_mp * unit[:, m:]
+        mp_phase = gauss_markov(n, m, mp.phase_sigma_m, mp.tau_s, dt, mrng)
+    else:
+        mp_code = mp_code_l2 = mp_phase = np.zeros((n, m))
+
+    # ------------------------------------------------------------------ phase arcs and slips
+    n_freq = 2 if sc.dual_frequency else 1
+    arcs = phase_arcs(tracked, cn0, pll_rad, err.cycle_slips, dt, stream(seed, "cycle_slips"), n_freq)
+
+    # ------------------------------------------------------------------ observables
+    common = los.range_m + rx_clock_m[:, None] - sat_clock_true_m + tropo + nlos_delay
+    code_l1 = common + iono + mp_code + e_code
+    phase_l1 = common - iono + LAMBDA_L1 * arcs[0].ambiguity + mp_phase + e_phase
+    doppler_l1 = -(los.range_rate_mps + rx_drift_mps[:, None] - C_LIGHT * los.sat_clock_drift) / LAMBDA_L1 \
+        + e_doppler
+    if sc.dual_frequency:
+        l2rng = stream(seed, "tracking_l2")
+        cn0_l2 = cn0 - L2_CN0_LOSS_DB
+        sig2 = gain * tracking.dll_jitter_m(cn0_l2, rx.dll_bw_hz, rx.correlator_spacing_chips, fe_bw,
+                                            rx.integration_s)
+        sig2p = gain * tracking.pll_jitter_m(cn0_l2, rx.pll_bw_hz, rx.integration_s)
+        code_l2 = common + IONO_L2_SCALE * iono + mp_code_l2 + sig2 * l2rng.standard_normal((n, m))
+        phase_l2 = (common - IONO_L2_SCALE * iono + LAMBDA_L2 * arcs[1].ambiguity + mp_phase
+                    + sig2p * l2rng.standard_normal((n, m)))
+        lli_l2, amb_l2 = arcs[1].lli, arcs[1].ambiguity
+    else:
+        code_l2 = phase_l2 = np.full((n, m), np.nan)
+        lli_l2, amb_l2 = np.zeros((n, m), bool), np.zeros((n, m), np.int64)
+
+    # ------------------------------------------------------------------ long tables
+    ei, si = np.nonzero(tracked)
+    sats = np.asarray(constellation.sats)
+
+    def pick(a: np.ndarray) -> np.ndarray:
+        return a[ei, si]
+
+    observations = pd.DataFrame({
+        "epoch": ei.astype(np.int64), "t": t[ei], "sat": sats[si],
+        "code_l1": pick(code_l1), "phase_l1": pick(phase_l1), "doppler_l1": pick(doppler_l1),
+        "cn0_l1": pick(cn0), "lli_l1": pick(arcs[0].lli),
+        "code_l2": pick(code_l2), "phase_l2": pick(phase_l2), "lli_l2": pick(lli_l2),
+        "sat_x": sat_pos_product[ei, si, 0], "sat_y": sat_pos_product[ei, si, 1],
+        "sat_z": sat_pos_product[ei, si, 2],
+        "sat_vx": los.sat_vel_tx[ei, si, 0], "sat_vy": los.sat_vel_tx[ei, si, 1],
+        "sat_vz": los.sat_vel_tx[ei, si, 2],
+        "sat_clock": pick(sat_clock_product_m), "sat_clock_drift": C_LIGHT * pick(los.sat_clock_drift),
+        "el": np.degrees(pick(el)), "az": np.degrees(pick(az)),
+    })
+    labels = pd.DataFrame({
+        "epoch": ei.astype(np.int64), "sat": sats[si],
+        "sigma_code_l1": gain * pick(sig_code), "sigma_phase_l1": gain * pick(sig_phase),
+        "multipath_code_l1": pick(mp_code), "multipath_phase_l1": pick(mp_phase),
+        "nlos": pick(nlos), "nlos_delay": pick(nlos_delay),
+        "iono_l1": pick(iono), "tropo": pick(tropo), "orbit_clock_error": pick(orbit_clock_error),
+        "ambiguity_l1": pick(arcs[0].ambiguity), "ambiguity_l2": pick(amb_l2),
+        "slip": pick(arcs[0].slip), "noise_code_l1": pick(e_code), "noise_phase_l1": pick(e_phase),
+    })
+    truth = pd.DataFrame({
+        "epoch": np.arange(n, dtype=np.int64), "t": t,
+        "x": pos[:, 0], "y": pos[:, 1], "z": pos[:, 2], "vx": vel[:, 0], "vy": vel[:, 1], "vz": vel[:, 2],
+        "roll": att[:, 0], "pitch": att[:, 1], "yaw": att[:, 2],
+        "rx_clock": rx_clock_m, "zwd": zwd, "n_visible": above.sum(axis=1).astype(np.int64),
+    })
+    imu = simulate_imu(traj, cfg.imu, stream(seed, "imu"))
+    imu_table = pd.DataFrame({"t": imu.t, "ax": imu.accel[:, 0], "ay": imu.accel[:, 1], "az": imu.accel[:, 2],
+                              "gx": imu.gyro[:, 0], "gy": imu.gyro[:, 1], "gz": imu.gyro[:, 2]})
+    nav = NavInfo(gps_week=sc.gps_week, start_sow_s=float(start_sow), iono_alpha=tuple(map(float, alpha)),
+                  iono_beta=tuple(map(float, beta)), dual_frequency=sc.dual_frequency)
+    meta = {"name": sc.name, "seed": seed, "config": asdict(cfg)}
+    return Scenario(observations=observations, imu=imu_table, truth=truth, labels=labels, nav=nav, meta=meta)
+
+
+def _trajectory(cfg: SimConfig) -> tuple[Trajectory, float]:
+    sc = cfg.scenario
+    rng = stream(cfg.seed, "trajectory")
+    kind = sc.trajectory.kind
+    if kind == "urban_drive":
+        return urban_drive(sc.trajectory, sc.errors.nlos, sc.duration_s, cfg.imu.rate_hz, rng), sc.start_sow_s
+    if kind == "flight":
+        return flight(sc.trajectory, sc.duration_s, cfg.imu.rate_hz, rng), sc.start_sow_s
+    return replay(sc.trajectory.replay, cfg.imu.rate_hz, sc.duration_s)
+
+
+def _constellation(cfg: SimConfig):
+    con = cfg.scenario.constellation
+    if con.kind == "nominal":
+        return NominalConstellation(), con.iono_alpha, con.iono_beta
+    eph = BroadcastEphemeris.from_rinex(con.nav_path)
+    alpha = eph.iono_alpha if eph.iono_alpha is not None else con.iono_alpha
+    beta = eph.iono_beta if eph.iono_beta is not None else con.iono_beta
+    return eph, alpha, beta
+
+
+def _off_boresight(el: np.ndarray, az: np.ndarray, att: np.ndarray) -> np.ndarray:
+    """Angle between the line of sight and the antenna boresight (body -z axis) [rad]."""
+    roll, pitch, yaw = (att[:, i, None] for i in range(3))
+    # body -z (up) axis resolved in NED: minus the third column of C_b^n = Rz(yaw) Ry(pitch) Rx(roll)
+    up_n = -(np.cos(yaw) * np.sin(pitch) * np.cos(roll) + np.sin(yaw) * np.sin(roll))
+    up_e = -(np.sin(yaw) * np.sin(pitch) * np.cos(roll) - np.cos(yaw) * np.sin(roll))
+    up_d = -(np.cos(pitch) * np.cos(roll))
+    los_n, los_e, los_d = np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), -np.sin(el)
+    return np.arccos(np.clip(up_n * los_n + up_e * los_e + up_d * los_d, -1.0, 1.0))
+
+
+def _day_of_year(gps_week: int, sow: float) -> float:
+    """Day of year (1-based, fractional) of a GPS time; leap seconds do not matter here."""
+    t = np.datetime64("1980-01-06") + np.timedelta64(int(gps_week * SECONDS_PER_WEEK + sow), "s")
+    year_start = t.astype("datetime64[Y]")
+    return float((t - year_start) / np.timedelta64(1, "D")) + 1.0

@@ -1,0 +1,80 @@
+"""Carrier-phase arcs, cycle slips and integer ambiguities.
+
+A new arc (new random ambiguity, loss-of-lock flag set) starts whenever a
+satellite is (re)acquired. Within an arc, slips happen when C/N0 is below a
+threshold (with some probability per epoch), when PLL jitter exceeds its
+threshold, and at a small Poisson rate; a slip adds a non-zero integer to the
+ambiguity and is flagged by the receiver with a configurable probability.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from simbench.config import CycleSlipConfig
+
+#: Range of the initial ambiguity of an arc [cycles]; receivers start phase arbitrarily.
+INITIAL_AMBIGUITY_CYCLES = 1_000_000
+
+
+@dataclass(frozen=True)
+class PhaseArcs:
+    """Arrays of shape (n, m)."""
+
+    arc_start: np.ndarray  #: satellite (re)acquired at this epoch
+    slip: np.ndarray  #: true cycle slip inside an arc at this epoch
+    lli: np.ndarray  #: loss-of-lock flag the receiver reports
+    ambiguity: np.ndarray  #: integer ambiguity [cycles] (int64), meaningful where tracked
+
+
+def phase_arcs(tracked: np.ndarray, cn0_dbhz: np.ndarray, pll_jitter_rad: np.ndarray, cfg: CycleSlipConfig,
+               dt_s: float, rng: np.random.Generator, n_frequencies: int = 1) -> list[PhaseArcs]:
+    """Draw arcs, slips and ambiguities for every (epoch, satellite).
+
+    Parameters
+    ----------
+    tracked : ndarray of bool, shape (n, m)
+        The receiver tracks the satellite at this epoch.
+    cn0_dbhz : ndarray, shape (n, m)
+        Carrier-to-noise density [dB-Hz].
+    pll_jitter_rad : ndarray, shape (n, m)
+        PLL thermal jitter std [rad].
+    cfg : CycleSlipConfig
+    dt_s : float
+        Epoch interval [s].
+    rng : numpy.random.Generator
+    n_frequencies : int
+        1 (L1) or 2 (L1, L2); slips hit all frequencies at once, each with its own jump.
+
+    Returns
+    -------
+    list of PhaseArcs, one per frequency.
+    """
+    n, m = tracked.shape
+    previous = np.vstack([np.zeros((1, m), bool), tracked[:-1]])
+    arc_start = tracked & ~previous
+    if cfg.enabled:
+        weak = (cn0_dbhz < cfg.cn0_threshold_dbhz) & (rng.random((n, m)) < cfg.low_cn0_probability)
+        jittery = np.degrees(pll_jitter_rad) > cfg.pll_jitter_threshold_deg
+        poisson = rng.random((n, m)) < -np.expm1(-cfg.rate_per_s * dt_s)
+        slip = tracked & ~arc_start & (weak | jittery | poisson)
+        flagged = slip & (rng.random((n, m)) < cfg.flagged_fraction)
+    else:
+        slip = np.zeros((n, m), bool)
+        flagged = slip
+    lli = arc_start | flagged
+    arc_id = np.cumsum(arc_start, axis=0)  # per satellite, 1-based within tracked spans
+    out = []
+    for _ in range(n_frequencies):
+        magnitude = rng.integers(1, max(cfg.max_jump_cycles, 1) + 1, size=(n, m))
+        jumps = np.where(slip, magnitude * rng.choice([-1, 1], size=(n, m)), 0)
+        initial = rng.integers(-INITIAL_AMBIGUITY_CYCLES, INITIAL_AMBIGUITY_CYCLES + 1,
+                               size=(int(arc_id.max()) + 1, m))
+        cum = np.cumsum(jumps, axis=0)
+        # jumps accumulate only within the current arc: subtract the sum reached at its start
+        start_row = np.maximum.accumulate(np.where(arc_start, np.arange(n)[:, None], -1), axis=0)
+        base = np.where(start_row >= 0, np.take_along_axis(cum, np.maximum(start_row, 0), axis=0), 0)
+        ambiguity = initial[arc_id, np.arange(m)[None, :]] + cum - base
+        out.append(PhaseArcs(arc_start=arc_start, slip=slip, lli=lli, ambiguity=ambiguity.astype(np.int64)))
+    return out

@@ -1,0 +1,166 @@
+"""The generator against its own formulas: noise statistics, correlation, determinism, isolation."""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import simbench
+from simbench.contract import (IMU_COLUMNS, LABEL_COLUMNS, OBSERVATION_COLUMNS, TRUTH_COLUMNS, ReceiverData,
+                               Scenario)
+from simbench.errors import SimbenchError
+from simbench.sim import tracking
+from simbench.sim.constants import LAMBDA_L1
+from simbench.sim.processes import gauss_markov, stream
+
+SHORT = {"scenario.duration_s": 300}
+
+
+@pytest.fixture(scope="module")
+def urban() -> Scenario:
+    return simbench.simulate("urban", "low", seed=3, **SHORT)
+
+
+def test_tables_have_documented_columns(urban: Scenario) -> None:
+    assert list(urban.observations.columns) == list(OBSERVATION_COLUMNS)
+    assert list(urban.labels.columns) == list(LABEL_COLUMNS)
+    assert list(urban.truth.columns) == list(TRUTH_COLUMNS)
+    assert list(urban.imu.columns) == list(IMU_COLUMNS)
+    assert len(urban.labels) == len(urban.observations)
+    assert (urban.labels["sat"].to_numpy() == urban.observations["sat"].to_numpy()).all()
+    assert len(urban.truth) == 300
+    assert len(urban.imu) == 300 * 100
+
+
+def test_receiver_view_carries_no_truth(urban: Scenario) -> None:
+    view = urban.receiver_view()
+    assert set(view.observations.columns) == set(OBSERVATION_COLUMNS)
+    assert set(view.imu.columns) == set(IMU_COLUMNS)
+    assert not hasattr(view, "truth") and not hasattr(view, "labels")
+    leaked = urban.observations.assign(nlos=False)
+    with pytest.raises(ValueError, match="nlos"):
+        ReceiverData(leaked, urban.imu, urban.nav)
+
+
+def test_same_seed_same_tables_other_seed_differs() -> None:
+    a = simbench.simulate("urban", "low", seed=11, **{"scenario.duration_s": 60})
+    b = simbench.simulate("urban", "low", seed=11, **{"scenario.duration_s": 60})
+    c = simbench.simulate("urban", "low", seed=12, **{"scenario.duration_s": 60})
+    for name in ("observations", "imu", "truth", "labels"):
+        pd.testing.assert_frame_equal(getattr(a, name), getattr(b, name))
+    assert not np.allclose(a.truth[["x", "y", "z"]].to_numpy(), c.truth[["x", "y", "z"]].to_numpy())
+    assert not a.observations["code_l1"].equals(c.observations["code_l1"])
+
+
+@pytest.fixture(scope="module")
+def long_open_sky() -> Scenario:
+    return simbench.simulate("open_sky", "low", seed=4, **{"scenario.duration_s": 1800})
+
+
+def test_code_and_phase_noise_follow_dll_pll_formulas(long_open_sky: Scenario) -> None:
+    """Normalised thermal-noise samples have unit std, and the sigmas are the eq. 5.13-5.15 values."""
+    sc = long_open_sky
+    lab, obs = sc.labels, sc.observations
+    rx = sc.meta["config"]["receiver"]
+    expected = tracking.dll_jitter_m(obs["cn0_l1"].to_numpy(), rx["dll_bw_hz"], rx["correlator_spacing_chips"],
+                                     rx["front_end_bw_mhz"] * 1e6, rx["integration_s"])
+    np.testing.assert_allclose(lab["sigma_code_l1"], expected, rtol=1e-9)
+    z_code = lab["noise_code_l1"] / lab["sigma_code_l1"]
+    z_phase = lab["noise_phase_l1"] / lab["sigma_phase_l1"]
+    assert len(z_code) > 6000  # std of the std estimate < 1 %, so 5 % is > 5 sigma
+    assert abs(z_code.std() - 1.0) < 0.05
+    assert abs(z_phase.std() - 1.0) < 0.05
+    # pooled std of the code noise vs the rms formula value within 5 %
+    assert abs(lab["noise_code_l1"].std() / np.sqrt(np.mean(expected**2)) - 1.0) < 0.05
+
+
+def test_observables_close_to_their_model(urban: Scenario) -> None:
+    """code - phase = 2 I + multipath difference - lambda N + noise: checks the sign conventions."""
+    obs, lab = urban.observations, urban.labels
+    cmp = (obs["code_l1"] - obs["phase_l1"]).to_numpy()
+    model = (2 * lab["iono_l1"] + lab["multipath_code_l1"] - lab["multipath_phase_l1"]
+             - LAMBDA_L1 * lab["ambiguity_l1"] + lab["noise_code_l1"] - lab["noise_phase_l1"]).to_numpy()
+    np.testing.assert_allclose(cmp, model, atol=1e-5)
+
+
+def test_low_receiver_noisier_than_high() -> None:
+    low = simbench.simulate("open_sky", "low", seed=5, **{"scenario.duration_s": 120})
+    high = simbench.simulate("open_sky", "high", seed=5, **{"scenario.duration_s": 120})
+    assert low.labels["sigma_code_l1"].median() > 1.5 * high.labels["sigma_code_l1"].median()
+    assert low.labels["noise_code_l1"].std() > 1.5 * high.labels["noise_code_l1"].std()
+    assert low.labels["sigma_phase_l1"].median() > high.labels["sigma_phase_l1"].median()
+
+
+def test_gauss_markov_autocorrelation_at_tau_is_one_over_e() -> None:
+    dt, tau = 1.0, 15.0
+    x = gauss_markov(20_000, 40, 0.4, tau, dt, stream(0, "test"))
+    lag = int(tau / dt)
+    rho = np.mean(x[lag:] * x[:-lag]) / np.mean(x * x)
+    assert abs(rho - np.exp(-1.0)) < 0.02
+    assert abs(x.std() - 0.4) < 0.01
+
+
+def test_generated_multipath_autocorrelation(long_open_sky: Scenario) -> None:
+    lab = long_open_sky.labels.pivot(index="epoch", columns="sat", values="multipath_code_l1")
+    mp = lab.to_numpy()
+    lag = 15  # tau 15 s at 1 Hz
+    a, b = mp[lag:], mp[:-lag]
+    ok = np.isfinite(a) & np.isfinite(b)
+    rho = np.sum(a[ok] * b[ok]) / np.sqrt(np.sum(a[ok] ** 2) * np.sum(b[ok] ** 2))
+    assert abs(rho - np.exp(-1.0)) < 0.08  # ~8 satellites x 120 correlation times
+
+
+def test_urban_canyon_creates_nlos_and_masking(urban: Scenario) -> None:
+    lab, truth = urban.labels, urban.truth
+    assert 0.01 < lab["nlos"].mean() < 0.5
+    assert (lab.loc[lab["nlos"], "nlos_delay"] > 0).all()
+    tracked = urban.observations.groupby("epoch").size().reindex(truth["epoch"], fill_value=0).to_numpy()
+    assert (tracked < truth["n_visible"].to_numpy()).mean() > 0.3  # buildings mask satellites
+
+
+def test_slips_change_ambiguity_and_flags(urban: Scenario) -> None:
+    lab, obs = urban.labels, urban.observations
+    merged = lab.assign(lli=obs["lli_l1"].to_numpy()).sort_values(["sat", "epoch"])
+    amb_change = merged.groupby("sat")["ambiguity_l1"].diff().fillna(0).to_numpy() != 0
+    slips = merged["slip"].to_numpy()
+    assert slips.sum() > 0
+    assert (amb_change[slips]).all()
+    assert not amb_change[~slips & ~merged["lli"].to_numpy()].any()  # no unflagged change without a slip
+
+
+@pytest.mark.parametrize("override, field", [
+    ({"scenario.duration_s": -5}, "scenario.duration_s"),
+    ({"scenario.rate_hz": 0}, "scenario.rate_hz"),
+    ({"scenario.trajectory.kind": "boat"}, "scenario.trajectory.kind"),
+])
+def test_bad_config_values_give_one_line_errors(override: dict, field: str) -> None:
+    with pytest.raises(SimbenchError) as info:
+        simbench.simulate("urban", "low", seed=0, **override)
+    assert field in str(info.value)
+    assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("kwargs, field", [({"scenario": "mars"}, "scenario"), ({"receiver": "cheap"}, "receiver")])
+def test_unknown_preset_names(kwargs: dict, field: str) -> None:
+    with pytest.raises(SimbenchError, match=f"unknown {field}"):
+        simbench.simulate(**kwargs)
+
+
+def test_missing_files_give_one_line_errors(tmp_path) -> None:
+    with pytest.raises(SimbenchError, match="replay.path"):
+        simbench.simulate("replay", **{"scenario.trajectory.replay.path": str(tmp_path / "none.xyz")})
+    bad = tmp_path / "bad.18n"
+    bad.write_text("this is not a navigation file\n")
+    with pytest.raises(SimbenchError) as info:
+        simbench.simulate("replay", **{"scenario.constellation.nav_path": str(bad),
+                                       "scenario.duration_s": 30})
+    assert "\n" not in str(info.value)
+
+
+def test_scenario_parquet_round_trip(urban: Scenario, tmp_path) -> None:
+    urban.save(tmp_path / "s")
+    back = Scenario.load(tmp_path / "s")
+    for name in ("observations", "imu", "truth", "labels"):
+        pd.testing.assert_frame_equal(getattr(back, name), getattr(urban, name))
+    assert back.nav == urban.nav
+    assert back.meta["seed"] == 3 and back.meta["config"]["scenario"]["duration_s"] == 300

@@ -1,0 +1,237 @@
+"""The shared PPP measurement model: arcs, prediction and Jacobian, observation preparation.
+
+:func:`synthetic_data` builds exact receiver data without the generator (a
+static receiver under the nominal constellation); ``tests/test_ekf_ppp.py``
+uses it too.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pymap3d
+import pytest
+
+from estimators.measurement import (arc_ids, day_of_year, geodetic, predict, prepare_ppp, single_point_solution)
+from simbench.contract import NavInfo, ReceiverData
+from simbench.errors import SimbenchError
+from simbench.sim import atmosphere
+from simbench.sim.constants import DEG, IONO_L2_SCALE, LAMBDA_L1, LAMBDA_L2, SECONDS_PER_WEEK
+from simbench.sim.geometry import line_of_sight, sagnac_range
+from simbench.sim.orbits import NominalConstellation
+
+ALPHA = (8.382e-09, -1.490e-08, -5.960e-08, 1.192e-07)
+BETA = (9.421e04, -1.311e05, -1.311e05, 8.520e05)
+LAT, LON, H = 39.6295, -79.9559, 290.0  # deg, deg, m
+WEEK, SOW0 = 2032, 475_200.0  # 2018-12-21 12:00 GPST
+
+
+def synthetic_data(n_epochs: int = 600, *, dual: bool = True, seed: int = 0, code_noise_m: float = 0.3,
+                   phase_noise_m: float = 0.003, slip: tuple[int, str] | None = None, flag_slip: bool = True,
+                   mask_deg: float = 10.0, iono_drift_mps: float = 0.0) -> tuple[ReceiverData, dict]:
+    """Exact observations of a static receiver, 1 Hz, following the observation-table conventions.
+
+    code = range + rx_clock - sat_clock + tropo + iono + noise; phase likewise with
+    -iono + lambda N. Dual frequency: an arbitrary ionosphere that the IF
+    combination removes; single: exactly the broadcast Klobuchar delay.
+    ``slip = (epoch, sat)`` adds +7 L1 / -3 L2 cycles from that epoch on,
+    flagged with LLI when ``flag_slip``. ``iono_drift_mps`` adds a slant ionosphere
+    the Klobuchar model does not know: a ramp at +-that rate, random sign per satellite.
+    """
+    rng = np.random.default_rng(seed)
+    rx = np.array(pymap3d.geodetic2ecef(LAT, LON, H))
+    t = np.arange(n_epochs, dtype=float)
+    los = line_of_sight(np.tile(rx, (n_epochs, 1)), None, WEEK * SECONDS_PER_WEEK + SOW0 + t,
+                        NominalConstellation())
+    el, az = los.el_rad, los.az_rad
+    n, m = el.shape
+    zhd, zwd_model = atmosphere.saastamoinen_zenith_m(LAT * DEG, H)
+    zwd = 1.3 * float(zwd_model)
+    m_h, m_w = atmosphere.niell_mapping(el, LAT * DEG, H, day_of_year(WEEK, SOW0))
+    tropo = zhd * m_h + zwd * m_w
+    rx_clock = 1.0e4 + 30.0 * t
+    sat_clock = rng.uniform(-2e5, 2e5, m)[None, :] + 0.01 * t[:, None]
+    if dual:
+        iono = 2.0 + 5.0 * np.cos(el)
+    else:
+        iono = atmosphere.klobuchar_l1_delay_m(SOW0 + t[:, None], LAT * DEG, LON * DEG, el, az, ALPHA, BETA)
+    iono = iono + iono_drift_mps * t[:, None] * rng.choice([-1.0, 1.0], m)[None, :]
+    n1 = np.repeat(rng.integers(-10**6, 10**6, m)[None, :], n, axis=0)
+    n2 = np.repeat(rng.integers(-10**6, 10**6, m)[None, :], n, axis=0)
+    lli = np.zeros((n, m), bool)
+    if slip is not None:
+        k, name = slip
+        j = list(los.sats).index(name)
+        n1[k:, j] += 7
+        n2[k:, j] -= 3
+        lli[k, j] = flag_slip
+    common = los.range_m + rx_clock[:, None] - sat_clock + tropo
+    code1 = common + iono + code_noise_m * rng.standard_normal((n, m))
+    phase1 = common - iono + LAMBDA_L1 * n1 + phase_noise_m * rng.standard_normal((n, m))
+    code2 = common + IONO_L2_SCALE * iono + code_noise_m * rng.standard_normal((n, m))
+    phase2 = common - IONO_L2_SCALE * iono + LAMBDA_L2 * n2 + phase_noise_m * rng.standard_normal((n, m))
+    if not dual:
+        code2[:], phase2[:] = np.nan, np.nan
+    ei, si = np.nonzero(el > mask_deg * DEG)
+    sats = np.asarray(los.sats)
+    obs = pd.DataFrame({
+        "epoch": ei.astype(np.int64), "t": t[ei], "sat": sats[si],
+        "code_l1": code1[ei, si], "phase_l1": phase1[ei, si], "doppler_l1": 0.0, "cn0_l1": 45.0,
+        "lli_l1": lli[ei, si], "code_l2": code2[ei, si], "phase_l2": phase2[ei, si], "lli_l2": lli[ei, si],
+        "sat_x": los.sat_pos_tx[ei, si, 0], "sat_y": los.sat_pos_tx[ei, si, 1],
+        "sat_z": los.sat_pos_tx[ei, si, 2],
+        "sat_vx": los.sat_vel_tx[ei, si, 0], "sat_vy": los.sat_vel_tx[ei, si, 1],
+        "sat_vz": los.sat_vel_tx[ei, si, 2],
+        "sat_clock": sat_clock[ei, si], "sat_clock_drift": 0.01,
+        "el": np.degrees(el[ei, si]), "az": np.degrees(az[ei, si]),
+    })
+    imu = pd.DataFrame({c: np.zeros(0) for c in ("t", "ax", "ay", "az", "gx", "gy", "gz")})
+    data = ReceiverData(obs, imu, NavInfo(WEEK, SOW0, ALPHA, BETA, dual))
+    truth = {"pos": rx, "zwd": zwd, "rx_clock": rx_clock, "lat": LAT, "lon": LON, "h": H}
+    return data, truth
+
+
+def horizontal_error(epochs: pd.DataFrame, truth: dict) -> np.ndarray:
+    """Horizontal error [m] of a solution table w.r.t. the static truth position."""
+    e, n, _ = pymap3d.ecef2enu(epochs["x"], epochs["y"], epochs["z"], truth["lat"], truth["lon"], truth["h"])
+    return np.hypot(np.asarray(e), np.asarray(n))
+
+
+# --------------------------------------------------------------------------- arcs
+
+
+def _arc_table() -> pd.DataFrame:
+    rows = [(e, "G01", False, False) for e in (0, 1, 2, 4, 5)]  # gap: epoch 3 missing
+    rows += [(e, "G02", e == 3, False) for e in range(6)]  # L1 loss of lock at epoch 3
+    rows += [(e, "G03", False, e == 2) for e in range(4)]  # L2 loss of lock at epoch 2
+    df = pd.DataFrame(rows, columns=["epoch", "sat", "lli_l1", "lli_l2"])
+    return df.sample(frac=1.0, random_state=3).reset_index(drop=True)  # any row order
+
+
+def test_arc_ids_gap_and_lli() -> None:
+    df = _arc_table()
+    arc = pd.Series(arc_ids(df), index=df.index)
+    key = dict(zip(zip(df["sat"], df["epoch"]), arc))
+    # numbered by (start epoch, satellite): G01@0, G02@0, G03@0, G02@3, G01@4
+    assert [key["G01", e] for e in (0, 1, 2, 4, 5)] == [0, 0, 0, 4, 4]
+    assert [key["G02", e] for e in range(6)] == [1, 1, 1, 3, 3, 3]
+    assert [key["G03", e] for e in range(4)] == [2, 2, 2, 2]  # L2 flag ignored in single frequency
+
+
+def test_arc_ids_l2_flag_and_gap_tolerance() -> None:
+    df = _arc_table()
+    key = dict(zip(zip(df["sat"], df["epoch"]), arc_ids(df, use_l2=True)))
+    assert key["G03", 1] != key["G03", 2] == key["G03", 3]
+    key = dict(zip(zip(df["sat"], df["epoch"]), arc_ids(df, max_gap_epochs=2)))
+    assert len({key["G01", e] for e in (0, 1, 2, 4, 5)}) == 1  # a one-epoch hole is tolerated
+    assert key["G02", 2] != key["G02", 3]  # the loss of lock still breaks the arc
+
+
+def test_arc_ids_empty_and_nan_flags() -> None:
+    assert arc_ids(_arc_table().iloc[:0]).shape == (0,)
+    df = pd.DataFrame({"epoch": [0, 1, 2], "sat": ["G01"] * 3, "lli_l1": [None, np.nan, True]})
+    assert arc_ids(df).tolist() == [0, 0, 1]
+
+
+# --------------------------------------------------------------------------- prediction
+
+
+def _one_epoch() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    rx = np.array(pymap3d.geodetic2ecef(LAT, LON, H))
+    los = line_of_sight(rx[None], None, np.array([WEEK * SECONDS_PER_WEEK + SOW0]), NominalConstellation())
+    up = los.el_rad[0] > 10 * DEG
+    return rx, los.sat_pos_tx[0, up], los.el_rad[0, up]
+
+
+def test_predict_value() -> None:
+    rx, sat, el = _one_epoch()
+    doy = day_of_year(WEEK, SOW0)
+    lat, _, h = geodetic(rx)
+    pred, _ = predict(sat, rx, 123.0, 0.15, el, lat, h, doy)
+    expected = sagnac_range(sat, rx) + 123.0 + atmosphere.tropo_slant_m(el, lat, h, doy, 0.15)
+    np.testing.assert_allclose(pred, expected, rtol=0, atol=1e-6)
+
+
+def test_predict_jacobian_matches_finite_differences() -> None:
+    rx, sat, el = _one_epoch()
+    doy = day_of_year(WEEK, SOW0)
+    lat, _, h = geodetic(rx)  # the troposphere's lat/h are inputs, held fixed
+    state = np.r_[rx + [3.0, -2.0, 1.0], 50.0, 0.2]
+
+    def f(s: np.ndarray) -> np.ndarray:
+        return predict(sat, s[:3], s[3], s[4], el, lat, h, doy)[0]
+
+    _, H = predict(sat, state[:3], state[3], state[4], el, lat, h, doy)
+    assert H.shape == (len(sat), 5)
+    num = np.empty_like(H)
+    for i, step in enumerate((1.0, 1.0, 1.0, 1.0, 0.1)):  # ranges of 2e7 m: large steps beat roundoff
+        d = np.zeros(5)
+        d[i] = step
+        num[:, i] = (f(state + d) - f(state - d)) / (2 * step)
+    np.testing.assert_allclose(H, num, rtol=0, atol=1e-7)
+    assert np.abs(H[:, 0] - num[:, 0]).max() < 1e-7  # includes the ~6e-6 Sagnac partial
+
+
+def test_geodetic_matches_pymap3d() -> None:
+    for lat, lon, h in ((LAT, LON, H), (-33.9, 151.2, 50.0), (78.2, 15.6, 3000.0), (0.0, 0.0, -20.0)):
+        p = np.array(pymap3d.geodetic2ecef(lat, lon, h))
+        la, lo, hh = geodetic(p)
+        assert abs(np.degrees(la) - lat) < 1e-9 and abs(np.degrees(lo) - lon) < 1e-9 and abs(hh - h) < 1e-4
+
+
+def test_single_point_solution_from_earth_centre() -> None:
+    rx, sat, el = _one_epoch()
+    doy = day_of_year(WEEK, SOW0)
+    lat, _, h = geodetic(rx)
+    code = sagnac_range(sat, rx) + 777.0 + atmosphere.tropo_slant_m(el, lat, h, doy, 0.0)
+    pos, clock = single_point_solution(sat, code, el=el, doy=doy)
+    assert np.linalg.norm(pos - rx) < 1e-3 and abs(clock - 777.0) < 1e-3
+    with pytest.raises(SimbenchError):
+        single_point_solution(sat[:3], code[:3])
+
+
+# --------------------------------------------------------------------------- preparation
+
+
+@pytest.mark.parametrize("dual", [True, False])
+def test_prepare_ppp_corrections_leave_only_noise(dual: bool) -> None:
+    data, truth = synthetic_data(30, dual=dual, code_noise_m=0.0, phase_noise_m=0.0)
+    obs = prepare_ppp(data, ionosphere_free=dual, code_sigma_m=2.5, phase_sigma_m=0.025, elevation_mask_deg=15.0)
+    assert np.all(np.diff(obs.epoch) >= 0) and np.all(obs.el > 15 * DEG)
+    np.testing.assert_allclose(obs.sigma_code, 2.5 / np.sin(obs.el))
+    np.testing.assert_allclose(obs.sigma_phase, 0.025 / np.sin(obs.el))
+    lat, _, h = geodetic(truth["pos"])
+    worst_code, biases = 0.0, {}
+    for k, rows in obs.iter_epochs():
+        assert len(set(obs.epoch[rows])) == 1 and obs.epoch_t[k] == obs.t[rows][0]
+        pred, _ = predict(obs.sat_pos[rows], truth["pos"], truth["rx_clock"][obs.epoch_ids[k]], truth["zwd"],
+                          obs.el[rows], lat, h, obs.doy)
+        worst_code = max(worst_code, np.abs(obs.code[rows] - pred).max())
+        for a, b in zip(obs.arc[rows], obs.phase[rows] - pred):
+            biases.setdefault(a, []).append(b)
+    assert worst_code < 5e-3  # Sagnac model vs exact rotation, rough Klobuchar pierce points
+    assert max(np.ptp(v) for v in biases.values()) < 5e-3  # one constant bias per arc
+    assert obs.n_arcs == len(obs.sat_names) == len(biases)
+
+
+def test_prepare_ppp_drops_epochs_below_min_satellites() -> None:
+    data, _ = synthetic_data(5, dual=False)
+    o = data.observations
+    counts = o[o["el"] > 10].groupby("epoch").size()
+    need = int(counts.max())
+    obs = prepare_ppp(data, ionosphere_free=False, code_sigma_m=2.5, phase_sigma_m=0.025, elevation_mask_deg=10,
+                      min_satellites=need)
+    assert set(obs.epoch_ids) == set(counts.index[counts >= need])
+
+
+def test_prepare_ppp_errors() -> None:
+    single, _ = synthetic_data(3, dual=False)
+    kw = dict(code_sigma_m=2.5, phase_sigma_m=0.025, elevation_mask_deg=7.0)
+    with pytest.raises(SimbenchError, match="ionosphere_free"):
+        prepare_ppp(single, ionosphere_free=True, **kw)
+    with pytest.raises(SimbenchError, match="no epoch has"):
+        prepare_ppp(single, ionosphere_free=False, **{**kw, "elevation_mask_deg": 89.0})
+    broken = ReceiverData(single.observations.drop(columns=["sat_clock"]), single.imu, single.nav)
+    with pytest.raises(SimbenchError, match="sat_clock"):
+        prepare_ppp(broken, ionosphere_free=False, **kw)
+    with pytest.raises(SimbenchError, match="code_sigma_m"):
+        prepare_ppp(single, ionosphere_free=False, **{**kw, "code_sigma_m": 0.0})

@@ -1,0 +1,175 @@
+"""Checks of DLL/PLL thermal jitter, antenna pattern and link-budget C/N0."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from simbench.errors import SimbenchError
+from simbench.sim.constants import CHIP_LENGTH_CA, CHIP_RATE_CA, LAMBDA_L1
+from simbench.sim.tracking import (
+    antenna_gain_dbi,
+    cn0_mean_dbhz,
+    dll_jitter_chips,
+    dll_jitter_m,
+    pll_jitter_m,
+    pll_jitter_rad,
+)
+
+T_1MS = 1e-3
+# Dissertation Table 5.3.1 presets: (DLL bandwidth Hz, spacing chip, double-sided front end Hz)
+LOW = dict(dll_bw_hz=2.0, spacing_chips=0.5, front_end_bw_hz=4.092e6, integration_s=T_1MS)
+HIGH = dict(dll_bw_hz=1.0, spacing_chips=0.2, front_end_bw_hz=9.66e6, integration_s=T_1MS)
+CN0_GRID = np.arange(25.0, 55.01, 0.5)
+
+
+# --------------------------------------------------------------------------- DLL
+
+
+def test_dll_preset_reference_values():
+    # Low preset at 45 dB-Hz, by hand: c = 10^4.5 = 31623 Hz; B_fe T_c = 4.092/1.023 = 4,
+    # so R_c/B_fe = 0.25 < D = 0.5 < pi/4: middle regime.
+    # spectral = 0.25 + 4/(pi - 1) (0.5 - 0.25)^2 = 0.25 + 0.116742 = 0.366742
+    # squaring = 1 + 2/(0.001 * 31623 * 1.5) = 1.042164
+    # sigma = sqrt(2/(2*31623) * 0.366742 * 1.042164) = 3.4765e-3 chip = 1.0188 m
+    c = 10**4.5
+    spectral = 0.25 + 4.0 / (math.pi - 1.0) * 0.25**2
+    sigma_low = math.sqrt(2.0 / (2.0 * c) * spectral * (1.0 + 2.0 / (T_1MS * c * 1.5)))
+    assert sigma_low * CHIP_LENGTH_CA == pytest.approx(1.0188, abs=1e-4)
+    assert dll_jitter_m(45.0, **LOW) == pytest.approx(1.0188, abs=1e-4)
+    assert dll_jitter_chips(45.0, **LOW) == pytest.approx(sigma_low, rel=1e-12)
+
+    # High preset: B_fe T_c = 9.4428, R_c/B_fe = 0.1059 < 0.2 < 0.3327: middle regime too.
+    bt = 9.66e6 / CHIP_RATE_CA
+    spectral = 1.0 / bt + bt / (math.pi - 1.0) * (0.2 - 1.0 / bt) ** 2
+    sigma_high = math.sqrt(1.0 / (2.0 * c) * spectral * (1.0 + 2.0 / (T_1MS * c * 1.8)))
+    assert dll_jitter_m(45.0, **HIGH) == pytest.approx(0.4514, abs=1e-4)
+    assert dll_jitter_chips(45.0, **HIGH) == pytest.approx(sigma_high, rel=1e-12)
+
+
+def test_dll_outer_regimes_follow_eqs_5_14_and_5_15():
+    c = 10**4.0
+    # Wide (eq. 5.14): D = 1 with a 20 MHz front end (pi R_c/B_fe = 0.16).
+    wide = math.sqrt(3.0 / (2 * c) * 1.0 * (1 + 2 / (0.02 * c * (2 - 1.0))))
+    assert dll_jitter_chips(40.0, 3.0, 1.0, 20e6, 0.02) == pytest.approx(wide, rel=1e-12)
+    # Narrow (eq. 5.15): D = 0.05 with a 4 MHz front end (R_c/B_fe = 0.256).
+    narrow = math.sqrt(3.0 / (2 * c) * (CHIP_RATE_CA / 4e6) * (1 + 1 / (0.02 * c)))
+    assert dll_jitter_chips(40.0, 3.0, 0.05, 4e6, 0.02) == pytest.approx(narrow, rel=1e-12)
+    # No further gain below R_c/B_fe.
+    assert dll_jitter_chips(40.0, 3.0, 0.01, 4e6, 0.02) == dll_jitter_chips(40.0, 3.0, 0.2, 4e6, 0.02)
+
+
+@pytest.mark.parametrize("front_end_bw_hz", [4.092e6, 9.66e6, 24e6])
+def test_dll_continuity_at_regime_boundaries(front_end_bw_hz):
+    cn0 = CN0_GRID
+    eps = 1e-10
+    wide_edge = math.pi * CHIP_RATE_CA / front_end_bw_hz
+    if wide_edge < 2.0:
+        above = dll_jitter_chips(cn0, 1.0, wide_edge * (1 + eps), front_end_bw_hz, T_1MS)
+        below = dll_jitter_chips(cn0, 1.0, wide_edge * (1 - eps), front_end_bw_hz, T_1MS)
+        assert np.max(np.abs(above / below - 1.0)) < 1e-6
+
+    narrow_edge = CHIP_RATE_CA / front_end_bw_hz
+    # The spectral term joins continuously; isolate it with an integration time
+    # long enough to remove the squaring loss (1/(T c) < 1e-8).
+    above = dll_jitter_chips(cn0, 1.0, narrow_edge * (1 + eps), front_end_bw_hz, 1e6)
+    below = dll_jitter_chips(cn0, 1.0, narrow_edge * (1 - eps), front_end_bw_hz, 1e6)
+    assert np.max(np.abs(above / below - 1.0)) < 1e-6
+    # With T = 1 ms the published squaring loss switches from 2/(2 - D) to 1 there
+    # (Kaplan & Hegarty eq. as printed); the jump is exactly that ratio.
+    above = dll_jitter_chips(cn0, 1.0, narrow_edge * (1 + eps), front_end_bw_hz, T_1MS)
+    below = dll_jitter_chips(cn0, 1.0, narrow_edge * (1 - eps), front_end_bw_hz, T_1MS)
+    c = 10 ** (cn0 / 10)
+    ratio = np.sqrt((1 + 2 / (T_1MS * c * (2 - narrow_edge))) / (1 + 1 / (T_1MS * c)))
+    np.testing.assert_allclose(above / below, ratio, rtol=1e-8)
+
+
+def test_dll_monotone_and_presets_ordered():
+    for preset in (LOW, HIGH):
+        sigma = dll_jitter_m(CN0_GRID, **preset)
+        assert sigma.shape == CN0_GRID.shape
+        assert np.all(np.diff(sigma) < 0.0)
+    assert np.all(dll_jitter_m(CN0_GRID, **LOW) > dll_jitter_m(CN0_GRID, **HIGH))
+    # Smaller spacing within the same front end helps; larger bandwidth hurts.
+    assert dll_jitter_m(40.0, 2.0, 0.3, 9.66e6, T_1MS) < dll_jitter_m(40.0, 2.0, 0.6, 9.66e6, T_1MS)
+    assert dll_jitter_m(40.0, 4.0, 0.5, 9.66e6, T_1MS) == pytest.approx(
+        math.sqrt(2.0) * dll_jitter_m(40.0, 2.0, 0.5, 9.66e6, T_1MS), rel=1e-12)
+
+
+def test_dll_broadcasts_and_converts_to_metres():
+    cn0 = np.linspace(30.0, 50.0, 12).reshape(3, 4)
+    chips = dll_jitter_chips(cn0, **LOW)
+    assert chips.shape == (3, 4)
+    np.testing.assert_allclose(dll_jitter_m(cn0, **LOW), CHIP_LENGTH_CA * chips, rtol=1e-15)
+    assert CHIP_LENGTH_CA == pytest.approx(293.052, abs=1e-3)
+
+
+@pytest.mark.parametrize(
+    "kwargs, field",
+    [
+        (dict(LOW, spacing_chips=2.0), "correlator_spacing"),
+        (dict(LOW, spacing_chips=0.0), "correlator_spacing"),
+        (dict(LOW, spacing_chips=np.array([0.1, 0.2])), "correlator_spacing"),
+        (dict(LOW, dll_bw_hz=-1.0), "dll_bw"),
+        (dict(LOW, front_end_bw_hz=0.0), "front_end_bw"),
+        (dict(LOW, integration_s=float("nan")), "integration"),
+    ],
+)
+def test_dll_rejects_bad_receiver_parameters(kwargs, field):
+    with pytest.raises(SimbenchError, match=field):
+        dll_jitter_chips(40.0, **kwargs)
+
+
+# --------------------------------------------------------------------------- PLL
+
+
+def test_pll_reference_value():
+    # 30 dB-Hz, 50 Hz, 1 ms: sqrt(50/1000 (1 + 1/(2 * 0.001 * 1000))) = sqrt(0.075) rad = 15.69 deg.
+    rad = pll_jitter_rad(30.0, 50.0, T_1MS)
+    assert rad == pytest.approx(math.sqrt(0.075), rel=1e-12)
+    assert math.degrees(rad) == pytest.approx(15.69, abs=0.01)
+    assert pll_jitter_m(30.0, 50.0, T_1MS) == pytest.approx(LAMBDA_L1 / (2 * math.pi) * math.sqrt(0.075), rel=1e-12)
+    assert pll_jitter_m(30.0, 50.0, T_1MS) == pytest.approx(8.29e-3, abs=1e-5)
+
+
+def test_pll_monotone_and_presets():
+    low = pll_jitter_rad(CN0_GRID, 50.0, T_1MS)
+    high = pll_jitter_rad(CN0_GRID, 25.0, T_1MS)
+    assert np.all(np.diff(low) < 0.0)
+    assert np.all(low > high)
+    # Strong signal: the squaring term vanishes and sigma^2 -> B / c.
+    assert pll_jitter_rad(60.0, 25.0, T_1MS) == pytest.approx(math.sqrt(25.0 / 1e6), rel=1e-3)
+    with pytest.raises(SimbenchError, match="pll_bw"):
+        pll_jitter_rad(30.0, 0.0, T_1MS)
+
+
+# --------------------------------------------------------------------------- antenna, C/N0
+
+
+def test_antenna_gain_table_points_and_back_lobe():
+    elevation_deg = np.array([0.0, 15.0, 30.0, 65.0, 90.0])
+    gain = antenna_gain_dbi(np.radians(90.0 - elevation_deg))
+    np.testing.assert_allclose(gain, [-6.0, -1.0, 3.0, 9.0, 12.0], atol=1e-9)
+    assert antenna_gain_dbi(math.pi) == pytest.approx(-25.0, abs=1e-9)
+    assert antenna_gain_dbi(np.radians(135.0)) == pytest.approx(-15.5, abs=1e-9)
+    # Piecewise linear between nodes.
+    assert antenna_gain_dbi(np.radians(42.5)) == pytest.approx(6.0, abs=1e-9)
+
+
+def test_antenna_gain_monotone_from_boresight():
+    theta = np.linspace(0.0, math.pi, 1801)
+    gain = antenna_gain_dbi(theta)
+    assert np.all(np.diff(gain) < 0.0)
+    assert gain.shape == theta.shape
+
+
+def test_cn0_link_budget():
+    theta = np.radians([[0.0, 90.0, 180.0]])
+    cn0 = cn0_mean_dbhz(theta)
+    np.testing.assert_allclose(cn0, [[54.5, 36.5, 17.5]], atol=1e-9)
+    # Per-epoch power offsets broadcast against per-satellite angles.
+    cn0_b = cn0_mean_dbhz(theta, received_power_dbw=np.array([[-158.5], [-160.5]]), constant_db=200.0)
+    assert cn0_b.shape == (2, 3)
+    np.testing.assert_allclose(cn0_b[1] - cn0_b[0], -2.0, atol=1e-12)
+    np.testing.assert_allclose(cn0_b[0], cn0[0] - 1.0, atol=1e-12)
