@@ -8,9 +8,8 @@ from __future__ import annotations
 import importlib
 from typing import TypeVar
 
-from simbench.errors import SimbenchError
-
 from estimators.base import Estimator, Solution
+from simbench.errors import SimbenchError
 
 _REGISTRY: dict[str, type[Estimator]] = {}
 #: Modules whose import registers estimators; a new estimator family adds its module here.

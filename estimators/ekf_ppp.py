@@ -47,14 +47,19 @@ import numpy as np
 import pandas as pd
 from filterpy.kalman import ExtendedKalmanFilter
 
+from estimators import register
+from estimators.base import Estimator, solution_frame
+from estimators.measurement import (
+    N_BASE_STATES,
+    predict_given_troposphere,
+    prepare_ppp,
+    single_point_solution,
+    troposphere_terms,
+)
 from simbench.contract import ReceiverData
 from simbench.errors import SimbenchError
 from simbench.sim import atmosphere
-
-from estimators import register
-from estimators.base import Estimator, solution_frame
-from estimators.measurement import (N_BASE_STATES, geodetic, predict_given_troposphere, prepare_ppp,
-                                    single_point_solution, troposphere_terms)
+from simbench.sim.frames import geodetic_from_ecef
 
 #: Indices of the base states.
 _POS, _CLK, _ZWD = slice(0, 3), 3, 4
@@ -110,7 +115,7 @@ class EkfPpp(Estimator):
         rows = obs.epoch_slice(0)
         pos0, clock0 = single_point_solution(obs.sat_pos[rows], obs.code[rows], obs.sigma_code[rows],
                                              el=obs.el[rows], doy=obs.doy)
-        lat0, _, h0 = geodetic(pos0)
+        lat0, _, h0 = geodetic_from_ecef(pos0)
         _, zwd0 = atmosphere.saastamoinen_zenith_m(lat0, h0)
         x = np.zeros(nx)
         x[_POS], x[_CLK], x[_ZWD] = pos0, clock0, float(zwd0)
@@ -156,7 +161,7 @@ class EkfPpp(Estimator):
                     P[_CLK, _CLK] += q_clk * dt
 
             sat_pos, el = obs.sat_pos[rows], obs.el[rows]
-            lat, _, h = geodetic(kf.x[_POS])
+            lat, _, h = geodetic_from_ecef(kf.x[_POS])
             hydro, m_w = troposphere_terms(el, lat, h, obs.doy)  # once per epoch (insensitive to metres)
             m = len(el)
             H = np.zeros((m, nx))

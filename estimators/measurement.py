@@ -32,12 +32,13 @@ import pandas as pd
 from simbench.contract import ReceiverData
 from simbench.errors import SimbenchError
 from simbench.sim import atmosphere
-from simbench.sim.constants import (C_LIGHT, DEG, IF_A1, IF_A2, OMEGA_EARTH, SECONDS_PER_WEEK, WGS84_A, WGS84_E2,
-                                    WGS84_F)
+from simbench.sim.constants import C_LIGHT, DEG, IF_A1, IF_A2, OMEGA_EARTH
+from simbench.sim.frames import geodetic_from_ecef
 from simbench.sim.geometry import sagnac_range
+from simbench.sim.gpstime import day_of_year
 
 __all__ = ["PppObservations", "arc_ids", "prepare_ppp", "predict", "predict_given_troposphere",
-           "troposphere_terms", "single_point_solution", "geodetic", "day_of_year", "N_BASE_STATES"]
+           "troposphere_terms", "single_point_solution", "N_BASE_STATES"]
 
 #: Number of non-ambiguity states in :func:`predict`'s Jacobian: x, y, z, clock, zwd.
 N_BASE_STATES = 5
@@ -50,40 +51,6 @@ _ROUGH_POSITION_INTERVAL_S = 60.0
 
 
 # --------------------------------------------------------------------------- small helpers
-
-
-def geodetic(pos: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """ECEF to geodetic latitude, longitude [rad] and ellipsoidal height [m] (Bowring, one step).
-
-    Accurate to well below a millimetre in height for points within ~10 km of
-    the Earth's surface, which is all the troposphere model needs; about 20x
-    faster than :func:`pymap3d.ecef2geodetic` for one point.
-
-    Parameters
-    ----------
-    pos : array_like, shape (..., 3)
-        ECEF position [m].
-    """
-    p3 = np.asarray(pos, dtype=float)
-    x, y, z = p3[..., 0], p3[..., 1], p3[..., 2]
-    b = WGS84_A * (1.0 - WGS84_F)
-    ep2 = WGS84_E2 / (1.0 - WGS84_E2)
-    p = np.hypot(x, y)
-    theta = np.arctan2(z * WGS84_A, p * b)
-    st, ct = np.sin(theta), np.cos(theta)
-    lat = np.arctan2(z + ep2 * b * st**3, p - WGS84_E2 * WGS84_A * ct**3)
-    lon = np.arctan2(y, x)
-    sl, cl = np.sin(lat), np.cos(lat)
-    n = WGS84_A / np.sqrt(1.0 - WGS84_E2 * sl * sl)
-    # p / cos(lat) - N loses precision near the poles; this form does not.
-    h = p * cl + z * sl - WGS84_A * WGS84_A / n
-    return lat, lon, h
-
-
-def day_of_year(gps_week: int, sow_s: float) -> float:
-    """Day of year (1-based, fractional) of a GPS time, as the Niell mapping wants it."""
-    t = np.datetime64("1980-01-06") + np.timedelta64(int(round(gps_week * SECONDS_PER_WEEK + sow_s)), "s")
-    return float((t - t.astype("datetime64[Y]")) / np.timedelta64(1, "D")) + 1.0
 
 
 def _geometry(sat_pos: np.ndarray, rx_pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -213,8 +180,9 @@ def single_point_solution(sat_pos: np.ndarray, code: np.ndarray, sigma: np.ndarr
     for _ in range(iterations):
         rng, grad = _geometry(sat_pos, pos)
         model = rng + clock
-        if el is not None and doy is not None:
-            lat, _, h = geodetic(pos)
+        # the Earth's centre (the default start) has no geodetic coordinates
+        if el is not None and doy is not None and np.dot(pos, pos) > 6.0e6**2:
+            lat, _, h = geodetic_from_ecef(pos)
             if -1_000.0 < h < 50_000.0:
                 model = model + troposphere_terms(el, lat, h, doy)[0]
         A[:, :3] = grad
@@ -449,7 +417,7 @@ def _rough_lat_lon(sat_pos: np.ndarray, code: np.ndarray, sigma: np.ndarray, el:
         rows = slice(start[k], stop[k])
         pos, _ = single_point_solution(sat_pos[rows], code[rows], sigma[rows], el=el[rows], doy=doy, x0=x0)
         x0 = pos
-        lats[i], lons[i], _ = geodetic(pos)
+        lats[i], lons[i], _ = geodetic_from_ecef(pos)
     which = np.maximum(np.searchsorted(solve_at, np.arange(n), side="right") - 1, 0)
     per_row = np.repeat(which, stop - start)
     return lats[per_row], lons[per_row]

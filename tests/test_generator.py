@@ -6,8 +6,7 @@ import pandas as pd
 import pytest
 
 import simbench
-from simbench.contract import (IMU_COLUMNS, LABEL_COLUMNS, OBSERVATION_COLUMNS, TRUTH_COLUMNS, ReceiverData,
-                               Scenario)
+from simbench.contract import IMU_COLUMNS, LABEL_COLUMNS, OBSERVATION_COLUMNS, TRUTH_COLUMNS, ReceiverData, Scenario
 from simbench.errors import SimbenchError
 from simbench.sim import tracking
 from simbench.sim.constants import LAMBDA_L1

@@ -11,7 +11,6 @@ import pytest
 from simbench.errors import SimbenchError
 from simbench.sim.constants import C_LIGHT, DEG, OMEGA_EARTH
 from simbench.sim.geometry import (
-    ecef_to_geodetic,
     elevation_azimuth,
     line_of_sight,
     sagnac_range,
@@ -143,17 +142,6 @@ def test_elevation_azimuth_against_pymap3d():
     daz = np.angle(np.exp(1j * (az - np.radians(az_ref))))
     assert np.abs(daz).max() < 1e-9
     assert az.min() >= 0.0 and az.max() < 2 * math.pi
-
-
-def test_ecef_to_geodetic_roundtrip():
-    lat = np.radians([0.0, 39.6, -45.0, 89.999, -90.0])
-    lon = np.radians([0.0, -79.96, 170.0, 10.0, 0.0])
-    h = np.array([0.0, 290.0, -50.0, 12000.0, 3.0])
-    xyz = np.stack(pymap3d.geodetic2ecef(lat, lon, h, deg=False), axis=-1)
-    la, lo, hh = ecef_to_geodetic(xyz)
-    np.testing.assert_allclose(la, lat, atol=1e-12)
-    np.testing.assert_allclose(hh, h, atol=1e-6)
-    np.testing.assert_allclose(lo[:4], lon[:4], atol=1e-12)
 
 
 def test_los_elevation_consistent_and_known_sky(constellation):

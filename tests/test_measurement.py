@@ -11,12 +11,14 @@ import pandas as pd
 import pymap3d
 import pytest
 
-from estimators.measurement import (arc_ids, day_of_year, geodetic, predict, prepare_ppp, single_point_solution)
+from estimators.measurement import arc_ids, predict, prepare_ppp, single_point_solution
 from simbench.contract import NavInfo, ReceiverData
 from simbench.errors import SimbenchError
 from simbench.sim import atmosphere
 from simbench.sim.constants import DEG, IONO_L2_SCALE, LAMBDA_L1, LAMBDA_L2, SECONDS_PER_WEEK
+from simbench.sim.frames import geodetic_from_ecef
 from simbench.sim.geometry import line_of_sight, sagnac_range
+from simbench.sim.gpstime import day_of_year
 from simbench.sim.orbits import NominalConstellation
 
 ALPHA = (8.382e-09, -1.490e-08, -5.960e-08, 1.192e-07)
@@ -145,7 +147,7 @@ def _one_epoch() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def test_predict_value() -> None:
     rx, sat, el = _one_epoch()
     doy = day_of_year(WEEK, SOW0)
-    lat, _, h = geodetic(rx)
+    lat, _, h = geodetic_from_ecef(rx)
     pred, _ = predict(sat, rx, 123.0, 0.15, el, lat, h, doy)
     expected = sagnac_range(sat, rx) + 123.0 + atmosphere.tropo_slant_m(el, lat, h, doy, 0.15)
     np.testing.assert_allclose(pred, expected, rtol=0, atol=1e-6)
@@ -154,7 +156,7 @@ def test_predict_value() -> None:
 def test_predict_jacobian_matches_finite_differences() -> None:
     rx, sat, el = _one_epoch()
     doy = day_of_year(WEEK, SOW0)
-    lat, _, h = geodetic(rx)  # the troposphere's lat/h are inputs, held fixed
+    lat, _, h = geodetic_from_ecef(rx)  # the troposphere's lat/h are inputs, held fixed
     state = np.r_[rx + [3.0, -2.0, 1.0], 50.0, 0.2]
 
     def f(s: np.ndarray) -> np.ndarray:
@@ -174,14 +176,14 @@ def test_predict_jacobian_matches_finite_differences() -> None:
 def test_geodetic_matches_pymap3d() -> None:
     for lat, lon, h in ((LAT, LON, H), (-33.9, 151.2, 50.0), (78.2, 15.6, 3000.0), (0.0, 0.0, -20.0)):
         p = np.array(pymap3d.geodetic2ecef(lat, lon, h))
-        la, lo, hh = geodetic(p)
+        la, lo, hh = geodetic_from_ecef(p)
         assert abs(np.degrees(la) - lat) < 1e-9 and abs(np.degrees(lo) - lon) < 1e-9 and abs(hh - h) < 1e-4
 
 
 def test_single_point_solution_from_earth_centre() -> None:
     rx, sat, el = _one_epoch()
     doy = day_of_year(WEEK, SOW0)
-    lat, _, h = geodetic(rx)
+    lat, _, h = geodetic_from_ecef(rx)
     code = sagnac_range(sat, rx) + 777.0 + atmosphere.tropo_slant_m(el, lat, h, doy, 0.0)
     pos, clock = single_point_solution(sat, code, el=el, doy=doy)
     assert np.linalg.norm(pos - rx) < 1e-3 and abs(clock - 777.0) < 1e-3
@@ -199,7 +201,7 @@ def test_prepare_ppp_corrections_leave_only_noise(dual: bool) -> None:
     assert np.all(np.diff(obs.epoch) >= 0) and np.all(obs.el > 15 * DEG)
     np.testing.assert_allclose(obs.sigma_code, 2.5 / np.sin(obs.el))
     np.testing.assert_allclose(obs.sigma_phase, 0.025 / np.sin(obs.el))
-    lat, _, h = geodetic(truth["pos"])
+    lat, _, h = geodetic_from_ecef(truth["pos"])
     worst_code, biases = 0.0, {}
     for k, rows in obs.iter_epochs():
         assert len(set(obs.epoch[rows])) == 1 and obs.epoch_t[k] == obs.t[rows][0]

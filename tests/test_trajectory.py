@@ -12,7 +12,8 @@ from scipy.spatial.transform import Rotation
 from simbench.config import FlightConfig, NlosConfig, ReplayConfig, TrajectoryConfig, UrbanDriveConfig
 from simbench.errors import SimbenchError
 from simbench.sim.constants import G0_STD
-from simbench.sim.trajectory import Trajectory, dcm_body_to_ecef, flight, replay, urban_drive
+from simbench.sim.frames import dcm_body_to_ecef
+from simbench.sim.trajectory import Trajectory, flight, replay, urban_drive
 
 DRIVE_1 = Path(__file__).resolve().parents[2] / "shared" / "data" / "wvu_drives" / "drive_1.xyz"
 RATE = 100.0

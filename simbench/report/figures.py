@@ -43,12 +43,7 @@ def ecdf_figure(epochs: pd.DataFrame, metric: str, path: str | Path, title: str)
     ax.grid(True, which="both", alpha=0.3)
     ax.set_title(title)
     ax.legend(loc="lower right", fontsize=8, frameon=True)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+    return _save(fig, path)
 
 
 def error_timeseries_figure(epochs: pd.DataFrame, path: str | Path, title: str) -> Path:
@@ -62,6 +57,10 @@ def error_timeseries_figure(epochs: pd.DataFrame, path: str | Path, title: str) 
     ax.grid(True, which="both", alpha=0.3)
     ax.set_title(title)
     ax.legend(loc="upper right", fontsize=8)
+    return _save(fig, path)
+
+
+def _save(fig: plt.Figure, path: str | Path) -> Path:
     fig.tight_layout()
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

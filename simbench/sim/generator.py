@@ -27,9 +27,9 @@ from simbench.contract import NavInfo, Scenario
 from simbench.errors import SimbenchError
 from simbench.sim import atmosphere, tracking
 from simbench.sim.canyon import canyon_visibility
-from simbench.sim.constants import (C_LIGHT, DEG, IONO_L2_SCALE, LAMBDA_L1, LAMBDA_L2, SECONDS_PER_WEEK,
-                                    WGS84_A)
+from simbench.sim.constants import C_LIGHT, DEG, IONO_L2_SCALE, LAMBDA_L1, LAMBDA_L2, SECONDS_PER_WEEK, WGS84_A
 from simbench.sim.geometry import line_of_sight
+from simbench.sim.gpstime import day_of_year
 from simbench.sim.imu import simulate_imu
 from simbench.sim.orbits import BroadcastEphemeris, NominalConstellation
 from simbench.sim.processes import gauss_markov, random_walk, receiver_clock, stream
@@ -125,7 +125,7 @@ def generate(cfg: SimConfig) -> Scenario:
     rx_clock_m, rx_drift_mps = C_LIGHT * clk_s, C_LIGHT * drift
 
     # ------------------------------------------------------------------ atmosphere
-    doy = _day_of_year(sc.gps_week, start_sow)
+    doy = day_of_year(sc.gps_week, start_sow)
     if err.troposphere.enabled:
         zhd, zwd_model = atmosphere.saastamoinen_zenith_m(lat, h)
         trng = stream(seed, "troposphere")
@@ -274,10 +274,3 @@ def _off_boresight(el: np.ndarray, az: np.ndarray, att: np.ndarray) -> np.ndarra
     up_d = -(np.cos(pitch) * np.cos(roll))
     los_n, los_e, los_d = np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), -np.sin(el)
     return np.arccos(np.clip(up_n * los_n + up_e * los_e + up_d * los_d, -1.0, 1.0))
-
-
-def _day_of_year(gps_week: int, sow: float) -> float:
-    """Day of year (1-based, fractional) of a GPS time; leap seconds do not matter here."""
-    t = np.datetime64("1980-01-06") + np.timedelta64(int(gps_week * SECONDS_PER_WEEK + sow), "s")
-    year_start = t.astype("datetime64[Y]")
-    return float((t - year_start) / np.timedelta64(1, "D")) + 1.0

@@ -14,10 +14,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from simbench.errors import SimbenchError
-from simbench.sim.constants import C_LIGHT, MU_EARTH, OMEGA_EARTH, WGS84_A, WGS84_E2
+from simbench.sim.constants import C_LIGHT, MU_EARTH, OMEGA_EARTH
+from simbench.sim.frames import geodetic_from_ecef
 from simbench.sim.orbits import Constellation
 
-__all__ = ["LineOfSight", "line_of_sight", "sagnac_range", "elevation_azimuth", "ecef_to_geodetic"]
+__all__ = ["LineOfSight", "line_of_sight", "sagnac_range", "elevation_azimuth"]
 
 #: Initial guess of the signal travel time for a ground receiver [s].
 _TAU_GUESS_S = 0.075
@@ -92,39 +93,9 @@ def _as_xyz(name: str, a: np.ndarray | None, n: int | None) -> np.ndarray:
     return arr
 
 
-def ecef_to_geodetic(xyz: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """WGS-84 geodetic latitude, longitude and height of ECEF points.
-
-    Parameters
-    ----------
-    xyz : np.ndarray, shape (..., 3)
-        ECEF coordinates [m].
-
-    Returns
-    -------
-    lat, lon : np.ndarray, shape (...)
-        Geodetic latitude and longitude [rad].
-    h : np.ndarray, shape (...)
-        Height above the ellipsoid [m].
-    """
-    x, y, z = xyz[..., 0], xyz[..., 1], xyz[..., 2]
-    p = np.hypot(x, y)
-    lon = np.arctan2(y, x)
-    # Fixed-point iteration on latitude; 5 steps are sub-micrometre for |h| < 1e5 km.
-    lat = np.arctan2(z, p * (1.0 - WGS84_E2))
-    for _ in range(5):
-        s = np.sin(lat)
-        nrad = WGS84_A / np.sqrt(1.0 - WGS84_E2 * s * s)
-        lat = np.arctan2(z + WGS84_E2 * nrad * s, p)
-    s, c = np.sin(lat), np.cos(lat)
-    # Projection form of the height: well conditioned at the equator and the poles.
-    h = p * c + z * s - WGS84_A * np.sqrt(1.0 - WGS84_E2 * s * s)
-    return lat, lon, h
-
-
 def _enu_basis(rx_pos: np.ndarray) -> np.ndarray:
     """Rows east, north, up of the local geodetic frame, shape (n, 3, 3)."""
-    lat, lon, _ = ecef_to_geodetic(rx_pos)
+    lat, lon, _ = geodetic_from_ecef(rx_pos)
     sl, cl = np.sin(lat), np.cos(lat)
     so, co = np.sin(lon), np.cos(lon)
     zero = np.zeros_like(sl)
@@ -250,7 +221,7 @@ def line_of_sight(
     rx = np.broadcast_to(rx, (n, 3))
     v_rx = np.zeros((n, 3)) if rx_vel is None else np.broadcast_to(_as_xyz("rx_vel", rx_vel, n), (n, 3))
     m = len(constellation.sats)
-    lat, lon, _ = ecef_to_geodetic(np.ascontiguousarray(rx))
+    lat, lon, _ = geodetic_from_ecef(np.ascontiguousarray(rx))
     trig = np.stack([np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)], axis=1)
     out = LineOfSight(
         sats=np.asarray(constellation.sats),

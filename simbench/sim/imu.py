@@ -21,8 +21,9 @@ import numpy as np
 from simbench.config import ImuConfig
 from simbench.errors import SimbenchError
 from simbench.sim.constants import DEG, J2_EARTH, MU_EARTH_WGS84, OMEGA_EARTH, WGS84_A
+from simbench.sim.frames import dcm_body_to_ecef
 from simbench.sim.processes import gauss_markov
-from simbench.sim.trajectory import Trajectory, dcm_body_to_ecef
+from simbench.sim.trajectory import Trajectory
 
 #: deg/h -> rad/s
 DPH: float = DEG / 3600.0

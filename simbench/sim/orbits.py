@@ -27,11 +27,11 @@ from simbench.errors import SimbenchError
 from simbench.sim.constants import (
     DEG,
     F_REL,
-    GPS_EPOCH_ISO,
     GPS_MINUS_UTC_1993_07_01,
     MU_EARTH,
     OMEGA_EARTH,
 )
+from simbench.sim.gpstime import datetime64_to_gps, gps_to_datetime64
 
 __all__ = [
     "SatelliteStates",
@@ -44,7 +44,6 @@ __all__ = [
     "gps_to_datetime64",
 ]
 
-_GPS_EPOCH = np.datetime64(GPS_EPOCH_ISO, "ns")
 _TWO_PI_DEC = decimal.Decimal("6.28318530717958647692528676655900576839433879875021")
 
 #: Half of the 4-hour curve-fit interval of a standard GPS broadcast ephemeris [s].
@@ -54,43 +53,6 @@ _CHUNK_EPOCHS = 512
 
 
 # --------------------------------------------------------------------------- time
-
-
-def datetime64_to_gps(t: np.ndarray | np.datetime64 | str) -> np.ndarray:
-    """Convert calendar times already in the GPS time scale to continuous GPS seconds.
-
-    Parameters
-    ----------
-    t : array_like of datetime64 or ISO strings
-        Calendar epochs labelled in GPS time (as RINEX and SP3 files do).
-
-    Returns
-    -------
-    t_gps : np.ndarray of float
-        Seconds since 1980-01-06 00:00:00 GPS [s].
-    """
-    ns = (np.asarray(t, dtype="datetime64[ns]") - _GPS_EPOCH).astype(np.int64)
-    # Whole seconds and the sub-second part separately: int64 ns -> float64
-    # directly would round to ~256 ns.
-    sec, frac = np.divmod(ns, 1_000_000_000)
-    return sec.astype(float) + frac * 1e-9
-
-
-def gps_to_datetime64(t_gps: np.ndarray | float) -> np.ndarray:
-    """Inverse of :func:`datetime64_to_gps` (millisecond resolution, for messages/plots).
-
-    Parameters
-    ----------
-    t_gps : array_like of float
-        Continuous GPS seconds [s].
-
-    Returns
-    -------
-    t : np.ndarray of datetime64[ms]
-        Calendar epochs in the GPS time scale.
-    """
-    ms = np.round(np.asarray(t_gps, dtype=float) * 1e3).astype(np.int64)
-    return _GPS_EPOCH.astype("datetime64[ms]") + ms.astype("timedelta64[ms]")
 
 
 def _angle_mod_2pi(angle0: float, rate: float, dt: float) -> float:
