@@ -23,7 +23,7 @@ def run(cfg: DictConfig) -> Path:
     from simbench.provenance import provenance
     from simbench.report.build import build_report
     from simbench.runner import run_estimators
-    from simbench.sim.generator import generate
+    from simbench.scenarios import build_scenario
 
     sim = to_typed({k: cfg[k] for k in ("scenario", "receiver", "imu", "seed")}, SimConfig, "config")
     out = Path(cfg.results_dir)
@@ -31,7 +31,7 @@ def run(cfg: DictConfig) -> Path:
     if cfg.progress:
         print(f"simulating {sim.scenario.name} ({sim.scenario.duration_s:.0f} s at {sim.scenario.rate_hz:g} Hz), "
               f"receiver {sim.receiver.name}, seed {sim.seed}", file=sys.stderr)
-    scenario = generate(sim)
+    scenario = build_scenario(sim)
     scenario.save(out / "scenario")
     result = run_estimators(scenario, OmegaConf.to_container(cfg.estimator, resolve=True),
                             receiver=sim.receiver.name, progress=bool(cfg.progress))

@@ -74,6 +74,7 @@ LABEL_COLUMNS: dict[str, str] = {
     "sigma_code_l1": "m, true DLL tracking jitter std of this observation",
     "sigma_phase_l1": "m, true PLL tracking jitter std",
     "multipath_code_l1": "m, true code multipath error",
+    "sigma_multipath_code_l1": "m, stationary std of the code multipath process of this observation",
     "multipath_phase_l1": "m, true carrier multipath error",
     "nlos": "bool, reflected-only (non-line-of-sight) reception",
     "nlos_delay": "m, extra path length of the NLOS reception (0 if LOS)",

@@ -170,12 +170,13 @@ def generate(cfg: SimConfig) -> Scenario:
         mrng = stream(seed, "multipath")
         sigma_mp = (mp.el_a_m + mp.el_b_m * np.exp(-np.degrees(el) / mp.el_c_deg)) if mp.elevation_dependent \
             else mp.code_sigma_m
+        sigma_mp = np.broadcast_to(sigma_mp, (n, m))
         unit = gauss_markov(n, 2 * m, 1.0, mp.tau_s, dt, mrng)
         mp_code = sigma_mp * unit[:, :m]
         mp_code_l2 = sigma_mp * unit[:, m:]
         mp_phase = gauss_markov(n, m, mp.phase_sigma_m, mp.tau_s, dt, mrng)
     else:
-        mp_code = mp_code_l2 = mp_phase = np.zeros((n, m))
+        sigma_mp = mp_code = mp_code_l2 = mp_phase = np.zeros((n, m))
 
     # ------------------------------------------------------------------ phase arcs and slips
     n_freq = 2 if sc.dual_frequency else 1
@@ -223,7 +224,8 @@ def generate(cfg: SimConfig) -> Scenario:
     labels = pd.DataFrame({
         "epoch": ei.astype(np.int64), "sat": sats[si],
         "sigma_code_l1": gain * pick(sig_code), "sigma_phase_l1": gain * pick(sig_phase),
-        "multipath_code_l1": pick(mp_code), "multipath_phase_l1": pick(mp_phase),
+        "multipath_code_l1": pick(mp_code), "sigma_multipath_code_l1": pick(sigma_mp),
+        "multipath_phase_l1": pick(mp_phase),
         "nlos": pick(nlos), "nlos_delay": pick(nlos_delay),
         "iono_l1": pick(iono), "tropo": pick(tropo), "orbit_clock_error": pick(orbit_clock_error),
         "ambiguity_l1": pick(arcs[0].ambiguity), "ambiguity_l2": pick(amb_l2),
