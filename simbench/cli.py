@@ -1,67 +1,78 @@
 """``python -m simbench``: simulate, run estimators, write results and a report.
 
-The Hydra app composes ``conf/config.yaml``; every result lands in
-``results_dir``: ``summary.parquet``, ``epochs.parquet`` (provenance in the
-file metadata), ``scenario/`` (the generated tables) and ``report/``.
+The Hydra app composes ``conf/config.yaml``. Each Hydra job is one scenario
+(config + seed) with the selected estimators (:func:`simbench.jobs.run_job`);
+after a run or a multirun the :class:`simbench.callbacks.FinalizeRun` callback
+aggregates the job files into ``summary.parquet``/``epochs.parquet`` and
+builds ``claims.csv`` and ``report/``.
 """
 from __future__ import annotations
 
+import subprocess
 import sys
 from pathlib import Path
 
 import hydra
-from omegaconf import DictConfig, OmegaConf
+from hydra.core.hydra_config import HydraConfig
+from hydra.types import RunMode
+from omegaconf import DictConfig, open_dict
 
 from simbench.compose import CONF_DIR, compose_config
 from simbench.errors import SimbenchError
 
-
-def run(cfg: DictConfig) -> Path:
-    """Simulate the configured scenario, run the configured estimators, write the store and report."""
-    from simbench.config import SimConfig, to_typed
-    from simbench.contract import write_parquet
-    from simbench.provenance import provenance
-    from simbench.report.build import build_report
-    from simbench.runner import run_estimators
-    from simbench.scenarios import build_scenario
-
-    sim = to_typed({k: cfg[k] for k in ("scenario", "receiver", "imu", "seed")}, SimConfig, "config")
-    out = Path(cfg.results_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    if cfg.progress:
-        print(f"simulating {sim.scenario.name} ({sim.scenario.duration_s:.0f} s at {sim.scenario.rate_hz:g} Hz), "
-              f"receiver {sim.receiver.name}, seed {sim.seed}", file=sys.stderr)
-    scenario = build_scenario(sim)
-    scenario.save(out / "scenario")
-    result = run_estimators(scenario, OmegaConf.to_container(cfg.estimator, resolve=True),
-                            receiver=sim.receiver.name, progress=bool(cfg.progress))
-    meta = provenance(OmegaConf.to_container(cfg, resolve=True))
-    write_parquet(result.summary, out / "summary.parquet", meta)
-    write_parquet(result.epochs, out / "epochs.parquet", meta)
-    report = build_report(out)
-    shown = ["estimator", "status", "availability", "horizontal_median", "horizontal_mean", "horizontal_p95",
-             "horizontal_max", "error_3d_median", "update_median_s", "message"]
-    print(result.summary[shown].to_string(index=False, float_format=lambda v: f"{v:.3f}"))
-    print(f"results: {out.resolve()}  report: {report.resolve() / 'README.md'}")
-    return out
+SHOWN = ["estimator", "variant", "status", "availability", "horizontal_median", "horizontal_mean",
+         "horizontal_p95", "horizontal_max", "error_3d_median", "update_median_s", "message"]
 
 
 @hydra.main(config_path=str(CONF_DIR), config_name="config", version_base="1.3")
 def _app(cfg: DictConfig) -> None:
+    from simbench.jobs import run_job
+
+    hc = HydraConfig.get()
+    if hc.mode == RunMode.MULTIRUN:
+        # the sweep directory is resolved once by the launcher; a ${now:} in results_dir is not
+        with open_dict(cfg):
+            cfg.results_dir = hc.sweep.dir
     try:
-        run(cfg)
+        if cfg.progress:
+            print(f"job: scenario={cfg.scenario.name} receiver={cfg.receiver.name} seed={cfg.seed} "
+                  f"estimators={','.join(cfg.estimator)}", file=sys.stderr)
+        rows = run_job(cfg, fail_fast=hc.mode != RunMode.MULTIRUN)
     except SimbenchError as exc:
         print(f"error: {exc}", file=sys.stderr)
         sys.exit(2)
+    if hc.mode != RunMode.MULTIRUN:
+        print(rows.reindex(columns=SHOWN).to_string(index=False, float_format=lambda v: f"{v:.3f}"))
 
 
 def main() -> None:
     """Entry point: compose once up front so a bad override gets one line, not Hydra's error page."""
     args = sys.argv[1:]
-    if not any(a in ("-m", "--multirun") or a.startswith("-") for a in args):
+    if not any(a.startswith("-") for a in args) and not any("," in a or "(" in a for a in args):
         try:
-            compose_config(args)
+            cfg = compose_config(args)
         except SimbenchError as exc:
             print(f"error: {exc}", file=sys.stderr)
             sys.exit(2)
+        if "studies" in cfg:
+            sys.exit(run_studies(list(cfg.studies), Path(cfg.results_dir), args))
     _app()
+
+
+def run_studies(studies: list[str], root: Path, args: list[str]) -> int:
+    """Run several sweeps into ``root/<study>`` one after another, then one aggregate over all of them."""
+    from simbench.report.build import finalize
+
+    passed = [a for a in args if not a.startswith(("+sweep=", "sweep_name=", "results_dir="))]
+    failed = []
+    for study in studies:
+        print(f"=== study {study}", file=sys.stderr)
+        code = subprocess.call([sys.executable, "-m", "simbench", f"+sweep={study}",
+                                f"results_dir={root / study}", *passed])
+        if code:
+            failed.append(study)  # its finished jobs are in the store; the others still run
+    report = finalize(root, {"studies": studies, "args": passed})
+    print(f"results: {root.resolve()}  report: {report.resolve() / 'index.html'}", file=sys.stderr)
+    if failed:
+        print(f"error: studies {', '.join(failed)} exited with errors -- see their logs in {root}", file=sys.stderr)
+    return 1 if failed else 0

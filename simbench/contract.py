@@ -106,6 +106,9 @@ class NavInfo:
         Klobuchar coefficients (IS-GPS-200 units).
     dual_frequency : bool
         Whether L2 observables are present.
+    iono_corrected : bool
+        The code and phase already have the ionospheric delay removed (e.g.
+        libRSF files); the broadcast Klobuchar delay must not be removed again.
     """
 
     gps_week: int
@@ -113,6 +116,7 @@ class NavInfo:
     iono_alpha: tuple[float, ...]
     iono_beta: tuple[float, ...]
     dual_frequency: bool
+    iono_corrected: bool = False
 
 
 @dataclass(frozen=True)
@@ -213,7 +217,7 @@ def write_parquet(df: pd.DataFrame, path: str | Path, metadata: dict[str, Any] |
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     table = pa.Table.from_pandas(df, preserve_index=False)
-    extra = {k.encode(): json.dumps(v, default=_json_default).encode() for k, v in (metadata or {}).items()}
+    extra = {k.encode(): json.dumps(v, default=json_default).encode() for k, v in (metadata or {}).items()}
     table = table.replace_schema_metadata({**(table.schema.metadata or {}), **extra})
     tmp = path.with_name(f".{path.name}.tmp")
     pq.write_table(table, tmp)
@@ -232,7 +236,7 @@ def read_parquet_metadata(path: str | Path) -> dict[str, Any]:
     return out
 
 
-def _json_default(obj: Any) -> Any:
+def json_default(obj: Any) -> Any:
     if isinstance(obj, (np.integer,)):
         return int(obj)
     if isinstance(obj, (np.floating,)):

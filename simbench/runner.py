@@ -19,11 +19,18 @@ from simbench.contract import Scenario
 from simbench.errors import SimbenchError
 from simbench.metrics import enu_errors, summary_stats
 
+#: A 3-D error beyond this marks a run as diverged (no receiver is that wrong while working) [m].
+DIVERGENCE_M = 10_000.0
+
 #: Columns of ``summary.parquet`` (one row per scenario x receiver x seed x estimator).
 SUMMARY_COLUMNS: dict[str, str] = {
+    "sweep": "str, sweep name ('' for a single run)",
     "scenario": "str, scenario name", "receiver": "str, receiver preset", "seed": "int, scenario seed",
-    "estimator": "str, estimator name", "uses_labels": "bool, the estimator read error labels (oracle)",
-    "status": "str, ok | failed", "message": "str, error message when failed",
+    "scenario_key": "str, hash of the resolved scenario config (same key = byte-identical data)",
+    "estimator": "str, estimator name",
+    "variant": "str, estimator settings that differ from conf/estimator defaults, k=v,...",
+    "uses_labels": "bool, the estimator read error labels (oracle)",
+    "status": "str, ok | diverged | failed | skipped (label-using estimator on real data)", "message": "str, why, when not ok",
     "n_epochs": "int, epochs in the scenario", "n_solved": "int, epochs with a solution",
     "availability": "-, n_solved / n_epochs", "n_obs": "int, observation rows",
     "horizontal_median": "m", "horizontal_mean": "m", "horizontal_var": "m^2", "horizontal_std": "m",
@@ -36,7 +43,8 @@ SUMMARY_COLUMNS: dict[str, str] = {
 
 #: Columns of ``epochs.parquet`` (one row per solved epoch).
 EPOCH_COLUMNS: dict[str, str] = {
-    "scenario": "str", "receiver": "str", "seed": "int", "estimator": "str",
+    "sweep": "str", "scenario": "str", "receiver": "str", "seed": "int", "scenario_key": "str",
+    "estimator": "str", "variant": "str",
     "epoch": "int, epoch index", "t": "s, since scenario start",
     "e": "m, east error", "n": "m, north error", "u": "m, up error",
     "horizontal": "m, sqrt(e^2 + n^2)", "error_3d": "m", "update_s": "s, update wall time",
@@ -78,39 +86,44 @@ def run_estimators(scenario: Scenario, estimator_configs: Mapping[str, Any], *, 
         bar.set_postfix_str(name)
         row: dict[str, Any] = {**key, "estimator": name, "uses_labels": bool(cls.uses_labels),
                                "n_epochs": scenario.n_epochs, "n_obs": len(scenario.observations)}
+        if cls.uses_labels and scenario.labels is None:  # real logs: nothing to cheat with
+            row.update(status="skipped", message="needs error labels; the scenario (real data) has none",
+                       n_solved=0, availability=0.0)
+            rows.append(row)
+            continue
         try:
             est = cls(to_typed(estimator_configs[name] or {}, cls.Config, f"estimator.{name}"))
             if cls.uses_labels:
-                if scenario.labels is None:
-                    raise SimbenchError(f"estimator.{name}", "needs error labels, the scenario has none",
-                                        "run it on simulated scenarios only")
                 est.attach_labels(scenario.labels)
             sol = est.estimate(data)
         except Exception as exc:  # a failing estimator is a result, not a crash of the run
-            row.update(status="failed", message=_one_line(exc), n_solved=0, availability=0.0)
+            row.update(status="failed", message=one_line(exc), n_solved=0, availability=0.0)
             rows.append(row)
             continue
         err = enu_errors(sol.epochs, scenario.truth)
-        finite = np.isfinite(err["horizontal"].to_numpy())
-        ok = bool(finite.any())
-        row.update(status="ok" if ok else "failed", message="" if ok else "no finite solution",
+        horizontal = err["horizontal"].to_numpy()
+        finite = np.isfinite(horizontal)
+        status, message = "ok", ""
+        if not finite.any():
+            status, message = "failed", "no finite solution"
+        elif not finite.all() or np.nanmax(err["error_3d"].to_numpy()) > DIVERGENCE_M:
+            status, message = "diverged", f"non-finite or > {DIVERGENCE_M:.0f} m 3-D errors"
+        row.update(status=status, message=message,
                    n_solved=int(finite.sum()), availability=float(finite.sum()) / max(scenario.n_epochs, 1),
                    **summary_stats(err["horizontal"], "horizontal"), **summary_stats(err["error_3d"], "error_3d"),
                    total_s=sol.total_s, time_per_obs_s=sol.total_s / max(len(scenario.observations), 1),
                    update_median_s=float(np.nanmedian(sol.epochs["update_s"])) if len(sol.epochs) else np.nan,
                    update_p95_s=float(np.nanpercentile(sol.epochs["update_s"], 95)) if len(sol.epochs) else np.nan)
         rows.append(row)
-        ep = err[["epoch", "t", "e", "n", "u", "horizontal", "error_3d", "update_s"]].copy()
-        for k, v in {**key, "estimator": name}.items():
-            ep.insert(0, k, v)
-        frames.append(ep)
+        frames.append(err[["epoch", "t", "e", "n", "u", "horizontal", "error_3d", "update_s"]]
+                      .assign(**key, estimator=name))
         diagnostics[name] = sol.diagnostics
     summary = pd.DataFrame(rows).reindex(columns=list(SUMMARY_COLUMNS))
-    epochs = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=list(EPOCH_COLUMNS))
-    return RunResult(summary=summary, epochs=epochs[list(EPOCH_COLUMNS)], diagnostics=diagnostics)
+    epochs = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+    return RunResult(summary=summary, epochs=epochs.reindex(columns=list(EPOCH_COLUMNS)), diagnostics=diagnostics)
 
 
-def _one_line(exc: BaseException) -> str:
+def one_line(exc: BaseException) -> str:
     if isinstance(exc, SimbenchError):
         return str(exc)
     where = traceback.extract_tb(exc.__traceback__)[-1] if exc.__traceback__ else None

@@ -67,3 +67,55 @@ def _save(fig: plt.Figure, path: str | Path) -> Path:
     fig.savefig(path)
     plt.close(fig)
     return path
+
+
+def box_figure(epochs: pd.DataFrame, path: str | Path, title: str, metric: str = "horizontal") -> Path:
+    """Box plot of per-epoch errors per estimator (dissertation Fig. 5.3.2), log scale."""
+    order = sorted(epochs["estimator"].unique(), key=lambda n: np.nanmedian(
+        epochs.loc[epochs["estimator"] == n, metric]))
+    data = [epochs.loc[epochs["estimator"] == n, metric].dropna().to_numpy() for n in order]
+    fig, ax = plt.subplots(figsize=(max(4.0, 0.9 * len(order) + 1.5), 4.0), dpi=150)
+    ax.boxplot(data, whis=(5, 95), showfliers=False, medianprops={"color": "black"})
+    ax.set_xticks(range(1, len(order) + 1), order, rotation=30, ha="right")
+    ax.set_yscale("log")
+    ax.set_ylabel(METRIC_LABELS.get(metric, metric))
+    ax.grid(True, axis="y", which="both", alpha=0.3)
+    ax.set_title(title + "\n(box: quartiles, whiskers: 5-95 %)", fontsize=10)
+    return _save(fig, path)
+
+
+def sensitivity_figure(curves: pd.DataFrame, path: str | Path, title: str) -> Path:
+    """Median error against the a priori covariance scale per estimator (dissertation Fig. 5.3.7).
+
+    ``curves`` has columns estimator, scale, horizontal_median, ci_low, ci_high.
+    """
+    fig, ax = plt.subplots(figsize=(6.0, 4.0), dpi=150)
+    for name, group in curves.groupby("estimator"):
+        group = group.sort_values("scale")
+        ax.errorbar(group["scale"], group["horizontal_median"],
+                    yerr=[group["horizontal_median"] - group["ci_low"], group["ci_high"] - group["horizontal_median"]],
+                    marker="o", capsize=3, label=name)
+    ax.set_xscale("log")
+    ax.set_xlabel("a priori covariance scale s")
+    ax.set_ylabel("median horizontal error [m] (mean over seeds, 95 % CI)")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.set_title(title)
+    ax.legend(fontsize=8)
+    return _save(fig, path)
+
+
+def runtime_figure(stats: pd.DataFrame, path: str | Path, title: str) -> Path:
+    """Run time per observation and median per-epoch update time per estimator (Figs. 5.3.8, 7.3.3)."""
+    stats = stats.sort_values("time_per_obs_s")
+    fig, axes = plt.subplots(1, 2, figsize=(9.0, 3.8), dpi=150)
+    labels = [f"{e}\n{v}" if v else e for e, v in zip(stats["estimator"], stats["variant"].fillna(""))]
+    axes[0].barh(labels, stats["time_per_obs_s"] * 1e6, color="tab:blue")
+    axes[0].set_xlabel("run time per observation [us]")
+    axes[1].barh(labels, stats["update_median_s"] * 1e3, color="tab:orange")
+    axes[1].set_xlabel("median per-epoch update [ms]")
+    for ax in axes:
+        ax.set_xscale("log")
+        ax.grid(True, axis="x", which="both", alpha=0.3)
+        ax.tick_params(axis="y", labelsize=7)
+    fig.suptitle(title, fontsize=11)
+    return _save(fig, path)

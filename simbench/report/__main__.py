@@ -1,0 +1,23 @@
+"""``python -m simbench.report RUN_DIR``: rebuild aggregate, claims and report of a run at any time."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from simbench.report.build import finalize
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(prog="python -m simbench.report", description=__doc__)
+    parser.add_argument("run_dir", type=Path, help="a results directory written by python -m simbench")
+    args = parser.parse_args()
+    if not (args.run_dir / "jobs").is_dir():
+        print(f"error: run_dir: {args.run_dir} holds no jobs/ folder -- give a directory written by "
+              "python -m simbench", file=sys.stderr)
+        sys.exit(2)
+    report = finalize(args.run_dir, None)
+    print(f"report: {report.resolve() / 'index.html'}")
+
+
+main()

@@ -1,0 +1,90 @@
+"""Sweeps: store layout, resume after a kill, failure isolation, report rebuild."""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pandas as pd
+
+from simbench.claims import CLAIM_COLUMNS
+from simbench.contract import read_parquet_metadata
+
+ROOT = Path(__file__).resolve().parent.parent
+SHORT = ["scenario.duration_s=40", "progress=false", "estimator=[ekf_ppp]"]
+
+
+def _simbench(*args: str, **kwargs) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "simbench", *args], cwd=ROOT, capture_output=True, text=True,
+                          timeout=600, **kwargs)
+
+
+def test_multirun_writes_store_claims_and_report(tmp_path: Path) -> None:
+    out = tmp_path / "sweep"
+    proc = _simbench("-m", "seed=0,1", "receiver=low,high", f"results_dir={out}", "sweep_name=mini", *SHORT)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    summary = pd.read_parquet(out / "summary.parquet")
+    assert len(summary) == 4 and (summary["status"] == "ok").all()
+    assert set(summary["receiver"]) == {"low", "high"} and set(summary["sweep"]) == {"mini"}
+    # one cached scenario per (receiver, seed), shared by the estimators of that job
+    assert len(list((out / "cache").iterdir())) == 4
+    assert summary["scenario_key"].nunique() == 4
+    claims = pd.read_csv(out / "claims.csv")
+    assert list(claims.columns) == CLAIM_COLUMNS
+    assert (claims["holds"] == "not measured").all()  # none of the papers' sweeps ran here
+    html = (out / "report" / "index.html").read_text()
+    assert html.index("Published claims") < html.index("Statistics over seeds")
+    assert "git_sha" in str(read_parquet_metadata(out / "summary.parquet"))
+
+
+def test_killed_sweep_resumes_without_recomputing(tmp_path: Path) -> None:
+    out = tmp_path / "killed"
+    args = [sys.executable, "-m", "simbench", "-m", "seed=0,1,2,3,4,5", f"results_dir={out}", *SHORT]
+    proc = subprocess.Popen(args, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            start_new_session=True)
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline and len(list(out.glob("jobs/*/*.summary.parquet"))) < 2:
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    finished = {p: p.stat().st_mtime_ns for p in out.glob("jobs/*/*.summary.parquet")}
+    assert 2 <= len(finished) < 6, "the kill should land mid-sweep"
+    rerun = _simbench("-m", "seed=0,1,2,3,4,5", f"results_dir={out}", *SHORT)
+    assert rerun.returncode == 0, rerun.stderr[-2000:]
+    summary = pd.read_parquet(out / "summary.parquet")
+    assert sorted(summary["seed"]) == [0, 1, 2, 3, 4, 5]
+    assert (summary["status"] == "ok").all()
+    for path, mtime in finished.items():
+        assert path.stat().st_mtime_ns == mtime, f"{path.name} was recomputed"
+    assert not list(out.glob("**/*.tmp*")), "no half-written files remain"
+
+
+def test_failing_job_leaves_a_status_row_and_the_report_builds(tmp_path: Path) -> None:
+    out = tmp_path / "failing"
+    # ionosphere-free processing of single-frequency data is a user error inside the estimator
+    proc = _simbench("-m", "scenario.dual_frequency=true,false", "estimator.ekf_ppp.ionosphere_free=true",
+                     f"results_dir={out}", *SHORT)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    summary = pd.read_parquet(out / "summary.parquet").set_index("status")
+    assert set(summary.index) == {"ok", "failed"}
+    assert "ionosphere_free" in summary.loc["failed", "message"]
+    assert summary.loc["ok", "variant"] == "ionosphere_free=True"
+    assert "Jobs not ok" in (out / "report" / "index.html").read_text()
+
+
+def test_report_rebuilds_from_job_files(tmp_path: Path) -> None:
+    out = tmp_path / "rebuild"
+    assert _simbench(f"results_dir={out}", *SHORT).returncode == 0
+    (out / "summary.parquet").unlink()
+    (out / "report" / "index.html").unlink()
+    proc = subprocess.run([sys.executable, "-m", "simbench.report", str(out)], cwd=ROOT, capture_output=True,
+                          text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert len(pd.read_parquet(out / "summary.parquet")) == 1
+    assert (out / "report" / "index.html").stat().st_size > 1000
+    bad = subprocess.run([sys.executable, "-m", "simbench.report", str(tmp_path / "nothing")], cwd=ROOT,
+                         capture_output=True, text=True, timeout=60)
+    assert bad.returncode == 2 and bad.stderr.strip().startswith("error: run_dir")
