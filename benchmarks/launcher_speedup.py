@@ -1,0 +1,50 @@
+"""Throughput of the joblib launcher (2 workers) against the serial launcher on equal jobs.
+
+Target (sweeps issue): at least 1.6x the serial throughput. Runs the same
+sweep of equal jobs twice into fresh directories and prints both wall times
+and their ratio. Run: ``python benchmarks/launcher_speedup.py [--jobs 8]``.
+Needs the ``parallel`` extra (hydra-joblib-launcher).
+"""
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+TARGET = 1.6
+
+
+def sweep(out: Path, jobs: int, duration: float, extra: list[str]) -> float:
+    seeds = ",".join(str(s) for s in range(jobs))
+    cmd = [sys.executable, "-m", "simbench", "-m", f"seed={seeds}", f"scenario.duration_s={duration}",
+           "estimator=[ekf_ppp]", "progress=false", f"results_dir={out}", *extra]
+    start = time.perf_counter()
+    subprocess.run(cmd, check=True, capture_output=True, env={"OMP_NUM_THREADS": "1", **_env()})
+    return time.perf_counter() - start
+
+
+def _env() -> dict[str, str]:
+    import os
+    return dict(os.environ)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--jobs", type=int, default=8)
+    parser.add_argument("--duration", type=float, default=900.0, help="scenario length per job [s]")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        serial = sweep(Path(tmp) / "serial", args.jobs, args.duration, [])
+        parallel = sweep(Path(tmp) / "joblib", args.jobs, args.duration,
+                         ["hydra/launcher=joblib", "hydra.launcher.n_jobs=2"])
+    ratio = serial / parallel
+    print(f"{args.jobs} equal jobs ({args.duration:.0f} s urban scenario, ekf_ppp each)")
+    print(f"serial launcher: {serial:.1f} s; joblib, 2 workers: {parallel:.1f} s")
+    print(f"throughput ratio joblib/serial: {ratio:.2f} (target >= {TARGET}: {'met' if ratio >= TARGET else 'MISSED'})")
+
+
+if __name__ == "__main__":
+    main()
