@@ -103,18 +103,21 @@ class EkfPpp(Estimator):
         _validate(cfg)
         obs = prepare_ppp(data, ionosphere_free=cfg.ionosphere_free, code_sigma_m=cfg.code_sigma_m,
                           phase_sigma_m=cfg.phase_sigma_m, elevation_mask_deg=cfg.elevation_mask_deg,
-                          min_satellites=cfg.min_satellites, max_gap_epochs=cfg.max_gap_epochs)
+                          min_satellites=cfg.min_satellites, max_gap_epochs=cfg.max_gap_epochs,
+                          require_phase=cfg.use_phase)
         n_slots = len(obs.sat_names) if cfg.use_phase else 0
         # slant-ionosphere slots follow the bias slots, one per satellite, reset with the arc
         n_iono = n_slots if cfg.estimate_iono and not cfg.ionosphere_free else 0
         iono0 = N_BASE_STATES + n_slots
-        nx = N_BASE_STATES + n_slots + n_iono
+        # one constant receiver clock offset per further GNSS system (inter-system bias), last
+        isb0 = N_BASE_STATES + n_slots + n_iono
+        nx = isb0 + obs.n_isb
         kf = ExtendedKalmanFilter(dim_x=nx, dim_z=1)
 
         # ---- initialisation from a single point solution at the first epoch
         rows = obs.epoch_slice(0)
         pos0, clock0 = single_point_solution(obs.sat_pos[rows], obs.code[rows], obs.sigma_code[rows],
-                                             el=obs.el[rows], doy=obs.doy)
+                                             el=obs.el[rows], doy=obs.doy, system_index=obs.system_index[rows])
         lat0, _, h0 = geodetic_from_ecef(pos0)
         _, zwd0 = atmosphere.saastamoinen_zenith_m(lat0, h0)
         x = np.zeros(nx)
@@ -124,6 +127,7 @@ class EkfPpp(Estimator):
         p_diag[_CLK] = cfg.clock_sigma_m**2
         p_diag[_ZWD] = cfg.zwd_sigma_m**2
         p_diag[iono0:] = cfg.iono_sigma_m**2
+        p_diag[isb0:] = cfg.clock_sigma_m**2
         kf.x = x
         kf.P = np.diag(p_diag)
 
@@ -166,6 +170,10 @@ class EkfPpp(Estimator):
             m = len(el)
             H = np.zeros((m, nx))
             rng_m = np.arange(m)
+            if obs.n_isb:
+                sys_k = obs.system_index[rows]
+                other = np.flatnonzero(sys_k > 0)
+                H[other, isb0 + sys_k[other] - 1] = 1.0
 
             if n_slots:
                 # ---- new arcs get a fresh bias: mean phase - predicted range, no correlations
@@ -190,6 +198,8 @@ class EkfPpp(Estimator):
             if n_iono:
                 H[rng_m, iono0 + slots] = 1.0
                 pred = pred + kf.x[iono0 + slots]
+            if obs.n_isb:
+                pred[other] += kf.x[isb0 + sys_k[other] - 1]
             kf.update(obs.code[rows], _const(H), _const(pred), R=np.diag(obs.sigma_code[rows] ** 2))
 
             if n_slots:
@@ -201,6 +211,8 @@ class EkfPpp(Estimator):
                 if n_iono:
                     H[rng_m, iono0 + slots] = -1.0
                     pred = pred - kf.x[iono0 + slots]
+                if obs.n_isb:
+                    pred[other] += kf.x[isb0 + sys_k[other] - 1]
                 kf.update(obs.phase[rows], _const(H), _const(pred), R=np.diag(obs.sigma_phase[rows] ** 2))
 
             pos_out[k] = kf.x[_POS]
@@ -217,6 +229,7 @@ class EkfPpp(Estimator):
             "n_ambiguity_resets": n_resets,
             "ionosphere_free": bool(cfg.ionosphere_free),
             "iono_states": bool(n_iono),
+            "inter_system_bias_m": {s: float(kf.x[isb0 + k]) for k, s in enumerate(obs.systems[1:])},
             "arc_sat": [str(v) for v in arc_sat] if n_slots else [],
             "arc_bias_m": [float(v) for v in arc_bias] if n_slots else [],
             "final_clock_m": float(kf.x[_CLK]),

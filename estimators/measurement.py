@@ -129,7 +129,7 @@ def predict(sat_pos: np.ndarray, rx_pos: np.ndarray, clock_m: float, zwd_m: floa
 def single_point_solution(sat_pos: np.ndarray, code: np.ndarray, sigma: np.ndarray | None = None, *,
                           el: np.ndarray | None = None, doy: float | None = None,
                           x0: np.ndarray | None = None, iterations: int = 10,
-                          tol_m: float = 1e-4) -> tuple[np.ndarray, float]:
+                          tol_m: float = 1e-4, system_index: np.ndarray | None = None) -> tuple[np.ndarray, float]:
     """Code-only iterative weighted least squares position and clock of one epoch.
 
     Starts from ``x0`` (default: the Earth's centre). When ``el`` and ``doy``
@@ -155,13 +155,16 @@ def single_point_solution(sat_pos: np.ndarray, code: np.ndarray, sigma: np.ndarr
         Maximum Gauss-Newton iterations.
     tol_m : float
         Stop when the position step is below this [m].
+    system_index : ndarray of int, shape (k,), optional
+        GNSS system of each row (``PppObservations.system_index``): rows of
+        system ``j > 0`` get their own clock offset (inter-system bias).
 
     Returns
     -------
     pos : ndarray, shape (3,)
         ECEF position [m].
     clock_m : float
-        Receiver clock times c [m].
+        Receiver clock times c [m] (of system 0).
 
     Raises
     ------
@@ -175,11 +178,17 @@ def single_point_solution(sat_pos: np.ndarray, code: np.ndarray, sigma: np.ndarr
     w = np.ones(k) if sigma is None else 1.0 / np.asarray(sigma, dtype=float)
     pos = np.zeros(3) if x0 is None else np.array(x0, dtype=float)
     clock = 0.0
-    A = np.empty((k, 4))
+    sys_idx = np.zeros(k, np.int64) if system_index is None else np.asarray(system_index, np.int64)
+    n_isb = int(sys_idx.max(initial=0))
+    # per-system clock columns; a system absent from this epoch leaves a zero column,
+    # which lstsq's minimum-norm solution keeps at 0
+    A = np.zeros((k, 4 + n_isb))
     A[:, 3] = 1.0
+    A[np.flatnonzero(sys_idx > 0), 3 + sys_idx[sys_idx > 0]] = 1.0
+    isb = np.zeros(n_isb + 1)
     for _ in range(iterations):
         rng, grad = _geometry(sat_pos, pos)
-        model = rng + clock
+        model = rng + clock + isb[sys_idx]
         # the Earth's centre (the default start) has no geodetic coordinates
         if el is not None and doy is not None and np.dot(pos, pos) > 6.0e6**2:
             lat, _, h = geodetic_from_ecef(pos)
@@ -189,6 +198,7 @@ def single_point_solution(sat_pos: np.ndarray, code: np.ndarray, sigma: np.ndarr
         dx, *_ = np.linalg.lstsq(A * w[:, None], (code - model) * w, rcond=None)
         pos += dx[:3]
         clock += dx[3]
+        isb[1:] += dx[4:]
         if np.linalg.norm(dx[:3]) < tol_m:
             break
     return pos, float(clock)
@@ -274,6 +284,16 @@ class PppObservations:
     n_arcs: int  #: number of distinct arcs among the rows
     ionosphere_free: bool  #: IF combination (True) or L1 with Klobuchar (False)
     doy: float  #: day of year of the scenario start (Niell)
+    #: GNSS systems among the rows (RINEX letters), GPS first when present: with more than one,
+    #: estimators add one receiver clock offset per further system (inter-system bias)
+    systems: tuple[str, ...] = ("G",)
+    #: int, per row: index into ``systems`` (0 = the reference clock); None means all 0
+    system_index: np.ndarray | None = None
+
+    @property
+    def n_isb(self) -> int:
+        """Number of inter-system bias states a multi-system estimator needs (0 for one system)."""
+        return len(self.systems) - 1
 
     @property
     def n_epochs(self) -> int:
@@ -294,7 +314,8 @@ class PppObservations:
 
 
 def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: float, phase_sigma_m: float,
-                elevation_mask_deg: float, min_satellites: int = 4, max_gap_epochs: int = 1) -> PppObservations:
+                elevation_mask_deg: float, min_satellites: int = 4, max_gap_epochs: int = 1,
+                require_phase: bool = True) -> PppObservations:
     """Select, correct and weight the observations for PPP.
 
     Rows with missing values in the columns used, or below the elevation mask,
@@ -317,6 +338,10 @@ def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: floa
         Epochs with fewer usable satellites are dropped.
     max_gap_epochs : int
         See :func:`arc_ids`.
+    require_phase : bool
+        Drop rows without carrier phase (default). Code-only estimators pass
+        False to keep them; their ``phase`` is then NaN (real receivers often
+        report code without phase).
 
     Raises
     ------
@@ -340,9 +365,14 @@ def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: floa
         raise SimbenchError("min_satellites", f"must be at least 4, got {min_satellites}",
                             "4 unknowns (position, clock) need 4 satellites")
 
+    if require_phase and len(obs) and not np.isfinite(obs["phase_l1"].to_numpy(float)).any():
+        raise SimbenchError("observations", "carry no carrier phase (e.g. a libRSF pseudorange log)",
+                            "use a code-only estimator, e.g. estimator.ekf_ppp.use_phase=false")
     cols = ["code_l1", "phase_l1", "sat_x", "sat_y", "sat_z", "sat_clock", "el", "az", "t"]
     if ionosphere_free:
         cols += ["code_l2", "phase_l2"]
+    if not require_phase:
+        cols = [c for c in cols if not c.startswith("phase")]
     valid = np.isfinite(obs[cols].to_numpy(float)).all(axis=1)
     obs = obs.loc[valid]
     arc = arc_ids(obs, max_gap_epochs, use_l2=ionosphere_free)
@@ -381,7 +411,7 @@ def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: floa
     epoch_stop = epoch_start + n_per
     sigma_scale = 1.0 / np.sin(el)
 
-    if not ionosphere_free:
+    if not ionosphere_free and not data.nav.iono_corrected:
         lat, lon = _rough_lat_lon(sat_pos, code, sigma_scale, el, doy, t, epoch_start, epoch_stop)
         iono = atmosphere.klobuchar_l1_delay_m(data.nav.start_sow_s + t, lat, lon, el, az,
                                                np.asarray(data.nav.iono_alpha), np.asarray(data.nav.iono_beta))
@@ -389,13 +419,17 @@ def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: floa
         phase = phase + iono
 
     sat_names, sat_index = np.unique(sat, return_inverse=True)
+    letters = np.array([str(s)[:1] for s in sat_names])
+    systems = tuple(sorted(set(letters.tolist()), key=lambda c: (c != "G", c)))
+    system_index = np.array([systems.index(c) for c in letters], np.int64)[sat_index]
     _, arc = np.unique(arc, return_inverse=True)  # monotone: keeps the start order
     return PppObservations(
         epoch=epoch, t=t, sat=sat, sat_index=sat_index.astype(np.int64), sat_pos=sat_pos, code=code,
         phase=phase, el=el, az=az, arc=arc.astype(np.int64), sigma_code=code_sigma_m * sigma_scale,
         sigma_phase=phase_sigma_m * sigma_scale, epoch_ids=epoch_ids, epoch_t=t[epoch_start],
         epoch_start=epoch_start, epoch_stop=epoch_stop, sat_names=tuple(str(s) for s in sat_names),
-        n_arcs=int(arc.max()) + 1, ionosphere_free=ionosphere_free, doy=doy)
+        n_arcs=int(arc.max()) + 1, ionosphere_free=ionosphere_free, doy=doy, systems=systems,
+        system_index=system_index)
 
 
 def _rough_lat_lon(sat_pos: np.ndarray, code: np.ndarray, sigma: np.ndarray, el: np.ndarray, doy: float,

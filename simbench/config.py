@@ -190,6 +190,16 @@ class ErrorsConfig:
 @dataclass
 class ScenarioConfig:
     name: str = "urban"
+    #: simulated (the generator) | rinex | librsf (real logs, read by simbench.data)
+    source: str = "simulated"
+    obs: str = ""  #: rinex: RINEX 3 observation file; librsf: libRSF GNSS text file
+    nav: str = ""  #: rinex: RINEX GPS navigation file covering the observations
+    nav_bds: str = ""  #: rinex: RINEX 3 BeiDou navigation file (when ``systems`` has C)
+    #: reference trajectory: 'week,TOW,lat,lon,h' CSV or 'SOW X Y Z' (GPS time); for librsf
+    #: also a point3 file, default the point3 lines of ``obs``
+    truth: str = ""
+    systems: str = "G"  #: rinex: systems to ingest, G (GPS L1 C/A) and/or C (BeiDou B1I)
+    truth_max_gap_s: float = 2.0  #: reference samples further apart are not interpolated
     duration_s: float = 600.0
     rate_hz: float = 1.0  #: GNSS epoch rate
     gps_week: int = 2032
@@ -282,6 +292,15 @@ def validate_sim(cfg: SimConfig) -> SimConfig:
     if not 100.0 <= cfg.imu.rate_hz <= 1000.0:
         raise SimbenchError("imu.rate_hz", f"must be within 100..1000 Hz, got {cfg.imu.rate_hz}",
                             "set e.g. imu.rate_hz=100")
+    if s.source not in ("simulated", "rinex", "librsf"):
+        raise SimbenchError("scenario.source", f"unknown source '{s.source}'", "use simulated, rinex or librsf")
+    if s.source != "simulated":
+        needed = {"rinex": ("obs", "nav", "truth") + (("nav_bds",) if "C" in s.systems else ()),
+                  "librsf": ("obs",)}[s.source]
+        for key in needed:
+            if not getattr(s, key):
+                raise SimbenchError(f"scenario.{key}", f"no file given for a {s.source} scenario",
+                                    f"set it on the command line, e.g. scenario.{key}=path/to/file")
     if s.trajectory.kind not in ("urban_drive", "flight", "replay"):
         raise SimbenchError("scenario.trajectory.kind", f"unknown kind '{s.trajectory.kind}'",
                             "use urban_drive, flight or replay")

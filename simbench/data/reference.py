@@ -1,0 +1,176 @@
+"""Reference trajectories of real logs: reading, time matching, the truth table.
+
+Two file layouts are read: ``week,TOW,lat,lon,h`` CSV (degrees, ellipsoidal
+metres; the Hong Kong UrbanNav-style ground truth) and whitespace ``SOW X Y Z``
+(ECEF metres; the WVU drives). Epochs are matched by linear interpolation in
+time; an epoch further than ``max_gap_s`` from reference samples on either
+side gets no truth row: its observations stay in the scenario (estimators
+use them), but :func:`simbench.metrics.enu_errors` merges solutions with
+truth on ``epoch``, so it is not scored, and availability is counted over the
+epochs that have a reference.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from simbench.contract import TRUTH_COLUMNS
+from simbench.errors import SimbenchError
+from simbench.sim.constants import DEG, SECONDS_PER_WEEK
+from simbench.sim.frames import ecef_from_geodetic
+
+__all__ = ["Reference", "read_reference", "match_reference", "truth_table"]
+
+#: Epochs this close outside the first/last reference sample take that sample [s].
+_END_TOLERANCE_S = 0.05
+
+
+@dataclass(frozen=True)
+class Reference:
+    """A reference trajectory.
+
+    Attributes
+    ----------
+    t_gps : np.ndarray, shape (k,)
+        Sample times, continuous GPS seconds, increasing [s].
+    xyz : np.ndarray, shape (k, 3)
+        Antenna ECEF positions [m].
+    path : str
+    """
+
+    t_gps: np.ndarray
+    xyz: np.ndarray
+    path: str
+
+
+def _ref_error(path: str, problem: str) -> SimbenchError:
+    return SimbenchError(f"scenario.truth '{path}'", problem,
+                         "pass a 'week,TOW,lat,lon,h' CSV or a 'SOW X Y Z' file (GPS time, ECEF metres)")
+
+
+def read_reference(path: str | os.PathLike[str], week_hint: int | None = None) -> Reference:
+    """Read a reference trajectory file.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        ``week,TOW,lat,lon,h`` CSV (a header line is allowed) or whitespace
+        ``SOW X Y Z``.
+    week_hint : int, optional
+        GPS week for ``SOW X Y Z`` files, which carry none (e.g. the week of
+        the observations).
+
+    Returns
+    -------
+    Reference
+        Samples sorted by time, duplicates removed.
+
+    Raises
+    ------
+    SimbenchError
+        Missing file, unknown layout, or ``SOW X Y Z`` without ``week_hint``.
+    """
+    p = os.fspath(path)
+    if not os.path.isfile(p):
+        raise _ref_error(p, "file does not exist")
+    with open(p, errors="replace") as fh:
+        first = next((ln for ln in fh if ln.strip() and not ln.lstrip().startswith("#")), "")
+    comma = "," in first
+    try:
+        df = pd.read_csv(p, sep="," if comma else r"\s+", header=None, comment="#", engine="c" if comma else "python")
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+        raise _ref_error(p, f"cannot be parsed ({str(exc).splitlines()[0][:60]})") from None
+    df = df.apply(pd.to_numeric, errors="coerce").dropna(how="any")  # drops a header line
+    if df.empty:
+        raise _ref_error(p, "contains no numeric rows")
+    a = df.to_numpy(float)
+    if a.shape[1] == 5:
+        t = a[:, 0] * SECONDS_PER_WEEK + a[:, 1]
+        xyz = ecef_from_geodetic(a[:, 2] * DEG, a[:, 3] * DEG, a[:, 4])
+    elif a.shape[1] == 4:
+        if week_hint is None:
+            raise _ref_error(p, "has seconds of week but no week is known")
+        t = week_hint * SECONDS_PER_WEEK + a[:, 0]
+        xyz = a[:, 1:4]
+        if np.any(np.linalg.norm(xyz, axis=1) < 6.0e6):
+            raise _ref_error(p, "has 4 columns but they are not SOW X Y Z in ECEF metres")
+    else:
+        raise _ref_error(p, f"has {a.shape[1]} columns")
+    t, first_idx = np.unique(t, return_index=True)
+    return Reference(t_gps=t, xyz=np.asarray(xyz)[first_idx], path=p)
+
+
+def match_reference(ref: Reference, t_gps: np.ndarray, max_gap_s: float = 2.0) -> np.ndarray:
+    """Reference position and velocity at given times by linear interpolation.
+
+    Parameters
+    ----------
+    ref : Reference
+    t_gps : np.ndarray, shape (n,)
+        Epoch times, continuous GPS seconds [s].
+    max_gap_s : float
+        Largest spacing of the two bracketing reference samples [s].
+
+    Returns
+    -------
+    np.ndarray, shape (n, 6)
+        ECEF position [m] and velocity (slope of the bracketing segment)
+        [m/s]; NaN where the reference does not cover the epoch.
+
+    Raises
+    ------
+    SimbenchError
+        When no epoch is covered (the reference belongs to another time).
+    """
+    t = np.asarray(t_gps, float)
+    rt, rx = ref.t_gps, ref.xyz
+    out = np.full((t.size, 6), np.nan)
+    if rt.size >= 2:
+        tc = np.clip(t, rt[0], rt[-1])
+        i = np.clip(np.searchsorted(rt, tc, side="right") - 1, 0, rt.size - 2)
+        dt = rt[i + 1] - rt[i]
+        w = (tc - rt[i]) / dt
+        ok = (dt <= max_gap_s) & (t >= rt[0] - _END_TOLERANCE_S) & (t <= rt[-1] + _END_TOLERANCE_S)
+        pos = rx[i] + w[:, None] * (rx[i + 1] - rx[i])
+        vel = (rx[i + 1] - rx[i]) / dt[:, None]
+        out[ok, :3] = pos[ok]
+        out[ok, 3:] = vel[ok]
+    if not np.isfinite(out[:, 0]).any():
+        from simbench.sim.orbits import _fmt_gps
+
+        span = f"{_fmt_gps(rt[0])} .. {_fmt_gps(rt[-1])}" if rt.size else "nothing"
+        raise SimbenchError(f"scenario.truth '{ref.path}'",
+                            f"does not overlap the observations: reference {span} GPS, observations "
+                            f"{_fmt_gps(t.min())} .. {_fmt_gps(t.max())} GPS",
+                            "pass the reference of the same log (GPS time)")
+    return out
+
+
+def truth_table(t: np.ndarray, matched: np.ndarray | None, n_observed: np.ndarray) -> pd.DataFrame:
+    """The truth table (:data:`~simbench.contract.TRUTH_COLUMNS`) of a real log.
+
+    Only epochs with a reference position get a row. Attitude, receiver clock
+    and wet delay are unknown on real data (NaN); ``n_visible`` is the number
+    of satellites observed at the epoch (the number above the mask is unknown).
+
+    Parameters
+    ----------
+    t : np.ndarray, shape (n,)
+        Time of epoch index 0..n-1 since the log start [s].
+    matched : np.ndarray, shape (n, 6), or None
+        Output of :func:`match_reference`; None gives an empty table.
+    n_observed : np.ndarray of int, shape (n,)
+    """
+    n = t.size
+    m = np.full((n, 6), np.nan) if matched is None else matched
+    nan = np.full(n, np.nan)
+    table = pd.DataFrame({
+        "epoch": np.arange(n, dtype=np.int64), "t": t,
+        "x": m[:, 0], "y": m[:, 1], "z": m[:, 2], "vx": m[:, 3], "vy": m[:, 4], "vz": m[:, 5],
+        "roll": nan, "pitch": nan, "yaw": nan, "rx_clock": nan, "zwd": nan,
+        "n_visible": np.asarray(n_observed, np.int64),
+    })
+    return table.loc[np.isfinite(m[:, 0]), list(TRUTH_COLUMNS)].reset_index(drop=True)

@@ -1,0 +1,463 @@
+"""RINEX 3 observation ingest: a real receiver log as a :class:`~simbench.contract.Scenario`.
+
+The observation table gets exactly the simulator's columns
+(:data:`simbench.contract.OBSERVATION_COLUMNS`), so every estimator runs
+unchanged on real data:
+
+* satellite position, velocity and clock from the broadcast ephemeris
+  (IS-GPS-200 user algorithm, :class:`simbench.sim.orbits.BroadcastEphemeris`)
+  at the signal transmit time ``t_tx = t_rx - P / c - dt_sv(t_tx)``, in the
+  Earth-fixed frame of ``t_tx``; the receiver clock error cancels in
+  ``t_rx - P / c`` because the pseudorange carries it too;
+* ``sat_clock = c (dt_sv - TGD)``: the L1 single-frequency user correction of
+  IS-GPS-200 20.3.3.3.3.2, relativistic eccentricity term included;
+* elevation and azimuth from a per-epoch single-point solution (a receiver
+  knows no reference; tens of metres of position error move an elevation by
+  far less than a millidegree);
+* carrier phase cycles times wavelength, Doppler in Hz, C/N0 from the ``S``
+  observable, the loss-of-lock flag from bit 0 of the RINEX LLI digit.
+
+Klobuchar and Saastamoinen are not applied here: the observation table holds
+raw observables as the simulator's does, the header's Klobuchar coefficients
+go into :class:`~simbench.contract.NavInfo`, and the shared measurement model
+(:func:`estimators.measurement.prepare_ppp`) applies both.
+
+GPS (``G``, L1 C/A) and BeiDou (``C``, B1I; :mod:`simbench.data.beidou`)
+are supported; with both, the shared model gives every non-GPS system its own
+receiver clock offset (``PppObservations.system_index``).
+
+The RINEX observation parser is our own fixed-column reader: georinex needs
+~30 s for the Hong Kong log (7 s for GPS alone) and rounds epochs to
+microseconds; this reader takes well under a second.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from simbench.contract import IMU_COLUMNS, NavInfo, Scenario
+from simbench.data.reference import Reference, match_reference, read_reference, truth_table
+from simbench.errors import SimbenchError
+from simbench.sim.constants import C_LIGHT, F_L1, SECONDS_PER_WEEK
+from simbench.sim.geometry import elevation_azimuth
+from simbench.sim.gpstime import datetime64_to_gps
+from simbench.sim.orbits import BroadcastEphemeris
+
+__all__ = ["RinexObs", "read_rinex_obs", "load_rinex", "receiver_positions", "SIGNALS"]
+
+#: Observation code (band + attribute) used per system and the carrier frequency [Hz]:
+#: GPS L1 C/A and BeiDou B1I (RINEX 3 band 2).
+SIGNALS: dict[str, tuple[str, float]] = {"G": ("1C", F_L1), "C": ("2I", 1_561.098e6)}
+#: Transit time used when no pseudorange is available for a satellite (keeps arrays finite) [s].
+_TAU_NOMINAL_S = 0.075
+#: Single-point solutions with a larger post-fit RMS are not trusted for el/az [m].
+_SPP_MAX_RMS_M = 300.0
+
+
+@dataclass(frozen=True)
+class RinexObs:
+    """One signal per satellite from a RINEX 3 observation file, as flat rows.
+
+    Attributes
+    ----------
+    epoch_t_int : np.ndarray of int64, shape (n,)
+        Whole GPS seconds of each epoch's time tag (continuous GPS time) [s].
+    epoch_t_frac : np.ndarray, shape (n,)
+        Sub-second part of each time tag [s]; kept apart for full precision.
+    row_epoch : np.ndarray of int, shape (N,)
+        Epoch (index into the ``epoch_*`` arrays) of each row.
+    sat : np.ndarray of str, shape (N,)
+        Satellite ids, RINEX system letter kept (``'G05'``).
+    code, phase_cycles, doppler_hz, cn0_dbhz : np.ndarray, shape (N,)
+        Pseudorange [m], carrier phase [cycles], Doppler [Hz], C/N0 [dB-Hz]; NaN when blank.
+    lli : np.ndarray of bool, shape (N,)
+        Bit 0 of the phase observation's loss-of-lock digit.
+    approx_position : np.ndarray, shape (3,)
+        ``APPROX POSITION XYZ`` of the header (zeros when absent) [m].
+    interval_s : float
+        Nominal epoch interval (header ``INTERVAL`` or the median spacing) [s].
+    path : str
+    """
+
+    epoch_t_int: np.ndarray
+    epoch_t_frac: np.ndarray
+    row_epoch: np.ndarray
+    sat: np.ndarray
+    code: np.ndarray
+    phase_cycles: np.ndarray
+    doppler_hz: np.ndarray
+    cn0_dbhz: np.ndarray
+    lli: np.ndarray
+    approx_position: np.ndarray
+    interval_s: float
+    path: str
+
+
+def _obs_error(path: str, problem: str, fix: str = "pass a RINEX 3 observation file (.obs, .yyo, .rnx)") -> SimbenchError:
+    return SimbenchError(f"scenario.obs '{path}'", problem, fix)
+
+
+def _float(text: str) -> float:
+    text = text.strip()
+    return float(text) if text else np.nan
+
+
+def read_rinex_obs(path: str | os.PathLike[str], systems: str = "G") -> RinexObs:
+    """Read the signals of :data:`SIGNALS` from a RINEX 3 observation file.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        RINEX 3.0x observation file (plain text), time system GPS.
+    systems : str
+        System letters to keep; each needs an entry in :data:`SIGNALS`.
+
+    Returns
+    -------
+    RinexObs
+
+    Raises
+    ------
+    SimbenchError
+        Missing file, not RINEX 3 observation data, a time system other than
+        GPS, no pseudorange observable for the requested systems, or no data.
+    """
+    p = os.fspath(path)
+    if not os.path.isfile(p):
+        raise _obs_error(p, "file does not exist", "check the path (relative paths start at the working directory)")
+    unknown = sorted(set(systems) - set(SIGNALS))
+    if unknown:
+        raise SimbenchError("scenario.systems", f"systems {unknown} are not supported",
+                            f"use a subset of '{''.join(SIGNALS)}'")
+    with open(p, errors="replace") as fh:
+        lines = fh.read().splitlines()
+    if not lines or "RINEX VERSION / TYPE" not in lines[0]:
+        raise _obs_error(p, "has no RINEX header")
+    version, kind = lines[0][:9].strip(), lines[0][20:21]
+    if kind != "O" or not version.startswith("3"):
+        raise _obs_error(p, f"is RINEX {version} type '{kind}', not RINEX 3 observation data")
+
+    types: dict[str, list[str]] = {}
+    approx = np.zeros(3)
+    interval = np.nan
+    last_sys = ""
+    body = None
+    for i, ln in enumerate(lines):
+        label = ln[60:].strip()
+        if label == "SYS / # / OBS TYPES":
+            if ln[0] != " ":
+                last_sys = ln[0]
+                types[last_sys] = []
+            types[last_sys] += ln[7:60].split()
+        elif label == "APPROX POSITION XYZ":
+            approx = np.array([_float(ln[k:k + 14]) for k in (0, 14, 28)])
+        elif label == "INTERVAL":
+            interval = _float(ln[:10])
+        elif label == "TIME OF FIRST OBS":
+            tsys = ln[48:51].strip()
+            if tsys not in ("GPS", ""):
+                raise _obs_error(p, f"time system {tsys} is not supported", "convert the file to GPS time")
+        elif label == "END OF HEADER":
+            body = i + 1
+            break
+    if body is None:
+        raise _obs_error(p, "has no END OF HEADER line")
+
+    # Column of each wanted observable per system (16 characters per field after the 3-char sat id).
+    cols: dict[str, tuple[int, int, int, int]] = {}
+    for s in systems:
+        band = SIGNALS[s][0]
+        have = types.get(s, [])
+        if f"C{band}" not in have:
+            continue
+        cols[s] = tuple(have.index(f"{o}{band}") if f"{o}{band}" in have else -1 for o in "CLDS")  # type: ignore[assignment]
+    if not cols:
+        wanted = ", ".join(f"{s}: C{SIGNALS[s][0]}" for s in systems)
+        raise _obs_error(p, f"has no pseudorange observable for the requested systems ({wanted})",
+                         "pass a file with code observations, or other scenario.systems")
+
+    stamps: list[str] = []
+    fracs: list[float] = []
+    r_epoch: list[int] = []
+    r_sat: list[str] = []
+    r_val: list[tuple[float, float, float, float, bool]] = []
+    i, n_lines = body, len(lines)
+    while i < n_lines:  # text parsing: one Python step per line is unavoidable
+        ln = lines[i]
+        i += 1
+        if not ln.startswith(">"):
+            continue
+        try:
+            flag = int(ln[31:32].strip() or 0)
+            count = int(ln[32:35])
+            if flag > 1:  # event records carry header lines, not observations
+                i += count
+                continue
+            f = ln[1:29].split()
+            whole, _, frac = f[5].partition(".")
+            stamps.append(f"{int(f[0]):04d}-{int(f[1]):02d}-{int(f[2]):02d}T{int(f[3]):02d}:{int(f[4]):02d}:"
+                          f"{int(whole):02d}")
+            fracs.append(float("0." + frac) if frac else 0.0)
+        except (ValueError, IndexError):
+            raise _obs_error(p, f"has a malformed epoch line {i}: '{ln[:35].strip()}'") from None
+        e = len(stamps) - 1
+        for ln in lines[i:i + count]:
+            c = cols.get(ln[:1])
+            if c is None:
+                continue
+            try:
+                vals = [_float(ln[3 + 16 * k:17 + 16 * k]) if k >= 0 else np.nan for k in c]
+            except ValueError:
+                raise _obs_error(p, f"has a malformed observation line after epoch {stamps[-1]}: "
+                                    f"'{ln[:40].strip()}'") from None
+            lli_digit = ln[17 + 16 * c[1]:18 + 16 * c[1]].strip() if c[1] >= 0 else ""
+            r_epoch.append(e)
+            r_sat.append(ln[:3].replace(" ", "0"))
+            r_val.append((*vals, bool(int(lli_digit) & 1) if lli_digit.isdigit() else False))
+        i += count
+    if not r_epoch:
+        raise _obs_error(p, f"contains no observations of systems '{systems}'")
+    vals = np.array([v[:4] for v in r_val], dtype=float)
+    code = vals[:, 0]
+    if not np.isfinite(code).any():
+        raise _obs_error(p, "has no pseudorange values (all code fields are blank)",
+                         "pass a file with code observations")
+    t_int = datetime64_to_gps(np.array(stamps, dtype="datetime64[s]")).astype(np.int64)
+    t_frac = np.array(fracs)
+    if not np.isfinite(interval) or interval <= 0:
+        d = np.diff(t_int) + np.diff(t_frac)
+        interval = float(np.median(d)) if d.size else 1.0
+    return RinexObs(
+        epoch_t_int=t_int, epoch_t_frac=t_frac, row_epoch=np.array(r_epoch, dtype=np.int64),
+        sat=np.array(r_sat), code=code, phase_cycles=vals[:, 1], doppler_hz=vals[:, 2], cn0_dbhz=vals[:, 3],
+        lli=np.array([v[4] for v in r_val], dtype=bool), approx_position=approx, interval_s=float(interval), path=p)
+
+
+def _load_ephemeris(nav_path: str, obs: RinexObs, system: str = "G") -> BroadcastEphemeris:
+    """Ephemeris of one system from ``nav_path``, checked to cover the whole observation span."""
+    key = "scenario.nav" if system == "G" else "scenario.nav_bds"
+    if not nav_path:
+        raise SimbenchError(key, "no navigation file given",
+                            f"set {key} to a RINEX navigation file, e.g. ../shared/data/hk_tst_2019/hksc1180.19"
+                            + ("n" if system == "G" else "b"))
+    if system == "C":
+        from simbench.data.beidou import BeidouEphemeris
+
+        eph: BroadcastEphemeris = BeidouEphemeris.from_rinex_bds(nav_path)
+    else:
+        eph = BroadcastEphemeris.from_rinex(nav_path)
+    t0 = float(obs.epoch_t_int[0]) + obs.epoch_t_frac[0]
+    t1 = float(obs.epoch_t_int[-1]) + obs.epoch_t_frac[-1]
+    lo, hi = eph.t_coverage
+    if t0 < lo or t1 > hi:
+        from simbench.sim.orbits import _fmt_gps
+
+        raise SimbenchError(f"{key} '{nav_path}'",
+                            f"covers {_fmt_gps(lo)} .. {_fmt_gps(hi)} GPS, the observations span "
+                            f"{_fmt_gps(t0)} .. {_fmt_gps(t1)} GPS",
+                            "pass the navigation file of the observation day")
+    return eph
+
+
+def _satellite_states(obs: RinexObs, ephs: dict[str, BroadcastEphemeris]) -> dict[str, np.ndarray]:
+    """Per-row satellite state at transmit time (NaN where the ephemeris has no record)."""
+    out = {k: np.full(obs.sat.size, np.nan) for k in ("x", "y", "z", "vx", "vy", "vz", "clock", "drift")}
+    n = obs.epoch_t_int.size
+    for eph in ephs.values():
+        m = eph.sats.size
+        col = {s: j for j, s in enumerate(eph.sats.tolist())}
+        j = np.array([col.get(s, -1) for s in obs.sat.tolist()])
+        has = (j >= 0) & np.isfinite(obs.code)
+        e_r, j_r = obs.row_epoch[has], j[has]
+        # (epoch, satellite) grid of transit offsets relative to the whole-second tag.
+        tau = np.full((n, m), _TAU_NOMINAL_S)
+        tau[e_r, j_r] = obs.code[has] / C_LIGHT
+        t_ref = obs.epoch_t_int.astype(float)
+        base = obs.epoch_t_frac[:, None] - tau
+        # The satellite clock moves the transmit time by up to ~1 ms (4 m of orbit);
+        # one fixed-point step converges it to < 1e-12 s.
+        st = eph.states(t_ref, base)
+        st = eph.states(t_ref, base - np.nan_to_num(st.clock))
+        for k, name in enumerate("xyz"):
+            out[name][has] = st.pos[e_r, j_r, k]
+            out["v" + name][has] = st.vel[e_r, j_r, k]
+        # IS-GPS-200 20.3.3.3.3.2 (and BDS B1I): the L1 user's clock is dt_sv - TGD
+        out["clock"][has] = C_LIGHT * (st.clock[e_r, j_r] - np.nan_to_num(eph.tgd[j_r]))
+        out["drift"][has] = C_LIGHT * st.clock_drift[e_r, j_r]
+    return out
+
+
+def receiver_positions(epoch: np.ndarray, sat_pos: np.ndarray, code: np.ndarray, n_epochs: int,
+                       x0: np.ndarray | None = None) -> np.ndarray:
+    """Rough receiver position per epoch for elevation and azimuth (single-point solutions).
+
+    Epochs with fewer than four satellites, a failed fit or a post-fit RMS above
+    300 m take the nearest trusted epoch's position.
+
+    Parameters
+    ----------
+    epoch : np.ndarray of int, shape (N,)
+        Epoch index (0..n_epochs-1) of each row.
+    sat_pos : np.ndarray, shape (N, 3)
+        Satellite ECEF positions at transmit time [m].
+    code : np.ndarray, shape (N,)
+        Pseudoranges with the satellite clock applied [m].
+    n_epochs : int
+    x0 : np.ndarray, shape (3,), optional
+        Start of the first fit (e.g. the RINEX approximate position) [m].
+
+    Returns
+    -------
+    np.ndarray, shape (n_epochs, 3)
+        ECEF positions [m].
+
+    Raises
+    ------
+    SimbenchError
+        When no epoch gives a trusted solution.
+    """
+    from estimators.measurement import single_point_solution
+    from simbench.sim.geometry import sagnac_range
+
+    ok_row = np.isfinite(code) & np.isfinite(sat_pos).all(axis=1)
+    e, s, c = epoch[ok_row], sat_pos[ok_row], code[ok_row]
+    order = np.argsort(e, kind="stable")
+    e, s, c = e[order], s[order], c[order]
+    bounds = np.searchsorted(e, np.arange(n_epochs + 1))
+    pos = np.full((n_epochs, 3), np.nan)
+    start = None if x0 is None or not np.any(x0) else np.asarray(x0, float)
+    for k in range(n_epochs):
+        a, b = bounds[k], bounds[k + 1]
+        if b - a < 4:
+            continue
+        try:
+            p, clk = single_point_solution(s[a:b], c[a:b], x0=start)
+        except (SimbenchError, np.linalg.LinAlgError):
+            continue
+        rms = np.sqrt(np.mean((c[a:b] - sagnac_range(s[a:b], p) - clk) ** 2))
+        if np.all(np.isfinite(p)) and rms < _SPP_MAX_RMS_M and 6.0e6 < np.linalg.norm(p) < 6.5e6:
+            pos[k] = p
+            start = p
+    good = np.flatnonzero(np.isfinite(pos[:, 0]))
+    if good.size == 0:
+        raise SimbenchError("observations", "no epoch gives a single-point solution",
+                            "check that the navigation file belongs to the observations")
+    nearest = good[np.clip(np.searchsorted(good, np.arange(n_epochs)), 0, good.size - 1)]
+    prev = good[np.clip(np.searchsorted(good, np.arange(n_epochs)) - 1, 0, good.size - 1)]
+    pick = np.where(np.abs(prev - np.arange(n_epochs)) < np.abs(nearest - np.arange(n_epochs)), prev, nearest)
+    return pos[pick]
+
+
+def epoch_grid(t_rel: np.ndarray, interval_s: float) -> np.ndarray:
+    """Epoch index on the nominal grid: gaps in the log leave gaps in the index.
+
+    Parameters
+    ----------
+    t_rel : np.ndarray, shape (n,)
+        Epoch times since the first epoch [s], increasing.
+    interval_s : float
+        Nominal interval [s].
+    """
+    idx = np.round(t_rel / interval_s).astype(np.int64)
+    if np.any(np.diff(idx) <= 0):
+        # irregular tags (e.g. a receiver that slews its clock): fall back to ranks
+        idx = np.arange(t_rel.size, dtype=np.int64)
+    return idx
+
+
+def empty_imu() -> pd.DataFrame:
+    """The IMU table of a log without inertial data (zero rows, IMU columns)."""
+    return pd.DataFrame({c: np.zeros(0) for c in IMU_COLUMNS})
+
+
+def load_rinex(obs_path: str | os.PathLike[str], nav_path: str | os.PathLike[str],
+               truth_path: str | os.PathLike[str] | None = None, *, systems: str = "G",
+               nav_bds_path: str | os.PathLike[str] | None = None, name: str = "rinex",
+               truth_max_gap_s: float = 2.0) -> Scenario:
+    """Ingest a RINEX 3 observation file, its navigation file and a reference trajectory.
+
+    Parameters
+    ----------
+    obs_path : str or PathLike
+        RINEX 3 observation file.
+    nav_path : str or PathLike
+        RINEX 2/3 GPS navigation file covering the observation span.
+    truth_path : str or PathLike, optional
+        Reference trajectory (``week,TOW,lat,lon,h`` CSV or ``SOW X Y Z``); see
+        :func:`simbench.data.reference.read_reference`. Without it the truth
+        table is empty (nothing can be scored).
+    systems : str
+        Systems to ingest: ``'G'``, ``'C'`` or ``'GC'``.
+    nav_bds_path : str or PathLike, optional
+        RINEX 3 BeiDou navigation file (needed when ``systems`` has ``C``).
+    name : str
+        Scenario name for the result tables.
+    truth_max_gap_s : float
+        Reference samples further apart than this are not interpolated [s].
+
+    Returns
+    -------
+    Scenario
+        Observations in the simulator's columns, ``truth`` with one row per
+        epoch that the reference covers (epochs on the nominal grid of the
+        log's interval), ``labels=None`` and an empty IMU table.
+    """
+    obs = read_rinex_obs(obs_path, systems)
+    paths = {"G": os.fspath(nav_path or ""), "C": os.fspath(nav_bds_path or "")}
+    ephs = {s: _load_ephemeris(paths[s], obs, s) for s in systems}
+    st = _satellite_states(obs, ephs)
+    keep = np.isfinite(st["x"])
+    n_dropped = int((~keep).sum())
+
+    t_rel_epoch = (obs.epoch_t_int - obs.epoch_t_int[0]) + (obs.epoch_t_frac - obs.epoch_t_frac[0])
+    grid = epoch_grid(t_rel_epoch, obs.interval_s)
+    n_grid = int(grid[-1]) + 1
+    re = obs.row_epoch[keep]
+    sat_pos = np.stack([st[k][keep] for k in "xyz"], axis=1)
+    corrected = obs.code[keep] + st["clock"][keep]
+    rx = receiver_positions(re, sat_pos, corrected, obs.epoch_t_int.size, obs.approx_position)
+    el, az = elevation_azimuth(rx[re], sat_pos[:, None, :])
+    freq = np.array([SIGNALS[s[0]][1] for s in obs.sat[keep].tolist()])
+    observations = pd.DataFrame({
+        "epoch": grid[re], "t": t_rel_epoch[re], "sat": obs.sat[keep],
+        "code_l1": obs.code[keep], "phase_l1": obs.phase_cycles[keep] * (C_LIGHT / freq),
+        "doppler_l1": obs.doppler_hz[keep], "cn0_l1": obs.cn0_dbhz[keep], "lli_l1": obs.lli[keep],
+        "code_l2": np.nan, "phase_l2": np.nan, "lli_l2": False,
+        "sat_x": sat_pos[:, 0], "sat_y": sat_pos[:, 1], "sat_z": sat_pos[:, 2],
+        "sat_vx": st["vx"][keep], "sat_vy": st["vy"][keep], "sat_vz": st["vz"][keep],
+        "sat_clock": st["clock"][keep], "sat_clock_drift": st["drift"][keep],
+        "el": np.degrees(el[:, 0]), "az": np.degrees(az[:, 0]),
+    }).sort_values(["epoch", "sat"], kind="stable").reset_index(drop=True)
+
+    t0_gps = float(obs.epoch_t_int[0]) + obs.epoch_t_frac[0]
+    t_grid = np.arange(n_grid) * obs.interval_s
+    t_grid[grid] = t_rel_epoch  # actual tags where the log has an epoch
+    ref: Reference | None = None
+    matched = None
+    if truth_path:
+        ref = read_reference(truth_path, week_hint=int(obs.epoch_t_int[0] // SECONDS_PER_WEEK))
+        matched = match_reference(ref, t0_gps + t_grid, truth_max_gap_s)
+    counts = np.bincount(observations["epoch"].to_numpy(), minlength=n_grid)
+    truth = truth_table(t_grid, matched, counts)
+
+    week = int(obs.epoch_t_int[0] // SECONDS_PER_WEEK)
+    # GPS Klobuchar for every system (the BDS coefficients are not in NavInfo's model)
+    klob = ephs.get("G")
+    alpha = klob.iono_alpha if klob is not None and klob.iono_alpha is not None else np.zeros(4)
+    beta = klob.iono_beta if klob is not None and klob.iono_beta is not None else np.zeros(4)
+    nav = NavInfo(gps_week=week, start_sow_s=t0_gps - week * SECONDS_PER_WEEK,
+                  iono_alpha=tuple(map(float, alpha)), iono_beta=tuple(map(float, beta)), dual_frequency=False)
+    meta = {
+        "name": name, "seed": 0, "source": "rinex",
+        "files": {"obs": str(Path(obs_path)), "nav": paths["G"], "nav_bds": paths["C"],
+                  "truth": str(truth_path or "")},
+        "systems": systems, "signals": {s: SIGNALS[s][0] for s in systems},
+        "rows_without_ephemeris_or_code": n_dropped,
+        "epochs_with_truth": len(truth), "epochs": n_grid,
+        "corrections": "raw observables; Klobuchar (NavInfo) and Saastamoinen applied by the estimator model",
+    }
+    return Scenario(observations=observations, imu=empty_imu(), truth=truth, labels=None, nav=nav, meta=meta)
