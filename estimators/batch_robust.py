@@ -1,0 +1,229 @@
+"""Batch PPP on the shared factor graph: L2, DCS and max-mixtures (dissertation Ch. 3, eqs. 3.18-3.20).
+
+All three solve the whole data set at once with Levenberg-Marquardt on
+:class:`~estimators.ppp_graph.PppGraph`; they differ only in the measurement
+noise models:
+
+* ``l2``: the a-priori Gaussian model (elevation-weighted sigmas).
+* ``dcs``: the same wrapped in GTSAM's dynamic covariance scaling m-estimator
+  (kernel width ``phi``, whitened units). GTSAM re-weights at every
+  linearisation, so one LM run is the whole estimator.
+* ``mm``: max-mixtures with a static two-component model per measurement (a-priori
+  inlier, outlier with the covariance scaled by ``outlier_scale``, equal weights);
+  each iteration every code and every phase measurement takes its most likely
+  component given the current residual (eq. 3.20), then the graph is re-solved,
+  until the relative change of the total error is below ``rel_tol`` or the
+  assignment no longer changes or ``max_iterations`` is reached.
+
+The robust estimators start from the L2 solution (one L2 solve, counted in their
+run time): from the single point initial values the arc biases are metres off and
+a robust kernel would switch every phase factor off at the first linearisation.
+
+``prior_scale`` (s) multiplies the a-priori measurement covariance (sigmas by
+``sqrt(s)``), for the sensitivity study of Fig. 5.3.7.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import gtsam
+import numpy as np
+import pandas as pd
+
+from estimators import register
+from estimators.base import Estimator, solution_frame
+from estimators.measurement import PppObservations, prepare_ppp
+from estimators.ppp_graph import PppGraph, PppGraphConfig, solve, validate_graph_config
+from simbench.contract import ReceiverData
+from simbench.errors import SimbenchError
+
+__all__ = [
+    "BatchConfig",
+    "BatchGraphEstimator",
+    "DcsBatch",
+    "DcsConfig",
+    "L2Batch",
+    "L2Config",
+    "MmBatch",
+    "MmConfig",
+]
+
+
+@dataclass
+class BatchConfig(PppGraphConfig):
+    """Parameters shared by the batch graph estimators (graph model: :class:`PppGraphConfig`)."""
+
+    prior_scale: float = 1.0  #: s, multiplies the a-priori measurement covariance (Fig. 5.3.7 sensitivity)
+    max_iterations: int = 100  #: robust re-weighting iterations at most
+    rel_tol: float = 1e-5  #: stop when the relative change of the total error is below this
+    lm_max_iterations: int = 100  #: Levenberg-Marquardt iterations per solve
+
+
+class BatchGraphEstimator(Estimator):
+    """Shared plumbing: prepare observations, build the graph, time the run, output the solution."""
+
+    Config = BatchConfig
+
+    def _prepare(self, data: ReceiverData) -> tuple[PppObservations, PppGraph]:
+        cfg = self.config
+        self._validate()
+        obs = prepare_ppp(data, **cfg.prepare_kwargs())
+        return obs, PppGraph(obs, cfg)
+
+    def _validate(self) -> None:
+        cfg = self.config
+        where = f"estimator.{self.name}"
+        validate_graph_config(cfg, where)
+        if not cfg.prior_scale > 0:
+            raise SimbenchError(f"{where}.prior_scale", f"must be positive, got {cfg.prior_scale}",
+                                "give a covariance scale factor such as 1, 0.1 or 10")
+        if cfg.max_iterations < 1 or cfg.lm_max_iterations < 1:
+            raise SimbenchError(f"{where}.max_iterations", "iteration limits must be at least 1",
+                                "set max_iterations and lm_max_iterations >= 1")
+
+    def _a_priori_sigmas(self, obs: PppObservations) -> tuple[np.ndarray, np.ndarray]:
+        s = np.sqrt(self.config.prior_scale)
+        return obs.sigma_code * s, obs.sigma_phase * s
+
+    def _solve(self, graph: gtsam.NonlinearFactorGraph, initial: gtsam.Values) -> gtsam.Values:
+        return solve(graph, initial, max_iterations=self.config.lm_max_iterations)
+
+    def _l2(self, g: PppGraph, structure: gtsam.NonlinearFactorGraph) -> gtsam.Values:
+        sc, sp = self._a_priori_sigmas(g.obs)
+        graph = gtsam.NonlinearFactorGraph(structure)
+        graph.push_back(g.measurement_factors(code_sigma=sc, phase_sigma=sp))
+        return self._solve(graph, g.initial_values())
+
+    def _estimate(self, data: ReceiverData) -> tuple[pd.DataFrame, dict[str, Any]]:
+        tic = time.perf_counter()
+        obs, g = self._prepare(data)
+        structure = g.structure_factors()
+        values, diag = self._run(data, obs, g, structure)
+        pos = g.positions(values)
+        per_epoch = (time.perf_counter() - tic) / obs.n_epochs
+        frame = solution_frame(obs.epoch_ids, obs.epoch_t, pos, np.full(obs.n_epochs, per_epoch))
+        diag = {"n_epochs": int(obs.n_epochs), "n_observations": int(obs.n_obs), "n_arcs": int(obs.n_arcs),
+                **diag, "config": asdict(self.config)}
+        return frame, diag
+
+    def _run(self, data: ReceiverData, obs: PppObservations, g: PppGraph,
+             structure: gtsam.NonlinearFactorGraph) -> tuple[gtsam.Values, dict[str, Any]]:
+        raise NotImplementedError
+
+
+# --------------------------------------------------------------------------- L2
+
+
+@dataclass
+class L2Config(BatchConfig):
+    """Batch L2 (a-priori Gaussian noise)."""
+
+
+@register
+class L2Batch(BatchGraphEstimator):
+    """Batch Levenberg-Marquardt PPP with the a-priori Gaussian noise model."""
+
+    name = "l2"
+    Config = L2Config
+
+    def _run(self, data, obs, g, structure):
+        return self._l2(g, structure), {"iterations": 1}
+
+
+# --------------------------------------------------------------------------- DCS
+
+
+@dataclass
+class DcsConfig(BatchConfig):
+    """Batch dynamic covariance scaling."""
+
+    kernel_width: float = 2.5  #: DCS phi [whitened units]
+
+
+@register
+class DcsBatch(BatchGraphEstimator):
+    """Batch PPP with GTSAM's DCS m-estimator on every code and phase factor."""
+
+    name = "dcs"
+    Config = DcsConfig
+
+    def _run(self, data, obs, g, structure):
+        if not self.config.kernel_width > 0:
+            raise SimbenchError("estimator.dcs.kernel_width", f"must be positive, got {self.config.kernel_width}",
+                                "give the DCS kernel width in whitened units (default 2.5)")
+        start = self._l2(g, structure)
+        sc, sp = self._a_priori_sigmas(obs)
+        graph = gtsam.NonlinearFactorGraph(structure)
+        graph.push_back(g.measurement_factors(code_sigma=sc, phase_sigma=sp,
+                                              robust=gtsam.noiseModel.mEstimator.DCS.Create(
+                                                  self.config.kernel_width)))
+        values = self._solve(graph, start)
+        r_c, r_p = g.residuals(values)
+        return values, {"iterations": 1,
+                        "downweighted_code": int(np.sum(np.abs(r_c / sc) > self.config.kernel_width)),
+                        "downweighted_phase": int(np.sum(np.abs(r_p / sp) > self.config.kernel_width))}
+
+
+# --------------------------------------------------------------------------- max-mixtures
+
+
+@dataclass
+class MmConfig(BatchConfig):
+    """Batch max-mixtures with a static inlier/outlier model."""
+
+    outlier_scale: float = 1e6  #: outlier covariance = inlier covariance times this (batch code: 1e6)
+    outlier_weight: float = 0.5  #: prior weight of the outlier component (equal weights)
+
+
+def max_mixture_outliers(whitened: np.ndarray, outlier_scale: float, outlier_weight: float) -> np.ndarray:
+    """Most likely component per measurement (eq. 3.20): True where the outlier wins.
+
+    Inlier ``N(0, 1)`` with weight ``1 - w``, outlier ``N(0, s)`` with weight ``w``
+    in whitened units; the outlier wins where
+    ``w/sqrt(s) exp(-r^2/(2s)) > (1-w) exp(-r^2/2)``, i.e.
+    ``r^2 (1 - 1/s) > log s + 2 log((1-w)/w)``.
+    """
+    threshold = (np.log(outlier_scale) + 2.0 * np.log((1.0 - outlier_weight) / outlier_weight)) / (
+        1.0 - 1.0 / outlier_scale)
+    return whitened**2 > threshold
+
+
+@register
+class MmBatch(BatchGraphEstimator):
+    """Batch max-mixtures (static two-component model), iterated to convergence."""
+
+    name = "mm"
+    Config = MmConfig
+
+    def _run(self, data, obs, g, structure):
+        cfg: MmConfig = self.config
+        if not (cfg.outlier_scale > 1 and 0 < cfg.outlier_weight < 1):
+            raise SimbenchError("estimator.mm.outlier_scale", "needs outlier_scale > 1 and 0 < outlier_weight < 1",
+                                "use the defaults 1e6 and 0.5")
+        values = self._l2(g, structure)
+        sc, sp = self._a_priori_sigmas(obs)
+        inflate = np.sqrt(cfg.outlier_scale)
+        prev_out = None
+        prev_err = None
+        history = []
+        for it in range(cfg.max_iterations):
+            r_c, r_p = g.residuals(values)
+            out_c = max_mixture_outliers(r_c / sc, cfg.outlier_scale, cfg.outlier_weight)
+            out_p = max_mixture_outliers(r_p / sp, cfg.outlier_scale, cfg.outlier_weight)
+            out = np.r_[out_c, out_p]
+            if prev_out is not None and np.array_equal(out, prev_out):
+                break
+            prev_out = out
+            graph = gtsam.NonlinearFactorGraph(structure)
+            graph.push_back(g.measurement_factors(code_sigma=np.where(out_c, sc * inflate, sc),
+                                                  phase_sigma=np.where(out_p, sp * inflate, sp)))
+            values = self._solve(graph, values)
+            err = graph.error(values)
+            history.append({"iteration": it + 1, "error": float(err), "outlier_code": int(out_c.sum()),
+                            "outlier_phase": int(out_p.sum())})
+            if prev_err is not None and abs(prev_err - err) <= cfg.rel_tol * max(abs(prev_err), 1e-300):
+                break
+            prev_err = err
+        return values, {"iterations": len(history), "history": history}

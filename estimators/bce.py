@@ -1,0 +1,208 @@
+"""Batch covariance estimation: BCE (dissertation Sec. 5.2) and BCE-AD (Sec. 6.2).
+
+BCE iterates
+
+1. solve the PPP graph (:mod:`estimators.ppp_graph`) with Levenberg-Marquardt,
+2. form the 2-D residual ``(code, phase)`` of every satellite-epoch,
+3. fit a variational Dirichlet-process GMM to the raw residuals
+   (:func:`estimators.clustering.fit_dpgmm`; optionally on a random sub-sample),
+4. hard-assign every satellite-epoch to its most likely component; its code and
+   phase factors take the component's full 2x2 covariance (exact coupling with
+   native factors, :meth:`PppGraph.measurement_factors`) and the component mean is
+   subtracted from both measurements,
+5. re-solve (warm start),
+
+until the relative change of the total graph error is below ``rel_tol`` or
+``max_iterations`` is reached. The first solve uses the a-priori model (scaled by
+``prior_scale``). Every iteration's mixture is recorded in the diagnostics
+(``mixtures``: weights, means, covariances, counts) for a figure like Fig. 5.3.3.
+
+BCE-AD augments the residuals with elevation, azimuth and C/N0, selects
+``n_features`` of the five by MCFS every iteration
+(:func:`estimators.clustering.select_features`), clusters in the selected
+(standardised) space, and gives each cluster the mean and covariance of its
+members' residuals. Selected features per iteration go to ``selected_features``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import gtsam
+import numpy as np
+import pandas as pd
+
+from estimators import register
+from estimators.batch_robust import BatchConfig, BatchGraphEstimator
+from estimators.clustering import Mixture, fit_dpgmm, select_features
+from estimators.measurement import PppObservations
+from estimators.ppp_graph import PppGraph
+from simbench.contract import ReceiverData
+from simbench.errors import SimbenchError
+
+__all__ = ["FEATURES", "Bce", "BceAd", "BceAdConfig", "BceConfig"]
+
+#: Augmented feature columns of BCE-AD, in order.
+FEATURES = ("code_residual", "phase_residual", "elevation", "azimuth", "cn0")
+#: Clusters with fewer members keep the a-priori noise model (no covariance estimate from < 3 points).
+_MIN_CLUSTER = 3
+
+
+@dataclass
+class BceConfig(BatchConfig):
+    """BCE parameters (graph model and stopping rule: :class:`BatchConfig`)."""
+
+    max_iterations: int = 100
+    truncation: int = 10  #: largest number of DP-GMM components
+    dpgmm_max_iter: int = 1000  #: variational iterations per fit at most
+    dpgmm_tol: float = 1e-4  #: lower-bound tolerance of the variational fit
+    fit_sample: int = 0  #: fit the mixture on at most this many random residuals (0: all)
+    seed: int = 0  #: random state of the sub-sampling and the k-means initialisation
+
+
+@dataclass
+class BceAdConfig(BceConfig):
+    """BCE-AD parameters."""
+
+    n_features: int = 2  #: features kept by MCFS each iteration (of the 5 in FEATURES)
+    mcfs_clusters: int = 3  #: eigenvectors of the MCFS spectral embedding
+    mcfs_neighbors: int = 5  #: neighbours of the MCFS kNN graph
+    feature_sample: int = 2000  #: MCFS runs on at most this many random rows (kNN graph cost)
+
+
+class _IterativeCovariance(BatchGraphEstimator):
+    """The BCE loop; subclasses say how residuals become per-row noise models."""
+
+    def _check(self) -> None:
+        cfg: BceConfig = self.config
+        where = f"estimator.{self.name}"
+        if cfg.truncation < 1 or cfg.dpgmm_max_iter < 1 or cfg.fit_sample < 0:
+            raise SimbenchError(f"{where}.truncation", "truncation and dpgmm_max_iter must be >= 1, fit_sample >= 0",
+                                "use the defaults of conf/estimator/")
+
+    def _previous(self, it: int):
+        """The previous iteration's mixture model (warm start), None at the first iteration."""
+        return self._model if it > 0 else None
+
+    def _fit_rows(self, n: int, rng: np.random.Generator) -> np.ndarray | None:
+        m = self.config.fit_sample
+        return None if m == 0 or m >= n else np.sort(rng.choice(n, m, replace=False))
+
+    def _noise(self, data: ReceiverData, obs: PppObservations, r: np.ndarray,
+               it: int) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        raise NotImplementedError
+
+    def _run(self, data, obs, g: PppGraph, structure):
+        cfg: BceConfig = self.config
+        self._check()
+        rng = np.random.default_rng(cfg.seed)
+        values = self._l2(g, structure)
+        # the same sub-sample every iteration: a fresh one would make the mixture (and the
+        # total error) jitter from iteration to iteration and the stopping rule never fire
+        self._fit_idx = self._fit_rows(obs.n_obs, rng)
+        self._sample_idx = (np.sort(rng.choice(obs.n_obs, getattr(cfg, "feature_sample", 0), replace=False))
+                            if 0 < getattr(cfg, "feature_sample", 0) < obs.n_obs else slice(None))
+        self._model = None
+        self._chosen = None
+        prev_err = None
+        history: list[dict[str, Any]] = []
+        for it in range(cfg.max_iterations):
+            r_c, r_p = g.residuals(values)
+            noise, record = self._noise(data, obs, np.c_[r_c, r_p], it)
+            graph = gtsam.NonlinearFactorGraph(structure)
+            graph.push_back(g.measurement_factors(**noise))
+            values = self._solve(graph, values)
+            err = float(graph.error(values))
+            history.append({"iteration": it + 1, "error": err, **record})
+            if prev_err is not None and abs(prev_err - err) <= cfg.rel_tol * abs(prev_err):
+                break
+            prev_err = err
+        return values, {"iterations": len(history), "history": history}
+
+
+def _component_noise(mix_means: np.ndarray, mix_cov: np.ndarray, labels: np.ndarray) -> dict[str, np.ndarray]:
+    """Per-row measurement-factor arguments from each row's component mean and 2x2 covariance."""
+    cov = mix_cov[labels]
+    mean = mix_means[labels]
+    return {"code_sigma": np.sqrt(cov[:, 0, 0]), "phase_sigma": np.sqrt(cov[:, 1, 1]),
+            "code_phase_cov": cov[:, 0, 1], "code_offset": mean[:, 0], "phase_offset": mean[:, 1]}
+
+
+@register
+class Bce(_IterativeCovariance):
+    """Batch covariance estimation with a variational DP-GMM on the (code, phase) residuals."""
+
+    name = "bce"
+    Config = BceConfig
+
+    def _noise(self, data, obs, r, it):
+        cfg: BceConfig = self.config
+        mix = fit_dpgmm(r, truncation=cfg.truncation, max_iter=cfg.dpgmm_max_iter, tol=cfg.dpgmm_tol,
+                        seed=cfg.seed,
+                        fit_rows=self._fit_idx, warm_start=self._previous(it))
+        self._model = mix.model
+        return _component_noise(mix.means, mix.covariances, mix.labels), {"mixture": mix.to_json()}
+
+
+@register
+class BceAd(_IterativeCovariance):
+    """BCE over residuals augmented with elevation, azimuth and C/N0, features chosen by MCFS."""
+
+    name = "bce_ad"
+    Config = BceAdConfig
+
+    def _noise(self, data, obs, r, it):
+        cfg: BceAdConfig = self.config
+        if not 1 <= cfg.n_features <= len(FEATURES):
+            raise SimbenchError("estimator.bce_ad.n_features", f"must be 1..{len(FEATURES)}, got {cfg.n_features}",
+                                "choose how many of code/phase residual, elevation, azimuth, C/N0 to keep")
+        feats = np.c_[r, obs.el, obs.az, _cn0(data, obs)]
+        mu, sd = feats.mean(axis=0), feats.std(axis=0)
+        z = (feats - mu) / np.where(sd > 0, sd, 1.0)
+        chosen, scores = select_features(z[self._sample_idx], cfg.n_features, n_clusters=cfg.mcfs_clusters,
+                                         n_neighbors=cfg.mcfs_neighbors, seed=cfg.seed)
+        # a warm start only makes sense in the same feature space
+        same = it > 0 and np.array_equal(chosen, self._chosen)
+        mix = fit_dpgmm(z[:, chosen], truncation=cfg.truncation, max_iter=cfg.dpgmm_max_iter, tol=cfg.dpgmm_tol,
+                        seed=cfg.seed,
+                        fit_rows=self._fit_idx, warm_start=self._previous(it) if same else None)
+        self._model, self._chosen = mix.model, chosen
+        means, covs = _residual_statistics(r, mix, self._a_priori_cov(obs))
+        noise = _component_noise(means, covs, mix.labels)
+        small = mix.counts[mix.labels] < _MIN_CLUSTER
+        if small.any():  # members of tiny clusters keep their a-priori model
+            sc, sp = self._a_priori_sigmas(obs)
+            noise["code_sigma"] = np.where(small, sc, noise["code_sigma"])
+            noise["phase_sigma"] = np.where(small, sp, noise["phase_sigma"])
+            for key in ("code_phase_cov", "code_offset", "phase_offset"):
+                noise[key] = np.where(small, 0.0, noise[key])
+        record = {"selected_features": [FEATURES[i] for i in chosen], "mcfs_scores": scores.tolist(),
+                  "mixture": {"weights": mix.weights.tolist(), "counts": mix.counts.tolist(),
+                              "means": means.tolist(), "covariances": covs.tolist()}}
+        return noise, record
+
+    def _a_priori_cov(self, obs: PppObservations) -> np.ndarray:
+        sc, sp = self._a_priori_sigmas(obs)
+        return np.diag([np.median(sc) ** 2, np.median(sp) ** 2])
+
+
+def _residual_statistics(r: np.ndarray, mix: Mixture, fallback: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and covariance of each cluster's (code, phase) residuals; ``fallback`` for clusters < 3 points."""
+    k = mix.n_components
+    means = np.zeros((k, 2))
+    covs = np.repeat(fallback[None], k, axis=0)
+    for c in range(k):
+        member = r[mix.labels == c]
+        if len(member) >= _MIN_CLUSTER:
+            means[c] = member.mean(axis=0)
+            cov = np.cov(member, rowvar=False)
+            # a cluster of identical residuals would have a singular covariance
+            covs[c] = cov + 1e-8 * np.eye(2)
+    return means, covs
+
+
+def _cn0(data: ReceiverData, obs: PppObservations) -> np.ndarray:
+    """C/N0 [dB-Hz] of each prepared row, looked up by (epoch, satellite)."""
+    table = data.observations.set_index(["epoch", "sat"])["cn0_l1"]
+    cn0 = table.reindex(pd.MultiIndex.from_arrays([obs.epoch, obs.sat])).to_numpy(float)
+    return np.where(np.isfinite(cn0), cn0, np.nanmedian(cn0))

@@ -1,0 +1,187 @@
+"""The shared PPP graph, the residual clustering and the batch robust estimators."""
+from __future__ import annotations
+
+import gtsam
+import numpy as np
+import pytest
+
+import simbench
+from estimators.batch_robust import (
+    DcsBatch,
+    L2Batch,
+    MmBatch,
+    MmConfig,
+    max_mixture_outliers,
+)
+from estimators.bce import Bce, BceAd, BceAdConfig, BceConfig
+from estimators.clustering import fit_dpgmm, mcfs_scores, select_features
+from estimators.ekf_ppp import EkfPpp
+from estimators.measurement import prepare_ppp
+from estimators.oracle import Oracle
+from estimators.ppp_graph import PppGraph, PppGraphConfig, solve
+from simbench.contract import Scenario
+from simbench.metrics import enu_errors
+from simbench.sim.geometry import sagnac_range
+
+
+@pytest.fixture(scope="module")
+def open_sky() -> Scenario:
+    return simbench.simulate("open_sky", "high", seed=1000, **{"scenario.duration_s": 120})
+
+
+@pytest.fixture(scope="module")
+def solved(open_sky: Scenario):
+    cfg = PppGraphConfig()
+    obs = prepare_ppp(open_sky.receiver_view(), **cfg.prepare_kwargs())
+    g = PppGraph(obs, cfg)
+    graph = g.structure_factors()
+    graph.push_back(g.measurement_factors())
+    return g, graph, solve(graph, g.initial_values())
+
+
+# --------------------------------------------------------------------------- graph model
+
+
+def test_native_factor_range_includes_sagnac() -> None:
+    sat = np.array([15_600e3, 7_540e3, 20_140e3])
+    rx = np.array([1_113e3, -4_842e3, 3_985e3])
+    f = gtsam.UndifferencedPseudorangeFactor(1, 2, 3, 4, 0.0, sat, 0.0, 1.0, 0.0, gtsam.noiseModel.Unit.Create(1))
+    v = gtsam.Values()
+    v.insert(1, gtsam.Point3(*rx))
+    for key in (2, 3, 4):
+        v.insert(key, 0.0)
+    # the Sagnac term is ~20 m here; the factor must carry it
+    assert f.unwhitenedError(v)[0] == pytest.approx(sagnac_range(sat[None], rx)[0], abs=1e-6)
+
+
+def test_residuals_match_the_factor_errors(solved) -> None:
+    g, _, values = solved
+    r_c, r_p = g.residuals(values)
+    meas = g.measurement_factors()
+    n = g.obs.n_obs
+    errs = np.array([meas.at(i).unwhitenedError(values)[0] for i in range(meas.size())])
+    np.testing.assert_allclose(-errs[:n], r_c, atol=1e-6)
+    np.testing.assert_allclose(-errs[n:], r_p, atol=1e-6)
+    assert np.std(r_p) < 0.05 and np.std(r_c) < 3.0
+
+
+def test_coupled_code_phase_factors_give_the_mahalanobis_distance(solved) -> None:
+    g, _, values = solved
+    r_c, r_p = g.residuals(values)
+    rows = np.arange(5)
+    for sc, sp, cov in ((2.0, 0.05, 0.06), (0.3, 0.2, 0.05), (1.0, 0.8, -0.7)):
+        sigma = np.array([[sc**2, cov], [cov, sp**2]])
+        mean = np.array([0.4, -0.01])
+        f = g.measurement_factors(rows, code_sigma=sc, phase_sigma=sp, code_phase_cov=cov,
+                                  code_offset=mean[0], phase_offset=mean[1])
+        for j, row in enumerate(rows):
+            r = np.array([r_c[row], r_p[row]]) - mean
+            expected = r @ np.linalg.solve(sigma, r)
+            got = 2 * (f.at(j).error(values) + f.at(len(rows) + j).error(values))
+            assert got == pytest.approx(expected, rel=1e-6)
+
+
+def test_batch_l2_agrees_with_the_ekf_at_the_last_epoch(open_sky: Scenario, solved) -> None:
+    g, _, values = solved
+    ekf = EkfPpp().estimate(open_sky.receiver_view()).epochs[["x", "y", "z"]].to_numpy()
+    # same model and data: the smoother's last epoch is the filter's last epoch
+    assert np.linalg.norm(g.positions(values)[-1] - ekf[-1]) < 0.02
+
+
+def test_incremental_pieces_rebuild_the_batch_graph(solved) -> None:
+    g, graph, _ = solved
+    total = gtsam.NonlinearFactorGraph()
+    values = gtsam.Values()
+    for k in range(g.obs.n_epochs):
+        new_f, new_v = g.epoch_factors(k)
+        total.push_back(new_f)
+        values.insert(new_v)
+    assert total.size() == graph.size()
+    assert total.error(values) == pytest.approx(graph.error(g.initial_values()), rel=1e-12)
+
+
+# --------------------------------------------------------------------------- clustering
+
+
+def test_dpgmm_recovers_a_two_component_mixture() -> None:
+    rng = np.random.default_rng(1000)
+    inlier = rng.normal(0.0, [1.0, 0.5], (1500, 2))
+    outlier = rng.normal([12.0, 6.0], [5.0, 2.5], (300, 2))
+    mix = fit_dpgmm(np.vstack([inlier, outlier]), truncation=10)
+    assert mix.n_components >= 2
+    sig = np.sqrt(np.einsum("kii->ki", mix.covariances))
+    np.testing.assert_allclose(sig[0], [1.0, 0.5], rtol=0.2)
+    np.testing.assert_allclose(sig[1], [5.0, 2.5], rtol=0.2)
+    assert mix.weights[0] == pytest.approx(1500 / 1800, abs=0.05)
+    assert mix.weights[2:].sum() < 0.05
+    assert (mix.labels[:1500] == 0).mean() > 0.9
+
+
+def test_mcfs_ranks_an_informative_feature_above_noise() -> None:
+    rng = np.random.default_rng(1001)
+    informative = np.r_[rng.normal(0, 1, 800), rng.normal(6, 1, 800)]
+    x = np.c_[rng.normal(0, 1, 1600), informative, rng.uniform(size=1600)]
+    scores = mcfs_scores(x, n_clusters=2)
+    assert scores[1] > 5 * max(scores[0], scores[2])
+    chosen, _ = select_features(x, 1, n_clusters=2)
+    assert list(chosen) == [1]
+
+
+def test_max_mixture_threshold() -> None:
+    # equal weights, 1e6 scale: the outlier wins beyond sqrt(log 1e6 / (1 - 1e-6)) = 3.717 sigma
+    out = max_mixture_outliers(np.array([3.70, 3.73, -3.73]), 1e6, 0.5)
+    assert out.tolist() == [False, True, True]
+
+
+# --------------------------------------------------------------------------- estimators
+
+
+def _with_injected_nlos(scen: Scenario, fraction: float, seed: int) -> Scenario:
+    """Reflected-only receptions: 10-s runs of a satellite get +10..60 m on code and phase."""
+    rng = np.random.default_rng(seed)
+    obs, lab = scen.observations.copy(), scen.labels.copy()
+    bad = np.zeros(len(obs), bool)
+    sats = obs["sat"].to_numpy()
+    for s in np.unique(sats):
+        idx = np.flatnonzero(sats == s)
+        for start in range(0, len(idx), 10):
+            if rng.random() < fraction:
+                bad[idx[start:start + 10]] = True
+    delay = rng.uniform(10.0, 60.0, len(obs)) * bad
+    obs["code_l1"] += delay
+    obs["phase_l1"] += delay
+    lab["nlos"] = lab["nlos"].to_numpy(bool) | bad
+    return Scenario(obs, scen.imu, scen.truth, lab, scen.nav, scen.meta)
+
+
+def test_robust_estimators_beat_l2_and_the_oracle_is_best() -> None:
+    base = simbench.simulate("open_sky", "low", seed=1000, **{"scenario.duration_s": 90})
+    scen = _with_injected_nlos(base, 0.1, seed=0)
+    data = scen.receiver_view()
+    median = {}
+    # a few robust iterations suffice to separate 10-60 m delays; keeps the test fast
+    for est in (L2Batch(), DcsBatch(), MmBatch(MmConfig(max_iterations=10)), Bce(BceConfig(max_iterations=10)),
+                BceAd(BceAdConfig(max_iterations=10)), Oracle()):
+        if est.uses_labels:
+            est.attach_labels(scen.labels)
+        sol = est.estimate(data)
+        median[est.name] = float(enu_errors(sol.epochs, scen.truth)["horizontal"].median())
+    for name in ("dcs", "mm", "bce", "bce_ad"):
+        assert median[name] < median["l2"], median
+    assert median["oracle"] == min(median.values()), median
+
+
+def test_bce_records_the_mixture_of_every_iteration(open_sky: Scenario) -> None:
+    sol = Bce(BceConfig(max_iterations=3)).estimate(open_sky.receiver_view())
+    hist = sol.diagnostics["history"]
+    assert 1 <= len(hist) <= 3
+    for h in hist:
+        m = h["mixture"]
+        assert abs(sum(m["weights"]) - 1) < 1e-9
+        assert np.array(m["covariances"]).shape == (len(m["weights"]), 2, 2)
+
+
+def test_bce_ad_records_selected_features(open_sky: Scenario) -> None:
+    sol = BceAd(BceAdConfig(max_iterations=2)).estimate(open_sky.receiver_view())
+    for h in sol.diagnostics["history"]:
+        assert len(h["selected_features"]) == 2
