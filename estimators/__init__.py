@@ -13,7 +13,7 @@ from simbench.errors import SimbenchError
 
 _REGISTRY: dict[str, type[Estimator]] = {}
 #: Modules whose import registers estimators; a new estimator family adds its module here.
-_MODULES = ("estimators.ekf_ppp",)
+_MODULES = ("estimators.ekf_ppp", "estimators.crt_lss", "estimators.gnss_ins_ekf", "estimators.batch_robust", "estimators.bce", "estimators.oracle", "estimators.incremental", "estimators.ice")
 
 E = TypeVar("E", bound=type[Estimator])
 

@@ -17,8 +17,8 @@ import pandas as pd
 
 from simbench.claims import claims_table
 from simbench.provenance import provenance
-from simbench.report.figures import box_figure, ecdf_figure, error_timeseries_figure, runtime_figure, \
-    sensitivity_figure
+from simbench.report.figures import box_figure, ecdf_figure, error_timeseries_figure, mixture_evolution_figure, \
+    runtime_figure, sensitivity_figure
 from simbench.store import aggregate, diagnostics
 from simbench.tables import GROUP, oracle_gap, paired_comparisons, seed_statistics
 
@@ -72,7 +72,9 @@ def build_report(run_dir: Path, summary: pd.DataFrame, epochs: pd.DataFrame, cla
         name = f"{scenario}, {receiver} receiver" + (f" (sweep {sweep})" if sweep else "")
         page.h2(name)
         default = group[group["variant"].fillna("") == ""]
-        shown = default if len(default) else group
+        shown = (default if len(default) else group).copy()
+        # figures mark the estimators that read truth labels, as the tables' note does
+        shown["estimator"] = shown["estimator"].map(lambda e: f"{e} (truth labels)" if e in oracles else e)
         for metric, label in (("horizontal", "horizontal"), ("error_3d", "3-D")):
             page.img(ecdf_figure(shown, metric, out / f"ecdf_{metric}_{tag}.png",
                                  f"ECDF of {label} error: {name}"))
@@ -102,7 +104,7 @@ def build_report(run_dir: Path, summary: pd.DataFrame, epochs: pd.DataFrame, cla
             page.table(gap.drop(columns=GROUP))
         if group_stats["time_per_obs_s"].notna().any():
             page.img(runtime_figure(group_stats, out / f"runtime_{tag}.png", f"Run time: {name}"))
-    _diagnostics_section(page, diag)
+    _diagnostics_section(page, diag, out)
     return page.write(out)
 
 
@@ -118,8 +120,9 @@ def _sensitivity_curves(group_stats: pd.DataFrame) -> pd.DataFrame | None:
     return curves[["estimator", "scale", "horizontal_median", "ci_low", "ci_high"]]
 
 
-def _diagnostics_section(page: "_Page", diag: dict[str, list[dict]]) -> None:
-    """Estimator diagnostics that are tables (lists of records) or scalars, from each estimator's first job."""
+def _diagnostics_section(page: "_Page", diag: dict[str, list[dict]], out: Path) -> None:
+    """Each estimator's diagnostics from its first job: scalars, tables (lists of records), and the
+    learned-mixture evolution and selected features where an estimator records them."""
     shown = False
     for estimator, jobs in sorted(diag.items()):
         first = jobs[0]["diagnostics"] if jobs else {}
@@ -131,12 +134,23 @@ def _diagnostics_section(page: "_Page", diag: dict[str, list[dict]]) -> None:
             page.h2("Estimator diagnostics (first job of each estimator)")
             shown = True
         job = jobs[0]["job"]
-        page.h3(f"{estimator}: {job.get('scenario', '')}, {job.get('receiver', '')}, seed {job.get('seed', '')}")
+        where = f"{job.get('scenario', '')}, {job.get('receiver', '')}, seed {job.get('seed', '')}"
+        page.h3(f"{estimator}: {where}")
         if scalars:
             page.table(pd.DataFrame([scalars]))
         for key, records in tables.items():
-            page.p(f"<b>{html.escape(key)}</b>")
-            page.table(pd.DataFrame(records).head(40))
+            if any("mixture" in r for r in records):
+                page.img(mixture_evolution_figure(records, out / f"mixture_{estimator}.png",
+                                                  f"{estimator}: learned noise mixture per iteration, {where}"))
+            if any("selected_features" in r for r in records):
+                page.p("<b>selected features per iteration</b>")
+                page.table(pd.DataFrame([{"iteration": r.get("iteration"),
+                                          "selected": ", ".join(r.get("selected_features", []))} for r in records]))
+            flat = pd.DataFrame(records)
+            flat = flat[[c for c in flat.columns if not flat[c].map(lambda v: isinstance(v, (dict, list))).any()]]
+            if flat.shape[1]:
+                page.p(f"<b>{html.escape(key)}</b>")
+                page.table(flat.head(40))
 
 
 class _Page:
