@@ -24,10 +24,15 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--duration", type=float, default=3600.0)
+    parser.add_argument("--broadcast", action="store_true",
+                        help="31-satellite broadcast constellation (brdc.18n) instead of the nominal 24")
     args = parser.parse_args()
     cfg = compose_config(["scenario=urban", "receiver=low", "seed=0", f"scenario.duration_s={args.duration}",
                           "scenario.rate_hz=10", "scenario.dual_frequency=true",
-                          "scenario.errors.multipath.elevation_dependent=true"])
+                          "scenario.errors.multipath.elevation_dependent=true",
+                          *(["scenario.constellation.kind=broadcast",
+                             "scenario.constellation.nav_path=../shared/data/wvu_drives/brdc.18n"] if args.broadcast
+                            else [])])
     sim = to_typed({k: cfg[k] for k in ("scenario", "receiver", "imu", "seed")}, SimConfig)
     times = []
     for _ in range(args.repeat):
