@@ -35,7 +35,8 @@ import pandas as pd
 from estimators import register
 from estimators.base import Estimator, solution_frame
 from estimators.measurement import PppObservations, prepare_ppp
-from estimators.ppp_graph import PppGraph, PppGraphConfig, solve, validate_graph_config
+from estimators.measurement import validate_stochastic_model
+from estimators.ppp_graph import PppGraph, PppGraphConfig, solve
 from simbench.contract import ReceiverData
 from simbench.errors import SimbenchError
 
@@ -75,7 +76,7 @@ class BatchGraphEstimator(Estimator):
     def _validate(self) -> None:
         cfg = self.config
         where = f"estimator.{self.name}"
-        validate_graph_config(cfg, where)
+        validate_stochastic_model(cfg, where)
         if not cfg.prior_scale > 0:
             raise SimbenchError(f"{where}.prior_scale", f"must be positive, got {cfg.prior_scale}",
                                 "give a covariance scale factor such as 1, 0.1 or 10")

@@ -54,10 +54,10 @@ from estimators.measurement import (
     predict_given_troposphere,
     prepare_ppp,
     single_point_solution,
+    validate_stochastic_model,
     troposphere_terms,
 )
 from simbench.contract import ReceiverData
-from simbench.errors import SimbenchError
 from simbench.sim import atmosphere
 from simbench.sim.frames import geodetic_from_ecef
 
@@ -254,18 +254,4 @@ def _const(value: np.ndarray):
 
 
 def _validate(cfg: EkfPppConfig) -> None:
-    where = "estimator.ekf_ppp"
-    if cfg.clock_model not in ("white", "random_walk"):
-        raise SimbenchError(f"{where}.clock_model", f"unknown model '{cfg.clock_model}'", "use white or random_walk")
-    for name in ("pos_sigma_m", "zwd_sigma_m", "clock_sigma_m", "ambiguity_sigma_m", "code_sigma_m",
-                 "phase_sigma_m", "iono_sigma_m"):
-        if not getattr(cfg, name) > 0:
-            raise SimbenchError(f"{where}.{name}", f"must be positive, got {getattr(cfg, name)}",
-                                "give a standard deviation in metres (see conf/estimator/ekf_ppp.yaml)")
-    for name in ("pos_rw_m_rts", "zwd_rw_m_rts", "clock_noise_m_rts", "iono_rw_m_rts"):
-        if not getattr(cfg, name) >= 0:
-            raise SimbenchError(f"{where}.{name}", f"must be non-negative, got {getattr(cfg, name)}",
-                                "give a noise density in m/sqrt(s)")
-    if cfg.max_gap_epochs < 1:
-        raise SimbenchError(f"{where}.max_gap_epochs", f"must be at least 1, got {cfg.max_gap_epochs}",
-                            "1 means every epoch must be present within one arc")
+    validate_stochastic_model(cfg, "estimator.ekf_ppp")

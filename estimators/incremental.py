@@ -49,7 +49,7 @@ import pandas as pd
 from estimators import register
 from estimators.base import Estimator, solution_frame
 from estimators.batch_robust import max_mixture_outliers
-from estimators.measurement import predict_given_troposphere, prepare_ppp
+from estimators.measurement import predict_given_troposphere, prepare_ppp, validate_stochastic_model
 from estimators.ppp_graph import (
     PppGraph,
     PppGraphConfig,
@@ -57,7 +57,6 @@ from estimators.ppp_graph import (
     clock_key,
     iono_key,
     pos_key,
-    validate_graph_config,
     zwd_key,
 )
 from simbench.contract import ReceiverData
@@ -135,7 +134,7 @@ class IncrementalGraphEstimator(Estimator):
     def _estimate(self, data: ReceiverData) -> tuple[pd.DataFrame, dict[str, Any]]:
         cfg: IncrementalConfig = self.config
         where = f"estimator.{self.name}"
-        validate_graph_config(cfg, where)
+        validate_stochastic_model(cfg, where)
         if not cfg.relinearize_threshold > 0 or cfg.relinearize_skip < 1:
             raise SimbenchError(f"{where}.relinearize_threshold", "needs relinearize_threshold > 0 and "
                                 "relinearize_skip >= 1", "use the defaults 0.01 and 1")

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -455,3 +456,25 @@ def _rough_lat_lon(sat_pos: np.ndarray, code: np.ndarray, sigma: np.ndarray, el:
     which = np.maximum(np.searchsorted(solve_at, np.arange(n), side="right") - 1, 0)
     per_row = np.repeat(which, stop - start)
     return lats[per_row], lons[per_row]
+
+
+def validate_stochastic_model(cfg: Any, where: str) -> None:
+    """One-line :class:`SimbenchError` for out-of-range stochastic-model parameters.
+
+    Shared by EKF-PPP and the GTSAM graph estimators, whose configs carry the same
+    Table 4.4.2 fields; ``where`` is the config node name, e.g. ``estimator.l2``.
+    """
+    if cfg.clock_model not in ("white", "random_walk"):
+        raise SimbenchError(f"{where}.clock_model", f"unknown model '{cfg.clock_model}'", "use white or random_walk")
+    for name in ("pos_sigma_m", "zwd_sigma_m", "clock_sigma_m", "ambiguity_sigma_m", "code_sigma_m",
+                 "phase_sigma_m", "iono_sigma_m"):
+        if not getattr(cfg, name) > 0:
+            raise SimbenchError(f"{where}.{name}", f"must be positive, got {getattr(cfg, name)}",
+                                "give a standard deviation in metres")
+    for name in ("pos_rw_m_rts", "zwd_rw_m_rts", "clock_noise_m_rts", "iono_rw_m_rts"):
+        if not getattr(cfg, name) >= 0:
+            raise SimbenchError(f"{where}.{name}", f"must be non-negative, got {getattr(cfg, name)}",
+                                "give a noise density in m/sqrt(s)")
+    if cfg.max_gap_epochs < 1:
+        raise SimbenchError(f"{where}.max_gap_epochs", f"must be at least 1, got {cfg.max_gap_epochs}",
+                            "1 means every epoch must be present within one arc")

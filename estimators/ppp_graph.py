@@ -109,7 +109,6 @@ __all__ = [
     "iono_key",
     "pos_key",
     "solve",
-    "validate_graph_config",
     "zwd_key",
 ]
 
@@ -171,24 +170,6 @@ class PppGraphConfig:
         return {"ionosphere_free": self.ionosphere_free, "code_sigma_m": self.code_sigma_m,
                 "phase_sigma_m": self.phase_sigma_m, "elevation_mask_deg": self.elevation_mask_deg,
                 "min_satellites": self.min_satellites, "max_gap_epochs": self.max_gap_epochs}
-
-
-def validate_graph_config(cfg: PppGraphConfig, where: str) -> None:
-    """One-line :class:`SimbenchError` for out-of-range graph parameters (``where``: config node name)."""
-    if cfg.clock_model not in ("white", "random_walk"):
-        raise SimbenchError(f"{where}.clock_model", f"unknown model '{cfg.clock_model}'", "use white or random_walk")
-    for name in ("pos_sigma_m", "zwd_sigma_m", "clock_sigma_m", "ambiguity_sigma_m", "code_sigma_m",
-                 "phase_sigma_m", "iono_sigma_m"):
-        if not getattr(cfg, name) > 0:
-            raise SimbenchError(f"{where}.{name}", f"must be positive, got {getattr(cfg, name)}",
-                                "give a standard deviation in metres")
-    for name in ("pos_rw_m_rts", "zwd_rw_m_rts", "clock_noise_m_rts", "iono_rw_m_rts"):
-        if not getattr(cfg, name) >= 0:
-            raise SimbenchError(f"{where}.{name}", f"must be non-negative, got {getattr(cfg, name)}",
-                                "give a noise density in m/sqrt(s)")
-    if cfg.max_gap_epochs < 1:
-        raise SimbenchError(f"{where}.max_gap_epochs", f"must be at least 1, got {cfg.max_gap_epochs}",
-                            "1 means every epoch must be present within one arc")
 
 
 #: Random-walk sigmas never go below this (two epochs with the same time) [m or s].
