@@ -17,8 +17,14 @@ import pandas as pd
 
 from simbench.claims import claims_table
 from simbench.provenance import provenance
-from simbench.report.figures import box_figure, ecdf_figure, error_timeseries_figure, mixture_evolution_figure, \
-    runtime_figure, sensitivity_figure
+from simbench.report.figures import (
+    box_figure,
+    ecdf_figure,
+    error_timeseries_figure,
+    mixture_evolution_figure,
+    runtime_figure,
+    sensitivity_figure,
+)
 from simbench.store import aggregate, diagnostics
 from simbench.tables import GROUP, oracle_gap, paired_comparisons, seed_statistics
 
@@ -81,8 +87,7 @@ def build_report(run_dir: Path, summary: pd.DataFrame, epochs: pd.DataFrame, cla
         page.img(box_figure(shown, out / f"box_{tag}.png", f"Horizontal error per estimator: {name}"))
         if shown["seed"].nunique() == 1:
             page.img(error_timeseries_figure(shown, out / f"error_time_{tag}.png", f"Horizontal error: {name}"))
-        mask = np.logical_and.reduce([stats[k].fillna("") == (v if v == v else "") for k, v in zip(GROUP, keys)])
-        group_stats = stats[mask]
+        group_stats = stats[_in_group(stats, keys)]
         page.h3("Statistics over seeds (errors in m; horizontal_median is the mean of per-seed medians, "
                 "95 % bootstrap CI)")
         page.table(group_stats.drop(columns=GROUP))

@@ -28,6 +28,7 @@ from simbench.errors import SimbenchError
 from simbench.sim import atmosphere, tracking
 from simbench.sim.canyon import canyon_visibility
 from simbench.sim.constants import C_LIGHT, DEG, IONO_L2_SCALE, LAMBDA_L1, LAMBDA_L2, SECONDS_PER_WEEK, WGS84_A
+from simbench.sim.frames import dcm_body_to_ned
 from simbench.sim.geometry import line_of_sight
 from simbench.sim.gpstime import day_of_year
 from simbench.sim.imu import simulate_imu
@@ -269,10 +270,8 @@ def _constellation(cfg: SimConfig):
 
 def _off_boresight(el: np.ndarray, az: np.ndarray, att: np.ndarray) -> np.ndarray:
     """Angle between the line of sight and the antenna boresight (body -z axis) [rad]."""
-    roll, pitch, yaw = (att[:, i, None] for i in range(3))
-    # body -z (up) axis resolved in NED: minus the third column of C_b^n = Rz(yaw) Ry(pitch) Rx(roll)
-    up_n = -(np.cos(yaw) * np.sin(pitch) * np.cos(roll) + np.sin(yaw) * np.sin(roll))
-    up_e = -(np.sin(yaw) * np.sin(pitch) * np.cos(roll) - np.cos(yaw) * np.sin(roll))
-    up_d = -(np.cos(pitch) * np.cos(roll))
+    # body -z (up) axis resolved in NED: minus the third column of C_b^n
+    up = -dcm_body_to_ned(att)[:, :, 2]
+    up_n, up_e, up_d = up[:, 0, None], up[:, 1, None], up[:, 2, None]
     los_n, los_e, los_d = np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), -np.sin(el)
     return np.arccos(np.clip(up_n * los_n + up_e * los_e + up_d * los_d, -1.0, 1.0))
