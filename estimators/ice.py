@@ -63,7 +63,8 @@ class IceConfig(IncrementalConfig):
     alpha: float = 0.05  #: significance of the W and Hotelling merge tests
     max_components: int = 20  #: components of the model at most
     min_cluster_points: int = 2  #: new clusters with fewer points are dropped
-    min_inliers: int = 5  #: an epoch with fewer inlier satellites gets no GNSS update
+    #: an epoch with fewer inlier satellites gets no GNSS update (4: position and clock still determined)
+    min_inliers: int = 4
     prior_code_sigma_m: float = 2.5  #: a-priori model code sigma [m] (not elevation-scaled)
     prior_phase_sigma_m: float = 0.25  #: a-priori model phase sigma [m]
     dpgmm_truncation: int = 10  #: stick-breaking truncation of the DP-GMM fit
