@@ -2,7 +2,11 @@
 
 Target (sweeps issue): at least 1.6x the serial throughput. Runs the same
 sweep of equal jobs twice into fresh directories and prints both wall times
-and their ratio. Run: ``python benchmarks/launcher_speedup.py [--jobs 8]``.
+and their ratio. The report callback is switched off (override
+``~hydra.callbacks.finalize``): building the report is one serial step after
+the jobs, the same for every launcher, and not part of the launcher's
+throughput. Both cores must be otherwise idle.
+Run: ``python benchmarks/launcher_speedup.py [--jobs 8]``.
 Needs the ``parallel`` extra (hydra-joblib-launcher).
 """
 from __future__ import annotations
@@ -20,7 +24,7 @@ TARGET = 1.6
 def sweep(out: Path, jobs: int, duration: float, estimators: str, extra: list[str]) -> float:
     seeds = ",".join(str(s) for s in range(jobs))
     cmd = [sys.executable, "-m", "simbench", "-m", f"seed={seeds}", f"scenario.duration_s={duration}",
-           f"estimator=[{estimators}]", "progress=false", f"results_dir={out}", *extra]
+           f"estimator=[{estimators}]", "progress=false", f"results_dir={out}", "~hydra.callbacks.finalize", *extra]
     start = time.perf_counter()
     subprocess.run(cmd, check=True, capture_output=True, env={"OMP_NUM_THREADS": "1", **_env()})
     return time.perf_counter() - start

@@ -229,7 +229,7 @@ def _ordered(table: pd.DataFrame | None) -> Outcome | None:
 def adaptation_outcome(diagnostics: dict[str, list[dict]]) -> Outcome | None:
     """ICE adaptations vs the naive count, summed over the ch7_ice jobs' diagnostics."""
     jobs = [d for d in diagnostics.get("ice", []) if d["job"].get("sweep") == "ch7_ice"]
-    counts = [(d["diagnostics"].get("n_adaptations"), d["diagnostics"].get("n_naive_adaptations")) for d in jobs]
+    counts = [(d["diagnostics"].get("n_adaptations"), d["diagnostics"].get("naive_adaptations")) for d in jobs]
     counts = [(a, b) for a, b in counts if a is not None and b]
     if not counts:
         return None
