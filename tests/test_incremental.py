@@ -29,6 +29,16 @@ def test_isam2_ppp_matches_batch_l2_at_the_last_epoch(scenario: simbench.Scenari
     assert first > diff
 
 
+def test_fixed_lag_window_keeps_the_filtered_solution(scenario: simbench.Scenario) -> None:
+    # marginalising everything older than 5 s (arc biases stay alive) must not change the
+    # filtered positions beyond relinearisation effects (mm)
+    data = scenario.receiver_view()
+    full = Isam2Ppp(IncrementalConfig(lag_s=0.0)).estimate(data).epochs
+    lagged = Isam2Ppp(IncrementalConfig(lag_s=5.0)).estimate(data).epochs
+    diff = np.linalg.norm(full[["x", "y", "z"]].to_numpy() - lagged[["x", "y", "z"]].to_numpy(), axis=1)
+    assert len(full) == len(lagged) == 120 and diff.max() < 0.01, diff.max()
+
+
 def test_mm_flags_a_code_outlier(scenario: simbench.Scenario) -> None:
     data = scenario.receiver_view()
     obs = data.observations.copy()
