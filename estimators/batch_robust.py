@@ -91,11 +91,15 @@ class BatchGraphEstimator(Estimator):
     def _solve(self, graph: gtsam.NonlinearFactorGraph, initial: gtsam.Values) -> gtsam.Values:
         return solve(graph, initial, max_iterations=self.config.lm_max_iterations)
 
-    def _l2(self, g: PppGraph, structure: gtsam.NonlinearFactorGraph) -> gtsam.Values:
+    def _a_priori_graph(self, g: PppGraph, structure: gtsam.NonlinearFactorGraph) -> gtsam.NonlinearFactorGraph:
+        """Structure plus measurement factors with the a-priori noise model (scaled by ``prior_scale``)."""
         sc, sp = self._a_priori_sigmas(g.obs)
         graph = gtsam.NonlinearFactorGraph(structure)
         graph.push_back(g.measurement_factors(code_sigma=sc, phase_sigma=sp))
-        return self._solve(graph, g.initial_values())
+        return graph
+
+    def _l2(self, g: PppGraph, structure: gtsam.NonlinearFactorGraph) -> gtsam.Values:
+        return self._solve(self._a_priori_graph(g, structure), g.initial_values())
 
     def _estimate(self, data: ReceiverData) -> tuple[pd.DataFrame, dict[str, Any]]:
         tic = time.perf_counter()

@@ -18,7 +18,7 @@ from estimators.clustering import fit_dpgmm, mcfs_scores, select_features
 from estimators.ekf_ppp import EkfPpp
 from estimators.measurement import prepare_ppp
 from estimators.oracle import Oracle
-from estimators.ppp_graph import PppGraph, PppGraphConfig, solve
+from estimators.ppp_graph import PppGraph, PppGraphConfig, gauss_newton_step, solve
 from simbench.contract import Scenario
 from simbench.metrics import enu_errors
 from simbench.sim.geometry import sagnac_range
@@ -86,6 +86,31 @@ def test_batch_l2_agrees_with_the_ekf_at_the_last_epoch(open_sky: Scenario, solv
     ekf = EkfPpp().estimate(open_sky.receiver_view()).epochs[["x", "y", "z"]].to_numpy()
     # same model and data: the smoother's last epoch is the filter's last epoch
     assert np.linalg.norm(g.positions(values)[-1] - ekf[-1]) < 0.02
+
+
+def test_one_gauss_newton_step_resolves_a_reweighted_graph(solved) -> None:
+    g, graph, values = solved
+    n = g.obs.n_obs
+    rng = np.random.default_rng(1002)
+    # a BCE-like re-weighting: per-row covariances and offsets of three "clusters"
+    label = rng.integers(0, 3, n)
+    sc, sp, cov = np.array([1.0, 4.0, 0.5])[label], np.array([0.02, 0.5, 0.01])[label], np.array(
+        [0.005, 1.5, -0.002])[label]
+    reweighted = gtsam.NonlinearFactorGraph(g.structure_factors())
+    reweighted.push_back(g.measurement_factors(code_sigma=sc, phase_sigma=sp, code_phase_cov=cov,
+                                               code_offset=np.array([0.0, 3.0, 0.2])[label],
+                                               phase_offset=np.array([0.0, 2.0, 0.0])[label]))
+    ordering = g.elimination_ordering(reweighted)
+    stepped, err = gauss_newton_step(reweighted, values, ordering)
+    assert err == pytest.approx(reweighted.error(stepped), rel=1e-12)
+    assert err < 0.8 * reweighted.error(values)
+    # one step is the solution: Levenberg-Marquardt to convergence and a second step find no better
+    reference = solve(reweighted, values)
+    assert err <= reweighted.error(reference) * (1 + 1e-8)
+    assert np.abs(g.positions(stepped) - g.positions(reference)).max() < 0.01
+    again, err2 = gauss_newton_step(reweighted, stepped, ordering)
+    assert err2 == pytest.approx(err, rel=1e-8)
+    assert np.abs(g.positions(again) - g.positions(stepped)).max() < 1e-3
 
 
 def test_incremental_pieces_rebuild_the_batch_graph(solved) -> None:
