@@ -143,6 +143,16 @@ def _diagnostics_section(page: "_Page", diag: dict[str, list[dict]], out: Path) 
         page.h3(f"{estimator}: {where}")
         if scalars:
             page.table(pd.DataFrame([scalars]))
+        if "model_history" in tables:  # ICE: the noise model after each adaptation (Fig. 7.3.2)
+            history = [{"iteration": i, "mixture": {"weights": m["weights"], "covariances": m["covs"]}}
+                       for i, m in enumerate(tables.pop("model_history"))]
+            page.img(mixture_evolution_figure(history, out / f"mixture_{estimator}.png",
+                                              f"{estimator}: noise model after each adaptation (0: a priori), "
+                                              f"{where}", xlabel="adaptation"))
+        counts = _adaptation_counts(jobs)
+        if counts is not None:
+            page.p("<b>model adaptations in every job</b> (naive: one per T_c tested residuals)")
+            page.table(counts)
         for key, records in tables.items():
             if any("mixture" in r for r in records):
                 page.img(mixture_evolution_figure(records, out / f"mixture_{estimator}.png",
@@ -156,6 +166,20 @@ def _diagnostics_section(page: "_Page", diag: dict[str, list[dict]], out: Path) 
             if flat.shape[1]:
                 page.p(f"<b>{html.escape(key)}</b>")
                 page.table(flat.head(40))
+
+
+def _adaptation_counts(jobs: list[dict]) -> pd.DataFrame | None:
+    """Adaptation and naive counts per sweep/scenario/receiver over all jobs of an adaptive estimator."""
+    rows = [{"sweep": j["job"].get("sweep", ""), "scenario": j["job"].get("scenario", ""),
+             "receiver": j["job"].get("receiver", ""), "adaptations": j["diagnostics"]["n_adaptations"],
+             "naive": j["diagnostics"]["naive_adaptations"], "outliers": j["diagnostics"].get("n_outliers", 0),
+             "residuals": j["diagnostics"].get("n_residuals", 0)}
+            for j in jobs if "n_adaptations" in j["diagnostics"] and "naive_adaptations" in j["diagnostics"]]
+    if not rows:
+        return None
+    table = pd.DataFrame(rows).groupby(["sweep", "scenario", "receiver"], dropna=False)
+    return table.agg(jobs=("adaptations", "size"), adaptations=("adaptations", "sum"), naive=("naive", "sum"),
+                     outliers=("outliers", "sum"), residuals=("residuals", "sum")).reset_index()
 
 
 class _Page:

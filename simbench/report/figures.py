@@ -121,11 +121,12 @@ def runtime_figure(stats: pd.DataFrame, path: str | Path, title: str) -> Path:
     return _save(fig, path)
 
 
-def mixture_evolution_figure(history: list[dict], path: str | Path, title: str) -> Path:
+def mixture_evolution_figure(history: list[dict], path: str | Path, title: str, xlabel: str = "iteration") -> Path:
     """Component standard deviations of the learned noise mixture per iteration (dissertation Fig. 5.3.3).
 
-    ``history`` holds one record per iteration with ``mixture`` = {weights, covariances (K, D, D)}; the
-    first two dimensions are the code and phase residuals [m]. Marker area is proportional to weight.
+    ``history`` holds one record per iteration (or ICE adaptation, ``xlabel``) with ``mixture`` =
+    {weights, covariances (K, D, D)}; the first two dimensions are the code and phase residuals [m].
+    Marker area is proportional to weight.
     """
     fig, axes = plt.subplots(1, 2, figsize=(9.0, 3.6), dpi=150, sharex=True)
     for record in history:
@@ -139,7 +140,7 @@ def mixture_evolution_figure(history: list[dict], path: str | Path, title: str) 
             ax.scatter(it, np.sqrt(cov[:, d, d]), s=20 + 300 * w, alpha=0.6, color="tab:blue", edgecolor="k", lw=0.4)
     for ax, label in zip(axes, ("code residual std [m]", "phase residual std [m]")):
         ax.set_yscale("log")
-        ax.set_xlabel("iteration")
+        ax.set_xlabel(xlabel)
         ax.set_ylabel(label)
         ax.grid(True, which="both", alpha=0.3)
     fig.suptitle(title + " (marker area ~ component weight)", fontsize=10)
