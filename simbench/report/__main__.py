@@ -12,7 +12,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(prog="python -m simbench.report", description=__doc__)
     parser.add_argument("run_dir", type=Path, help="a results directory written by python -m simbench")
     args = parser.parse_args()
-    if not (args.run_dir / "jobs").is_dir():
+    # a study collection (+sweep=thesis) keeps each study's jobs/ one level down
+    if not any(p.is_dir() for p in (args.run_dir / "jobs", *args.run_dir.glob("*/jobs"))):
         print(f"error: run_dir: {args.run_dir} holds no jobs/ folder -- give a directory written by "
               "python -m simbench", file=sys.stderr)
         sys.exit(2)

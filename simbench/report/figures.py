@@ -1,6 +1,7 @@
 """Publication-quality figures from the results tables."""
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import matplotlib
@@ -41,7 +42,7 @@ def ecdf_figure(epochs: pd.DataFrame, metric: str, path: str | Path, title: str)
     ax.set_ylabel("fraction of epochs")
     ax.set_ylim(0, 1.01)
     ax.grid(True, which="both", alpha=0.3)
-    ax.set_title(title)
+    ax.set_title(_wrap(fig, title, 12))
     ax.legend(loc="lower right", fontsize=8, frameon=True)
     return _save(fig, path)
 
@@ -55,9 +56,27 @@ def error_timeseries_figure(epochs: pd.DataFrame, path: str | Path, title: str) 
     ax.set_xlabel("time since start [s]")
     ax.set_ylabel("horizontal error [m]")
     ax.grid(True, which="both", alpha=0.3)
-    ax.set_title(title)
+    ax.set_title(_wrap(fig, title, 12))
     ax.legend(loc="upper right", fontsize=8)
     return _save(fig, path)
+
+
+def _wrap(fig: plt.Figure, text: str, fontsize: float) -> str:
+    """``text`` wrapped to the figure's width (titles otherwise run off narrow figures)."""
+    chars = max(20, int(fig.get_figwidth() * 72 / (0.55 * fontsize)))
+    return "\n".join(textwrap.fill(line, chars) for line in text.split("\n"))
+
+
+def _log_if_wide(ax: plt.Axes, values: np.ndarray, axis: str = "x") -> None:
+    """Log scale when the values span more than a decade and a half, else linear from zero."""
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v) & (v > 0)]
+    if len(v) and v.max() / v.min() > 30:
+        (ax.set_xscale if axis == "x" else ax.set_yscale)("log")
+    elif axis == "x":
+        ax.set_xlim(left=0)
+    else:
+        ax.set_ylim(bottom=0)
 
 
 def _save(fig: plt.Figure, path: str | Path) -> Path:
@@ -80,7 +99,7 @@ def box_figure(epochs: pd.DataFrame, path: str | Path, title: str, metric: str =
     ax.set_yscale("log")
     ax.set_ylabel(METRIC_LABELS.get(metric, metric))
     ax.grid(True, axis="y", which="both", alpha=0.3)
-    ax.set_title(title + "\n(box: quartiles, whiskers: 5-95 %)", fontsize=10)
+    ax.set_title(_wrap(fig, title, 10) + "\n(box: quartiles, whiskers: 5-95 %)", fontsize=10)
     return _save(fig, path)
 
 
@@ -97,9 +116,9 @@ def sensitivity_figure(curves: pd.DataFrame, path: str | Path, title: str) -> Pa
                     marker="o", capsize=3, label=name)
     ax.set_xscale("log")
     ax.set_xlabel("a priori covariance scale s")
-    ax.set_ylabel("median horizontal error [m] (mean over seeds, 95 % CI)")
+    ax.set_ylabel("median horizontal error [m]")
     ax.grid(True, which="both", alpha=0.3)
-    ax.set_title(title)
+    ax.set_title(_wrap(fig, title, 10) + "\n(per-seed medians: mean and 95 % CI over seeds)", fontsize=10)
     ax.legend(fontsize=8)
     return _save(fig, path)
 
@@ -113,11 +132,11 @@ def runtime_figure(stats: pd.DataFrame, path: str | Path, title: str) -> Path:
     axes[0].set_xlabel("run time per observation [us]")
     axes[1].barh(labels, stats["update_median_s"] * 1e3, color="tab:orange")
     axes[1].set_xlabel("median per-epoch update [ms]")
-    for ax in axes:
-        ax.set_xscale("log")
+    for ax, values in zip(axes, (stats["time_per_obs_s"], stats["update_median_s"])):
+        _log_if_wide(ax, values.to_numpy())
         ax.grid(True, axis="x", which="both", alpha=0.3)
         ax.tick_params(axis="y", labelsize=7)
-    fig.suptitle(title, fontsize=11)
+    fig.suptitle(_wrap(fig, title, 11), fontsize=11)
     return _save(fig, path)
 
 
@@ -143,5 +162,5 @@ def mixture_evolution_figure(history: list[dict], path: str | Path, title: str, 
         ax.set_xlabel(xlabel)
         ax.set_ylabel(label)
         ax.grid(True, which="both", alpha=0.3)
-    fig.suptitle(title + " (marker area ~ component weight)", fontsize=10)
+    fig.suptitle(_wrap(fig, title + " (marker area ~ component weight)", 10), fontsize=10)
     return _save(fig, path)
