@@ -44,11 +44,21 @@ def finalize(run_dir: str | Path, config: dict[str, Any] | None) -> Path:
     run_dir = Path(run_dir)
     summary, epochs = aggregate(run_dir, provenance(config or {"run_dir": str(run_dir)}))
     diag = diagnostics(run_dir)
+    epochs = _ok_epochs(epochs, summary)  # figures and claims use the results the tables use
     claims = claims_table(summary, epochs, diag)
     tmp = run_dir / ".claims.csv.tmp"
     claims.to_csv(tmp, index=False)
     tmp.replace(run_dir / "claims.csv")
     return build_report(run_dir, summary, epochs, claims, diag)
+
+
+def _ok_epochs(epochs: pd.DataFrame, summary: pd.DataFrame) -> pd.DataFrame:
+    """Epoch rows of results whose status is ``ok`` (a diverged run is listed, not plotted)."""
+    keys = ["scenario_key", "estimator", "variant"]
+    if epochs.empty or summary.empty:
+        return epochs
+    ok = summary.loc[summary["status"] == "ok", keys].fillna("").drop_duplicates()
+    return epochs[pd.MultiIndex.from_frame(epochs[keys].fillna("")).isin(pd.MultiIndex.from_frame(ok))]
 
 
 def build_report(run_dir: Path, summary: pd.DataFrame, epochs: pd.DataFrame, claims: pd.DataFrame,
@@ -69,7 +79,7 @@ def build_report(run_dir: Path, summary: pd.DataFrame, epochs: pd.DataFrame, cla
         page.p(f"<b>{', '.join(oracles)}</b> {LABEL_USERS_NOTE}.", cls="note")
     failed = summary[summary["status"] != "ok"]
     if len(failed):
-        page.h2("Jobs not ok")
+        page.h2("Jobs not ok (left out of the figures and statistics)")
         page.table(failed[["sweep", "scenario", "receiver", "seed", "estimator", "variant", "status", "message"]])
     stats = seed_statistics(summary)
     for keys, group in epochs.groupby(GROUP, dropna=False) if len(epochs) else []:
