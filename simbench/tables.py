@@ -84,3 +84,27 @@ def oracle_gap(summary: pd.DataFrame, oracle: str = "oracle") -> pd.DataFrame:
             out.append({**dict(zip(GROUP, keys)), "estimator": name, "n_seeds": len(pair), "gap_m": mean,
                         "ci_low": lo, "ci_high": hi})
     return pd.DataFrame(out)
+
+
+#: Convergence window of the Ch.4 tables (Table 4.4.5: the first 15 minutes) [s].
+CONVERGENCE_S = 900.0
+
+
+def convergence_statistics(epochs: pd.DataFrame, t_max: float = CONVERGENCE_S) -> pd.DataFrame:
+    """3-D error statistics over the first ``t_max`` seconds of each run (dissertation Table 4.4.5).
+
+    Per estimator and variant: the mean over seeds of each run's median, mean and maximum 3-D
+    error for ``t < t_max`` [m], with a bootstrap CI of the mean error. Empty when no run is
+    longer than 1.5 ``t_max`` (the window would be most of the run, not its convergence).
+    """
+    if epochs.empty or epochs["t"].max() < 1.5 * t_max:
+        return pd.DataFrame()
+    early = epochs[epochs["t"] < t_max]
+    per_run = early.groupby(["estimator", "variant", "seed"], dropna=False)["error_3d"].agg(["median", "mean", "max"])
+    out = []
+    for (name, variant), runs in per_run.groupby(level=["estimator", "variant"], dropna=False):
+        mean, lo, hi = _mean_ci(runs["mean"].to_numpy(float))
+        out.append({"estimator": name, "variant": variant, "n_seeds": len(runs),
+                    "error_3d_median": float(runs["median"].mean()), "error_3d_mean": mean, "ci_low": lo,
+                    "ci_high": hi, "error_3d_max": float(runs["max"].mean())})
+    return pd.DataFrame(out)

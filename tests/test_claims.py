@@ -38,3 +38,17 @@ def test_adaptation_claim_reads_the_ice_diagnostics() -> None:
     out = adaptation_outcome(jobs)
     assert out is not None and out.measured == 0.0 and out.holds and "0 adaptations vs 30 naive" in out.note
     assert adaptation_outcome({"ice": [{"job": {"sweep": "smoke"}, "diagnostics": diag}]}) is None
+
+
+def test_convergence_statistics_use_the_first_15_minutes_only() -> None:
+    from simbench.tables import convergence_statistics
+
+    t = np.arange(1800.0)
+    rows = [pd.DataFrame({"estimator": name, "variant": "", "seed": seed, "t": t,
+                          "error_3d": np.where(t < 900.0, early + seed, 0.1)})
+            for name, early in (("slow", 2.0), ("fast", 1.0)) for seed in range(3)]
+    table = convergence_statistics(pd.concat(rows)).set_index("estimator")
+    assert table.loc["slow", "error_3d_mean"] == 3.0 and table.loc["fast", "error_3d_mean"] == 2.0
+    assert table.loc["slow", "error_3d_max"] == 3.0 and table.loc["slow", "n_seeds"] == 3
+    short = pd.concat(rows).query("t < 1200")
+    assert convergence_statistics(short).empty

@@ -26,7 +26,7 @@ from simbench.report.figures import (
     sensitivity_figure,
 )
 from simbench.store import aggregate, diagnostics
-from simbench.tables import GROUP, oracle_gap, paired_comparisons, seed_statistics
+from simbench.tables import CONVERGENCE_S, GROUP, convergence_statistics, oracle_gap, paired_comparisons, seed_statistics
 
 #: The comparison baseline when present (the a priori L2 estimator), else the first estimator.
 BASELINES = ("l2", "isam2_ppp", "ekf_ppp")
@@ -101,6 +101,11 @@ def build_report(run_dir: Path, summary: pd.DataFrame, epochs: pd.DataFrame, cla
         page.h3("Statistics over seeds (errors in m; horizontal_median is the mean of per-seed medians, "
                 "95 % bootstrap CI)")
         page.table(group_stats.drop(columns=GROUP))
+        early = convergence_statistics(group)
+        if len(early):
+            page.h3(f"Convergence: 3-D error over the first {CONVERGENCE_S / 60:.0f} minutes (mean over seeds of "
+                    "each run's median, mean and max; 95 % bootstrap CI of the mean) [m]")
+            page.table(early)
         sensitivity = _sensitivity_curves(group_stats)
         if sensitivity is not None:
             page.img(sensitivity_figure(sensitivity, out / f"sensitivity_{tag}.png",
