@@ -26,7 +26,14 @@ from simbench.report.figures import (
     sensitivity_figure,
 )
 from simbench.store import aggregate, diagnostics
-from simbench.tables import CONVERGENCE_S, GROUP, convergence_statistics, oracle_gap, paired_comparisons, seed_statistics
+from simbench.tables import (
+    CONVERGENCE_S,
+    GROUP,
+    convergence_statistics,
+    oracle_gap,
+    paired_comparisons,
+    seed_statistics,
+)
 
 #: The comparison baseline when present (the a priori L2 estimator), else the first estimator.
 BASELINES = ("l2", "isam2_ppp", "ekf_ppp")
@@ -159,11 +166,16 @@ def _diagnostics_section(page: "_Page", diag: dict[str, list[dict]], out: Path) 
         if scalars:
             page.table(pd.DataFrame([scalars]))
         if "model_history" in tables:  # ICE: the noise model after each adaptation (Fig. 7.3.2)
+            del tables["model_history"]
+            # the job that adapted most shows the most (the first one often never adapts)
+            busiest = max(jobs, key=lambda j: len(j["diagnostics"].get("model_history", [])))
             history = [{"iteration": i, "mixture": {"weights": m["weights"], "covariances": m["covs"]}}
-                       for i, m in enumerate(tables.pop("model_history"))]
-            page.img(mixture_evolution_figure(history, out / f"mixture_{estimator}.png",
-                                              f"{estimator}: noise model after each adaptation (0: a priori), "
-                                              f"{where}", xlabel="adaptation"))
+                       for i, m in enumerate(busiest["diagnostics"]["model_history"])]
+            job = busiest["job"]
+            page.img(mixture_evolution_figure(
+                history, out / f"mixture_{estimator}.png",
+                f"{estimator}: noise model after each adaptation (0: a priori), {job.get('scenario', '')}, "
+                f"{job.get('receiver', '')}, seed {job.get('seed', '')}", xlabel="adaptation"))
         counts = _adaptation_counts(jobs)
         if counts is not None:
             page.p("<b>model adaptations in every job</b> (naive: one per T_c tested residuals)")

@@ -8,6 +8,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.ticker import MaxNLocator  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
@@ -67,16 +68,14 @@ def _wrap(fig: plt.Figure, text: str, fontsize: float) -> str:
     return "\n".join(textwrap.fill(line, chars) for line in text.split("\n"))
 
 
-def _log_if_wide(ax: plt.Axes, values: np.ndarray, axis: str = "x") -> None:
-    """Log scale when the values span more than a decade and a half, else linear from zero."""
+def _log_x_if_wide(ax: plt.Axes, values: np.ndarray) -> None:
+    """Log x axis when the values span more than a decade and a half, else linear from zero."""
     v = np.asarray(values, float)
     v = v[np.isfinite(v) & (v > 0)]
     if len(v) and v.max() / v.min() > 30:
-        (ax.set_xscale if axis == "x" else ax.set_yscale)("log")
-    elif axis == "x":
-        ax.set_xlim(left=0)
+        ax.set_xscale("log")
     else:
-        ax.set_ylim(bottom=0)
+        ax.set_xlim(left=0)
 
 
 def _save(fig: plt.Figure, path: str | Path) -> Path:
@@ -133,7 +132,7 @@ def runtime_figure(stats: pd.DataFrame, path: str | Path, title: str) -> Path:
     axes[1].barh(labels, stats["update_median_s"] * 1e3, color="tab:orange")
     axes[1].set_xlabel("median per-epoch update [ms]")
     for ax, values in zip(axes, (stats["time_per_obs_s"], stats["update_median_s"])):
-        _log_if_wide(ax, values.to_numpy())
+        _log_x_if_wide(ax, values.to_numpy())
         ax.grid(True, axis="x", which="both", alpha=0.3)
         ax.tick_params(axis="y", labelsize=7)
     fig.suptitle(_wrap(fig, title, 11), fontsize=11)
@@ -160,6 +159,7 @@ def mixture_evolution_figure(history: list[dict], path: str | Path, title: str, 
     for ax, label in zip(axes, ("code residual std [m]", "phase residual std [m]")):
         ax.set_yscale("log")
         ax.set_xlabel(xlabel)
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.set_ylabel(label)
         ax.grid(True, which="both", alpha=0.3)
     fig.suptitle(_wrap(fig, title + " (marker area ~ component weight)", 10), fontsize=10)
