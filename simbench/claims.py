@@ -21,6 +21,8 @@ CLAIM_COLUMNS = ["claim_id", "source", "statement", "metric", "measured", "publi
 
 BOOTSTRAP_RESAMPLES = 2000
 CONFIDENCE = 0.95
+#: Convergence window of the Ch.4 tables (Table 4.4.5: the first 15 minutes) [s].
+CONVERGENCE_S = 900.0
 
 
 @dataclass(frozen=True)
@@ -105,7 +107,7 @@ def _spread_within(table: pd.DataFrame | None, tolerance: float) -> Outcome | No
 
 
 def _ch4_convergence(summary: pd.DataFrame, epochs: pd.DataFrame, diagnostics: dict) -> Outcome | None:
-    rows = epochs[(epochs["sweep"] == "ch4_convergence") & (epochs["t"] < 900.0)
+    rows = epochs[(epochs["sweep"] == "ch4_convergence") & (epochs["t"] < CONVERGENCE_S)
                   & epochs["estimator"].isin(["isam2_ppp", "ekf_ppp"])]
     if rows.empty or rows["estimator"].nunique() < 2:
         return None

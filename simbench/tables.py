@@ -9,7 +9,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from simbench.claims import BOOTSTRAP_RESAMPLES, CONFIDENCE, ratio_of_means
+from simbench.claims import BOOTSTRAP_RESAMPLES, CONFIDENCE, CONVERGENCE_S, ratio_of_means
 
 GROUP = ["sweep", "scenario", "receiver"]
 
@@ -84,10 +84,6 @@ def oracle_gap(summary: pd.DataFrame, oracle: str = "oracle") -> pd.DataFrame:
             out.append({**dict(zip(GROUP, keys)), "estimator": name, "n_seeds": len(pair), "gap_m": mean,
                         "ci_low": lo, "ci_high": hi})
     return pd.DataFrame(out)
-
-
-#: Convergence window of the Ch.4 tables (Table 4.4.5: the first 15 minutes) [s].
-CONVERGENCE_S = 900.0
 
 
 def convergence_statistics(epochs: pd.DataFrame, t_max: float = CONVERGENCE_S) -> pd.DataFrame:
