@@ -1,19 +1,20 @@
 """Estimator registry.
 
 Every estimator module registers its class with :func:`register`; the runner,
-the CLI and the contract test look estimators up here by name.
+the CLI and the contract test look estimators up here by name. The modules of
+this package are discovered, not listed: a new estimator family is a new
+module that registers its class.
 """
 from __future__ import annotations
 
 import importlib
+import pkgutil
 from typing import TypeVar
 
 from estimators.base import Estimator, Solution
 from simbench.errors import SimbenchError
 
 _REGISTRY: dict[str, type[Estimator]] = {}
-#: Modules whose import registers estimators; a new estimator family adds its module here.
-_MODULES = ("estimators.ekf_ppp", "estimators.crt_lss", "estimators.gnss_ins_ekf", "estimators.batch_robust", "estimators.bce", "estimators.oracle", "estimators.incremental", "estimators.ice")
 
 E = TypeVar("E", bound=type[Estimator])
 
@@ -27,8 +28,8 @@ def register(cls: E) -> E:
 
 
 def _load_all() -> None:
-    for module in _MODULES:
-        importlib.import_module(module)
+    for module in pkgutil.iter_modules(__path__, prefix=f"{__name__}."):
+        importlib.import_module(module.name)
 
 
 def registered() -> dict[str, type[Estimator]]:
@@ -42,7 +43,7 @@ def get(name: str) -> type[Estimator]:
     known = registered()
     if name not in known:
         raise SimbenchError("estimator", f"unknown estimator '{name}'",
-                            f"choose from {', '.join(known)} (see conf/estimator/)")
+                            f"choose from {', '.join(known)} (python -m simbench --help lists them)")
     return known[name]
 
 

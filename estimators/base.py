@@ -3,8 +3,13 @@
 An estimator is constructed from its typed config and maps
 :class:`~simbench.contract.ReceiverData` to a :class:`Solution`: one row per
 epoch it solved, with the wall time that epoch's update took. It never sees
-truth; only an estimator that declares ``uses_labels = True`` (the oracle) is
-handed the error labels, through :meth:`Estimator.attach_labels`.
+truth; only an estimator whose ``requires`` holds :attr:`Need.labels` (the
+oracle) is handed the error labels, through :meth:`Estimator.attach_labels`.
+
+Each estimator declares what it needs from the data (``requires``, refined per
+config by :meth:`Estimator.needs`); the runner skips, with a reason, an
+estimator whose needs a scenario cannot meet. Its config dataclass has one
+``validate(where)`` entry point, called at construction.
 """
 from __future__ import annotations
 
@@ -16,7 +21,7 @@ from typing import Any, ClassVar
 import numpy as np
 import pandas as pd
 
-from simbench.contract import ReceiverData
+from simbench.contract import Need, ReceiverData
 
 #: Columns of :attr:`Solution.epochs`.
 SOLUTION_COLUMNS: dict[str, str] = {
@@ -56,18 +61,40 @@ class Estimator(ABC):
     """Base class: subclasses set ``name`` and ``Config`` and implement :meth:`_estimate`."""
 
     name: ClassVar[str]
-    #: Dataclass holding the estimator's parameters (read from ``conf/estimator/<name>.yaml``).
+    #: Dataclass holding the estimator's parameters (read from ``conf/estimator/<name>.yaml``);
+    #: its ``validate(where)`` method, when present, checks them at construction.
     Config: ClassVar[type]
-    #: Only the oracle may read error labels.
+    #: What the estimator needs from the data under any config; :meth:`needs` may narrow
+    #: or widen it per config. Only the oracle may require :attr:`Need.labels`.
+    requires: ClassVar[frozenset[Need]] = frozenset()
+    #: Derived from ``requires`` (never set it directly): the summary's ``uses_labels`` column.
     uses_labels: ClassVar[bool] = False
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if "uses_labels" in vars(cls):
+            raise TypeError(f"{cls.__name__} sets uses_labels; declare Need.labels in requires instead")
+        cls.uses_labels = Need.labels in cls.requires
 
     def __init__(self, config: Any | None = None) -> None:
         self.config = config if config is not None else self.Config()
+        validate = getattr(self.config, "validate", None)
+        if validate is not None:  # an invalid config fails here, before any data work
+            validate(f"estimator.{self.name}")
         self._labels: pd.DataFrame | None = None
+
+    def needs(self) -> frozenset[Need]:
+        """What this configured estimator needs from the data.
+
+        ``requires`` plus whatever the config's own ``needs()`` adds (e.g. L2 for
+        ``ionosphere_free``); estimators whose config can drop a need override this.
+        """
+        config_needs = getattr(self.config, "needs", None)
+        return self.requires | (config_needs() if config_needs is not None else frozenset())
 
     def attach_labels(self, labels: pd.DataFrame) -> None:
         """Hand the error labels to a label-using estimator (the oracle)."""
-        if not self.uses_labels:
+        if Need.labels not in self.needs():
             raise PermissionError(f"estimator '{self.name}' does not use labels")
         self._labels = labels
 

@@ -35,10 +35,9 @@ import pandas as pd
 from estimators import register
 from estimators.base import Estimator, solution_frame
 from estimators.measurement import PppObservations, prepare_ppp
-from estimators.measurement import validate_stochastic_model
 from estimators.ppp_graph import PppGraph, PppGraphConfig, solve
-from simbench.contract import ReceiverData
-from simbench.errors import SimbenchError
+from simbench.contract import Need, ReceiverData
+from simbench.errors import SimbenchError, require_at_least, require_positive
 
 __all__ = [
     "BatchConfig",
@@ -61,28 +60,25 @@ class BatchConfig(PppGraphConfig):
     rel_tol: float = 1e-5  #: stop when the relative change of the total error is below this
     lm_max_iterations: int = 100  #: Levenberg-Marquardt iterations per solve
 
+    def validate(self, where: str) -> None:
+        """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
+        super().validate(where)
+        require_positive(f"{where}.prior_scale", self.prior_scale, "give a covariance scale factor such as 1, 0.1 or 10")
+        for name in ("max_iterations", "lm_max_iterations"):
+            require_at_least(f"{where}.{name}", getattr(self, name), 1, "give an iteration limit, e.g. the default 100")
+
 
 class BatchGraphEstimator(Estimator):
     """Shared plumbing: prepare observations, build the graph, time the run, output the solution."""
 
     Config = BatchConfig
+    #: prepare_ppp drops rows without carrier phase, so a code-only log leaves nothing to solve
+    requires = frozenset({Need.phase})
 
     def _prepare(self, data: ReceiverData) -> tuple[PppObservations, PppGraph]:
         cfg = self.config
-        self._validate()
         obs = prepare_ppp(data, **cfg.prepare_kwargs())
         return obs, PppGraph(obs, cfg)
-
-    def _validate(self) -> None:
-        cfg = self.config
-        where = f"estimator.{self.name}"
-        validate_stochastic_model(cfg, where)
-        if not cfg.prior_scale > 0:
-            raise SimbenchError(f"{where}.prior_scale", f"must be positive, got {cfg.prior_scale}",
-                                "give a covariance scale factor such as 1, 0.1 or 10")
-        if cfg.max_iterations < 1 or cfg.lm_max_iterations < 1:
-            raise SimbenchError(f"{where}.max_iterations", "iteration limits must be at least 1",
-                                "set max_iterations and lm_max_iterations >= 1")
 
     def _a_priori_sigmas(self, obs: PppObservations) -> tuple[np.ndarray, np.ndarray]:
         s = np.sqrt(self.config.prior_scale)
@@ -146,6 +142,12 @@ class DcsConfig(BatchConfig):
 
     kernel_width: float = 2.5  #: DCS phi [whitened units]
 
+    def validate(self, where: str) -> None:
+        """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
+        super().validate(where)
+        require_positive(f"{where}.kernel_width", self.kernel_width,
+                         "give the DCS kernel width in whitened units (default 2.5)")
+
 
 @register
 class DcsBatch(BatchGraphEstimator):
@@ -155,9 +157,6 @@ class DcsBatch(BatchGraphEstimator):
     Config = DcsConfig
 
     def _run(self, data, obs, g, structure):
-        if not self.config.kernel_width > 0:
-            raise SimbenchError("estimator.dcs.kernel_width", f"must be positive, got {self.config.kernel_width}",
-                                "give the DCS kernel width in whitened units (default 2.5)")
         start = self._l2(g, structure)
         sc, sp = self._a_priori_sigmas(obs)
         graph = gtsam.NonlinearFactorGraph(structure)
@@ -180,6 +179,21 @@ class MmConfig(BatchConfig):
 
     outlier_scale: float = 1e6  #: outlier covariance = inlier covariance times this (batch code: 1e6)
     outlier_weight: float = 0.5  #: prior weight of the outlier component (equal weights)
+
+    def validate(self, where: str) -> None:
+        """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
+        super().validate(where)
+        validate_max_mixture(self.outlier_scale, self.outlier_weight, where)
+
+
+def validate_max_mixture(outlier_scale: float, outlier_weight: float, where: str) -> None:
+    """One-line :class:`SimbenchError` for a two-component model that is not one (batch and incremental MM)."""
+    if not outlier_scale > 1:
+        raise SimbenchError(f"{where}.outlier_scale", f"must exceed 1, got {outlier_scale}",
+                            "give the outlier/inlier covariance ratio, e.g. 1e6 (batch) or 10 (incremental)")
+    if not 0 < outlier_weight < 1:
+        raise SimbenchError(f"{where}.outlier_weight", f"must be within (0, 1), got {outlier_weight}",
+                            "give the outlier component's prior weight, e.g. the default 0.5")
 
 
 def max_mixture_outliers(whitened: np.ndarray, outlier_scale: float, outlier_weight: float) -> np.ndarray:
@@ -204,9 +218,6 @@ class MmBatch(BatchGraphEstimator):
 
     def _run(self, data, obs, g, structure):
         cfg: MmConfig = self.config
-        if not (cfg.outlier_scale > 1 and 0 < cfg.outlier_weight < 1):
-            raise SimbenchError("estimator.mm.outlier_scale", "needs outlier_scale > 1 and 0 < outlier_weight < 1",
-                                "use the defaults 1e6 and 0.5")
         values = self._l2(g, structure)
         sc, sp = self._a_priori_sigmas(obs)
         inflate = np.sqrt(cfg.outlier_scale)

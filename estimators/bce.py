@@ -54,7 +54,7 @@ from estimators.clustering import Mixture, fit_dpgmm, select_features
 from estimators.measurement import PppObservations
 from estimators.ppp_graph import PppGraph, gauss_newton_step
 from simbench.contract import ReceiverData
-from simbench.errors import SimbenchError
+from simbench.errors import SimbenchError, require_at_least
 
 __all__ = ["FEATURES", "Bce", "BceAd", "BceAdConfig", "BceConfig"]
 
@@ -66,9 +66,13 @@ _MIN_CLUSTER = 3
 
 @dataclass
 class BceConfig(BatchConfig):
-    """BCE parameters (graph model and stopping rule: :class:`BatchConfig`)."""
+    """BCE parameters (graph model and stopping rule: :class:`BatchConfig`).
 
-    max_iterations: int = 100
+    ``lm_max_iterations`` bounds the first (a-priori) solve only; each re-weighted
+    re-solve is one Gauss-Newton step.
+    """
+
+    max_iterations: int = 100  #: robust re-weighting iterations at most
     truncation: int = 10  #: largest number of DP-GMM components
     dpgmm_max_iter: int = 1000  #: variational iterations per fit at most
     #: lower-bound tolerance of the variational fit (per residual); 1e-4 stopped the warm-started
@@ -78,6 +82,13 @@ class BceConfig(BatchConfig):
     fit_sample: int = 5000
     seed: int = 0  #: random state of the sub-sampling and the k-means initialisation
 
+    def validate(self, where: str) -> None:
+        """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
+        super().validate(where)
+        for name, low in (("truncation", 1), ("dpgmm_max_iter", 1), ("fit_sample", 0)):
+            require_at_least(f"{where}.{name}", getattr(self, name), low,
+                             f"the defaults are in {type(self).__name__} (estimators/bce.py)")
+
 
 @dataclass
 class BceAdConfig(BceConfig):
@@ -85,23 +96,23 @@ class BceAdConfig(BceConfig):
 
     # BCE-AD keeps the full-data fit and the looser tolerance: its accuracy was not re-checked
     # with BCE's faster defaults
-    dpgmm_tol: float = 1e-4
-    fit_sample: int = 0
+    dpgmm_tol: float = 1e-4  #: lower-bound tolerance of the variational fit
+    fit_sample: int = 0  #: fit the mixture on at most this many random residuals (0: all)
     n_features: int = 2  #: features kept by MCFS each iteration (of the 5 in FEATURES)
     mcfs_clusters: int = 3  #: eigenvectors of the MCFS spectral embedding
     mcfs_neighbors: int = 5  #: neighbours of the MCFS kNN graph
     feature_sample: int = 2000  #: MCFS runs on at most this many random rows (kNN graph cost)
 
+    def validate(self, where: str) -> None:
+        """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
+        super().validate(where)
+        if not 1 <= self.n_features <= len(FEATURES):
+            raise SimbenchError(f"{where}.n_features", f"must be 1..{len(FEATURES)}, got {self.n_features}",
+                                "choose how many of code/phase residual, elevation, azimuth, C/N0 to keep")
+
 
 class _IterativeCovariance(BatchGraphEstimator):
     """The BCE loop; subclasses say how residuals become per-row noise models."""
-
-    def _check(self) -> None:
-        cfg: BceConfig = self.config
-        where = f"estimator.{self.name}"
-        if cfg.truncation < 1 or cfg.dpgmm_max_iter < 1 or cfg.fit_sample < 0:
-            raise SimbenchError(f"{where}.truncation", "truncation and dpgmm_max_iter must be >= 1, fit_sample >= 0",
-                                "use the defaults of conf/estimator/")
 
     def _previous(self, it: int):
         """The previous iteration's mixture model (warm start), None at the first iteration."""
@@ -117,7 +128,6 @@ class _IterativeCovariance(BatchGraphEstimator):
 
     def _run(self, data, obs, g: PppGraph, structure):
         cfg: BceConfig = self.config
-        self._check()
         rng = np.random.default_rng(cfg.seed)
         graph = self._a_priori_graph(g, structure)
         values = self._solve(graph, g.initial_values())  # batch L2
@@ -178,9 +188,6 @@ class BceAd(_IterativeCovariance):
 
     def _noise(self, data, obs, r, it):
         cfg: BceAdConfig = self.config
-        if not 1 <= cfg.n_features <= len(FEATURES):
-            raise SimbenchError("estimator.bce_ad.n_features", f"must be 1..{len(FEATURES)}, got {cfg.n_features}",
-                                "choose how many of code/phase residual, elevation, azimuth, C/N0 to keep")
         feats = np.c_[r, obs.el, obs.az, _cn0(data, obs)]
         mu, sd = feats.mean(axis=0), feats.std(axis=0)
         z = (feats - mu) / np.where(sd > 0, sd, 1.0)

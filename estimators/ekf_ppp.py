@@ -53,42 +53,25 @@ from estimators.measurement import (
     N_BASE_STATES,
     predict_given_troposphere,
     prepare_ppp,
-    single_point_solution,
-    validate_stochastic_model,
-    troposphere_terms,
 )
-from simbench.contract import ReceiverData
+from estimators.ppp_config import ClockModel, StochasticModelConfig
+from simbench.contract import Need, ReceiverData
+from simbench.gnss.spp import solve_epochs
+from simbench.gnss.troposphere import troposphere_terms
 from simbench.sim import atmosphere
 from simbench.sim.frames import geodetic_from_ecef
 
+#: Epochs searched for a trusted first fix.
+_INIT_EPOCHS = 30
 #: Indices of the base states.
 _POS, _CLK, _ZWD = slice(0, 3), 3, 4
 
 
 @dataclass
-class EkfPppConfig:
-    """EKF-PPP parameters; defaults are dissertation Table 4.4.2 and Sec. 4.4."""
+class EkfPppConfig(StochasticModelConfig):
+    """EKF-PPP parameters: the shared Table 4.4.2 model of :class:`StochasticModelConfig`, plus:"""
 
-    pos_sigma_m: float = 1.0  #: a priori position sigma per axis [m]
-    pos_rw_m_rts: float = 5.0  #: position random walk [m/sqrt(s)]
-    zwd_sigma_m: float = 0.3  #: a priori zenith wet delay sigma [m] (about the Saastamoinen value)
-    zwd_rw_m_rts: float = 3e-5  #: zenith wet delay random walk [m/sqrt(s)]
-    clock_sigma_m: float = 3e6  #: a priori receiver clock sigma [m]
-    clock_noise_m_rts: float = 2000.0  #: receiver clock process noise [m/sqrt(s)]
-    clock_model: str = "white"  #: white (re-initialised each epoch, Table 4.4.2) | random_walk
-    ambiguity_sigma_m: float = 100.0  #: a priori phase bias sigma [m]; biases are constant within an arc
-    code_sigma_m: float = 2.5  #: zenith code sigma [m], scaled by 1/sin(el)
-    phase_sigma_m: float = 0.025  #: zenith phase sigma [m], scaled by 1/sin(el)
-    elevation_mask_deg: float = 7.0
-    min_satellites: int = 4  #: epochs with fewer usable satellites are skipped
-    max_gap_epochs: int = 1  #: a larger epoch step in a satellite's rows starts a new phase arc
-    ionosphere_free: bool = False  #: L1/L2 ionosphere-free combination (needs dual-frequency data)
     use_phase: bool = True  #: False: code-only filter (no bias states)
-    #: L1 with phase only (not in Table 4.4.2): one slant ionosphere residual state per satellite
-    #: (code +I, phase -I) so that code-phase divergence does not drag the position
-    estimate_iono: bool = True
-    iono_sigma_m: float = 2.0  #: a priori sigma of the slant residual after Klobuchar [m]
-    iono_rw_m_rts: float = 0.03  #: random walk of the slant residual [m/sqrt(s)]
 
 
 @register
@@ -97,14 +80,16 @@ class EkfPpp(Estimator):
 
     name = "ekf_ppp"
     Config = EkfPppConfig
+    requires = frozenset({Need.phase})
+
+    def needs(self) -> frozenset[Need]:
+        """Carrier phase only with ``use_phase``; L2 with ``ionosphere_free``."""
+        needs = super().needs()
+        return needs if self.config.use_phase else needs - {Need.phase}
 
     def _estimate(self, data: ReceiverData) -> tuple[pd.DataFrame, dict[str, Any]]:
         cfg: EkfPppConfig = self.config
-        _validate(cfg)
-        obs = prepare_ppp(data, ionosphere_free=cfg.ionosphere_free, code_sigma_m=cfg.code_sigma_m,
-                          phase_sigma_m=cfg.phase_sigma_m, elevation_mask_deg=cfg.elevation_mask_deg,
-                          min_satellites=cfg.min_satellites, max_gap_epochs=cfg.max_gap_epochs,
-                          require_phase=cfg.use_phase)
+        obs = prepare_ppp(data, **cfg.prepare_kwargs(), require_phase=cfg.use_phase)
         n_slots = len(obs.sat_names) if cfg.use_phase else 0
         # slant-ionosphere slots follow the bias slots, one per satellite, reset with the arc
         n_iono = n_slots if cfg.estimate_iono and not cfg.ionosphere_free else 0
@@ -114,10 +99,13 @@ class EkfPpp(Estimator):
         nx = isb0 + obs.n_isb
         kf = ExtendedKalmanFilter(dim_x=nx, dim_z=1)
 
-        # ---- initialisation from a single point solution at the first epoch
-        rows = obs.epoch_slice(0)
-        pos0, clock0 = single_point_solution(obs.sat_pos[rows], obs.code[rows], obs.sigma_code[rows],
-                                             el=obs.el[rows], doy=obs.doy, system_index=obs.system_index[rows])
+        # ---- initialisation from a single point solution at the first epoch (or the nearest
+        # trusted one among the first few, when the first is an NLOS-ridden fix)
+        rows = slice(0, int(obs.epoch_stop[min(obs.n_epochs, _INIT_EPOCHS) - 1]))
+        row_k = np.repeat(np.arange(obs.n_epochs), obs.epoch_stop - obs.epoch_start)[rows]
+        fix = solve_epochs(row_k, obs.sat_pos[rows], obs.code[rows], sigma=obs.sigma_code[rows], el=obs.el[rows],
+                           doy=obs.doy, system_index=obs.system_index[rows], fill_untrusted=True)
+        pos0, clock0 = fix.pos[0], float(fix.clock_m[0, 0])
         lat0, _, h0 = geodetic_from_ecef(pos0)
         _, zwd0 = atmosphere.saastamoinen_zenith_m(lat0, h0)
         x = np.zeros(nx)
@@ -136,7 +124,7 @@ class EkfPpp(Estimator):
         q_pos, q_zwd, q_clk = cfg.pos_rw_m_rts**2, cfg.zwd_rw_m_rts**2, cfg.clock_noise_m_rts**2
         q_iono, iono_var = cfg.iono_rw_m_rts**2, cfg.iono_sigma_m**2
         iono_diag = np.arange(iono0, nx)
-        white_clock = cfg.clock_model == "white"
+        white_clock = cfg.clock_model == ClockModel.white
         diag = np.arange(3)
 
         n = obs.n_epochs
@@ -251,7 +239,3 @@ def _reset(kf: ExtendedKalmanFilter, idx: np.ndarray, mean: np.ndarray | float, 
 def _const(value: np.ndarray):
     """filterpy wants callables for H(x) and h(x); ours are computed before the call."""
     return lambda _x: value
-
-
-def _validate(cfg: EkfPppConfig) -> None:
-    validate_stochastic_model(cfg, "estimator.ekf_ppp")

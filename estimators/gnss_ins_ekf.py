@@ -1,7 +1,8 @@
 """GNSS/INS error-state EKF and iterated EKF (the paper's comparison filters).
 
-Both run on the window engine of :mod:`estimators.crt_lss` with one GNSS epoch
-(L = 1), so the three estimators share the strapdown mechanisation (GTSAM IMU
+Both run on the window engine of :mod:`estimators.window_solver` through
+:func:`estimators.gnss_ins_driver.run_gnss_ins` with one GNSS epoch (L = 1),
+so the three estimators share the strapdown mechanisation (GTSAM IMU
 preintegration in ECEF), the 17-state error vector (attitude, position,
 velocity, accelerometer and gyro biases, receiver clock and drift), the
 measurement models and the initialisation.
@@ -25,18 +26,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-import pandas as pd
 
 from estimators import register
-from estimators.base import Estimator
-from estimators.crt_lss import (
-    GnssInsConfig,
-    run_gnss_ins,
-    validate_gnss_ins,
-    validate_lss,
-)
-from simbench.contract import ReceiverData
-from simbench.errors import SimbenchError
+from estimators.gnss_ins_config import GnssInsConfig, LssConfig
+from estimators.gnss_ins_driver import GnssInsEstimator, lss_arguments
+from simbench.errors import require_positive
 
 __all__ = ["EkfIns", "EkfInsConfig", "IekfIns", "IekfInsConfig"]
 
@@ -47,43 +41,34 @@ class EkfInsConfig(GnssInsConfig):
 
     gate: float = 2.0  #: innovation gate [innovation sigmas]; rows beyond it are not used (best of 2/3/4 on seed 1000)
 
+    def validate(self, where: str) -> None:
+        """The shared checks, then a positive gate."""
+        super().validate(where)
+        require_positive(f"{where}.gate", self.gate, "give the gate in innovation sigmas, e.g. 3")
+
 
 @dataclass
-class IekfInsConfig(GnssInsConfig):
-    """Iterated EKF = CRT-LSS with a one-epoch window."""
-
-    lambda_rho: float = 1.0  #: pseudorange soft threshold [whitened units] (paper eq. 14; best of 0.5/1/2 on seed 1000)
-    lambda_d: float = 1.0  #: Doppler soft threshold [whitened units]
-    max_iterations: int = 20  #: Algorithm 1 iteration cap
-    tol: float = 1e-3  #: convergence threshold on |dX|_2 and |dS|_2
+class IekfInsConfig(LssConfig):
+    """Iterated EKF = CRT-LSS with a one-epoch window (the Algorithm 1 parameters of :class:`LssConfig`)."""
 
 
 @register
-class EkfIns(Estimator):
+class EkfIns(GnssInsEstimator):
     """GNSS/INS error-state extended Kalman filter with innovation gating."""
 
     name = "ekf_ins"
     Config = EkfInsConfig
 
-    def _estimate(self, data: ReceiverData) -> tuple[pd.DataFrame, dict[str, Any]]:
-        cfg: EkfInsConfig = self.config
-        where = f"estimator.{self.name}"
-        validate_gnss_ins(cfg, where)
-        if not cfg.gate > 0:
-            raise SimbenchError(f"{where}.gate", f"must be positive, got {cfg.gate}",
-                                "give the gate in innovation sigmas, e.g. 3")
-        return run_gnss_ins(data, cfg, mode="ekf", window=1, gate=cfg.gate)
+    def driver_arguments(self) -> dict[str, Any]:
+        return {"mode": "ekf", "window": 1, "gate": self.config.gate}
 
 
 @register
-class IekfIns(Estimator):
+class IekfIns(GnssInsEstimator):
     """Iterated EKF: CRT-LSS with L = 1 (Gauss-Newton to convergence plus the soft-threshold S step)."""
 
     name = "iekf_ins"
     Config = IekfInsConfig
 
-    def _estimate(self, data: ReceiverData) -> tuple[pd.DataFrame, dict[str, Any]]:
-        cfg: IekfInsConfig = self.config
-        validate_lss(cfg, f"estimator.{self.name}", 1)
-        return run_gnss_ins(data, cfg, mode="lss", window=1, lambdas=(cfg.lambda_rho, cfg.lambda_d),
-                            max_iterations=cfg.max_iterations, tol=cfg.tol)
+    def driver_arguments(self) -> dict[str, Any]:
+        return lss_arguments(self.config, window=1)

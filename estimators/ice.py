@@ -56,7 +56,11 @@ __all__ = ["AdaptiveNoiseModel", "Ice", "IceConfig"]
 
 @dataclass
 class IceConfig(IncrementalConfig):
-    """ICE parameters (REFERENCE.md, original implementation) on top of the iSAM2 loop."""
+    """ICE parameters (REFERENCE.md, original implementation) on top of the iSAM2 loop.
+
+    The measurement noise is ICE's mixture model; ``code_sigma_m`` and
+    ``phase_sigma_m`` only weight the per-epoch residual prediction.
+    """
 
     z_threshold: float = 3.0  #: T_r, z-test threshold per channel [sigmas]
     cluster_threshold: int = 1000  #: T_c, adapt when more outliers than this are buffered
@@ -70,6 +74,20 @@ class IceConfig(IncrementalConfig):
     dpgmm_truncation: int = 10  #: stick-breaking truncation of the DP-GMM fit
     #: keep the per-epoch inlier/outlier residuals in the diagnostics (for a Fig. 7.3.2 scatter)
     record_residuals: bool = False
+
+    def validate(self, where: str) -> None:
+        """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
+        super().validate(where)
+        checks = (("z_threshold", self.z_threshold > 0), ("cluster_threshold", self.cluster_threshold >= 1),
+                  ("alpha", 0 < self.alpha < 1), ("max_components", self.max_components >= 1),
+                  ("min_cluster_points", self.min_cluster_points >= 1), ("min_inliers", self.min_inliers >= 0),
+                  ("prior_code_sigma_m", self.prior_code_sigma_m > 0),
+                  ("prior_phase_sigma_m", self.prior_phase_sigma_m > 0),
+                  ("dpgmm_truncation", self.dpgmm_truncation >= 1))
+        for name, ok in checks:
+            if not ok:
+                raise SimbenchError(f"{where}.{name}", f"out of range: {getattr(self, name)}",
+                                    "the defaults are in IceConfig (estimators/ice.py)")
 
 
 @dataclass
@@ -163,18 +181,8 @@ class Ice(IncrementalGraphEstimator):
     name = "ice"
     Config = IceConfig
 
-    def _validate_extra(self, where: str) -> None:
-        cfg: IceConfig = self.config
-        checks = (("z_threshold", cfg.z_threshold > 0), ("cluster_threshold", cfg.cluster_threshold >= 1),
-                  ("alpha", 0 < cfg.alpha < 1), ("max_components", cfg.max_components >= 1),
-                  ("min_cluster_points", cfg.min_cluster_points >= 1), ("min_inliers", cfg.min_inliers >= 0),
-                  ("prior_code_sigma_m", cfg.prior_code_sigma_m > 0),
-                  ("prior_phase_sigma_m", cfg.prior_phase_sigma_m > 0), ("dpgmm_truncation", cfg.dpgmm_truncation >= 1))
-        for name, ok in checks:
-            if not ok:
-                raise SimbenchError(f"{where}.{name}", f"out of range: {getattr(cfg, name)}",
-                                    "see conf/estimator/ice.yaml for the defaults")
-        self._noise = AdaptiveNoiseModel(cfg)
+    def _start_run(self) -> None:
+        self._noise = AdaptiveNoiseModel(self.config)
         self._records: list[dict] = []
 
     def _measurements(self, k: int, rows: slice, g: PppGraph, pred: EpochPrediction) -> dict[str, Any] | None:

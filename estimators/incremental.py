@@ -54,8 +54,8 @@ import pandas as pd
 
 from estimators import register
 from estimators.base import Estimator, solution_frame
-from estimators.batch_robust import max_mixture_outliers
-from estimators.measurement import predict_given_troposphere, prepare_ppp, validate_stochastic_model
+from estimators.batch_robust import max_mixture_outliers, validate_max_mixture
+from estimators.measurement import predict_given_troposphere, prepare_ppp
 from estimators.ppp_graph import (
     ZERO_KEY,
     PppGraph,
@@ -66,8 +66,8 @@ from estimators.ppp_graph import (
     pos_key,
     zwd_key,
 )
-from simbench.contract import ReceiverData
-from simbench.errors import SimbenchError
+from simbench.contract import Need, ReceiverData
+from simbench.errors import require_at_least, require_positive
 from simbench.sim.constants import C_LIGHT
 
 __all__ = ["EpochPrediction", "IncrementalConfig", "IncrementalGraphEstimator", "Isam2Dcs", "Isam2Mm", "Isam2Ppp"]
@@ -93,6 +93,15 @@ class IncrementalConfig(PppGraphConfig):
     #: fixed-lag window [s]: keys older than this are marginalised (gtsam.IncrementalFixedLagSmoother);
     #: 0 keeps every epoch in plain iSAM2, whose update cost then grows with the run (module notes)
     lag_s: float = 10.0
+
+    def validate(self, where: str) -> None:
+        """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
+        super().validate(where)
+        require_positive(f"{where}.relinearize_threshold", self.relinearize_threshold,
+                         "give a threshold in metres, e.g. the default 1.0")
+        require_at_least(f"{where}.relinearize_skip", self.relinearize_skip, 1,
+                         "1 checks for relinearisation at every update")
+        require_at_least(f"{where}.lag_s", self.lag_s, 0, "give the fixed-lag window in seconds (0: keep every epoch)")
 
 
 @dataclass
@@ -125,11 +134,13 @@ class IncrementalGraphEstimator(Estimator):
     """The shared iSAM2 loop; subclasses choose the measurement noise of each epoch."""
 
     Config = IncrementalConfig
+    #: prepare_ppp drops rows without carrier phase, so a code-only log leaves nothing to solve
+    requires = frozenset({Need.phase})
 
     # ------------------------------------------------------------------ hooks
 
-    def _validate_extra(self, where: str) -> None:
-        """Subclass parameter checks."""
+    def _start_run(self) -> None:
+        """Reset a subclass's per-run state before the first epoch."""
 
     def _measurements(self, k: int, rows: slice, g: PppGraph, pred: EpochPrediction) -> dict[str, Any] | None:
         """Keyword arguments of :meth:`PppGraph.measurement_factors` for epoch ``k``; None: no GNSS update."""
@@ -143,15 +154,7 @@ class IncrementalGraphEstimator(Estimator):
 
     def _estimate(self, data: ReceiverData) -> tuple[pd.DataFrame, dict[str, Any]]:
         cfg: IncrementalConfig = self.config
-        where = f"estimator.{self.name}"
-        validate_stochastic_model(cfg, where)
-        if not cfg.relinearize_threshold > 0 or cfg.relinearize_skip < 1:
-            raise SimbenchError(f"{where}.relinearize_threshold", "needs relinearize_threshold > 0 and "
-                                "relinearize_skip >= 1", "use the defaults 1.0 and 1")
-        if not cfg.lag_s >= 0:
-            raise SimbenchError(f"{where}.lag_s", f"must be >= 0, got {cfg.lag_s}",
-                                "give the fixed-lag window in seconds (0: keep every epoch)")
-        self._validate_extra(where)
+        self._start_run()
         obs = prepare_ppp(data, **cfg.prepare_kwargs())
         g = PppGraph(obs, cfg)
         isam = _Smoother(cfg, g)
@@ -327,6 +330,11 @@ class Isam2DcsConfig(IncrementalConfig):
 
     phi: float = 2.5  #: DCS kernel width (whitened units)
 
+    def validate(self, where: str) -> None:
+        """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
+        super().validate(where)
+        require_positive(f"{where}.phi", self.phi, "use 2.5")
+
 
 @register
 class Isam2Dcs(IncrementalGraphEstimator):
@@ -334,10 +342,6 @@ class Isam2Dcs(IncrementalGraphEstimator):
 
     name = "isam2_dcs"
     Config = Isam2DcsConfig
-
-    def _validate_extra(self, where: str) -> None:
-        if not self.config.phi > 0:
-            raise SimbenchError(f"{where}.phi", f"must be positive, got {self.config.phi}", "use 2.5")
 
     def _measurements(self, k, rows, g, pred):
         return {"robust": gtsam.noiseModel.mEstimator.DCS.Create(self.config.phi)}
@@ -350,6 +354,11 @@ class Isam2MmConfig(IncrementalConfig):
     outlier_scale: float = 10.0  #: outlier covariance = inlier covariance times this (incremental code: 10)
     outlier_weight: float = 0.5  #: prior weight of the outlier component (equal weights)
 
+    def validate(self, where: str) -> None:
+        """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
+        super().validate(where)
+        validate_max_mixture(self.outlier_scale, self.outlier_weight, where)
+
 
 @register
 class Isam2Mm(IncrementalGraphEstimator):
@@ -358,11 +367,7 @@ class Isam2Mm(IncrementalGraphEstimator):
     name = "isam2_mm"
     Config = Isam2MmConfig
 
-    def _validate_extra(self, where: str) -> None:
-        cfg = self.config
-        if not (cfg.outlier_scale > 1 and 0 < cfg.outlier_weight < 1):
-            raise SimbenchError(f"{where}.outlier_scale", "needs outlier_scale > 1 and 0 < outlier_weight < 1",
-                                "use the defaults 10 and 0.5")
+    def _start_run(self) -> None:
         self._n_out = np.zeros(2, np.int64)
 
     def _measurements(self, k, rows, g, pred):

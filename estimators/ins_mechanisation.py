@@ -17,8 +17,8 @@ gravity vector changes by < 1e-4 m/s^2, well under a consumer accelerometer's
 noise.
 
 Also here: coarse levelling from a static accelerometer mean, the heading
-reset about the local vertical, the Doppler range-rate model and a
-Doppler-only least-squares velocity (course over ground for the heading).
+reset about the local vertical and the course over ground. The Doppler
+range-rate model lives in :mod:`simbench.gnss.doppler`.
 """
 from __future__ import annotations
 
@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
-from simbench.sim.constants import C_LIGHT, DEG, OMEGA_EARTH
+from simbench.sim.constants import DEG, OMEGA_EARTH
 from simbench.sim.frames import (
     dcm_body_to_ecef,
     dcm_body_to_ned,
@@ -38,18 +38,18 @@ from simbench.sim.frames import (
 from simbench.sim.imu import gravity_ecef
 
 __all__ = [
+    "DEG_PER_HOUR",
     "ImuNoise",
     "attitude_ecef",
-    "doppler_velocity",
+    "course_over_ground",
     "level_roll_pitch",
     "preintegration_params",
-    "range_rate",
     "rotate_about_vertical",
     "yaw_of",
 ]
 
-#: deg/h -> rad/s
-_DPH = DEG / 3600.0
+#: One degree per hour in rad/s (multiply a deg/h value by it).
+DEG_PER_HOUR = DEG / 3600.0
 
 
 @dataclass(frozen=True)
@@ -84,9 +84,9 @@ class ImuNoise:
         window of seconds it is indistinguishable from a random walk of that density.
         """
         root = np.sqrt(2.0 / bias_tau_s)
-        return cls(accel_noise=accel_noise_mps2_rthz, gyro_noise=gyro_noise_dph_rthz * _DPH,
+        return cls(accel_noise=accel_noise_mps2_rthz, gyro_noise=gyro_noise_dph_rthz * DEG_PER_HOUR,
                    accel_bias_rw=accel_bias_instability_mps2 * root,
-                   gyro_bias_rw=gyro_bias_instability_dph * _DPH * root)
+                   gyro_bias_rw=gyro_bias_instability_dph * DEG_PER_HOUR * root)
 
 
 def preintegration_params(noise: ImuNoise, pos: np.ndarray) -> gtsam.PreintegrationCombinedParams:
@@ -149,6 +149,27 @@ def yaw_of(pos: np.ndarray, c_b_e: np.ndarray) -> float:
     return float(euler_from_dcm(_ned_to_ecef(pos).T @ c_b_e)[2])
 
 
+def course_over_ground(pos: np.ndarray, vel: np.ndarray) -> tuple[float, float]:
+    """Horizontal speed and course of an ECEF velocity at ECEF ``pos``.
+
+    Parameters
+    ----------
+    pos : ndarray, shape (3,)
+        ECEF position [m].
+    vel : ndarray, shape (3,)
+        ECEF velocity [m/s].
+
+    Returns
+    -------
+    speed : float
+        Horizontal speed [m/s].
+    course : float
+        Direction of travel [rad, from north, towards east].
+    """
+    v_ned = _ned_to_ecef(pos).T @ np.asarray(vel, float)
+    return float(np.hypot(v_ned[0], v_ned[1])), float(np.arctan2(v_ned[1], v_ned[0]))
+
+
 def rotate_about_vertical(pos: np.ndarray, angle: float) -> np.ndarray:
     """ECEF rotation by ``angle`` [rad] about the local down axis at ``pos`` (positive: heading increases).
 
@@ -161,89 +182,3 @@ def rotate_about_vertical(pos: np.ndarray, angle: float) -> np.ndarray:
     c_n_e = _ned_to_ecef(pos)
     rz = dcm_body_to_ned(np.array([0.0, 0.0, angle]))
     return c_n_e @ rz @ c_n_e.T
-
-
-def _rotated_satellite(sat_pos: np.ndarray, sat_vel: np.ndarray,
-                       rx_pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Satellite position and velocity of transmit time, turned into the receive-time ECEF frame."""
-    tau = np.linalg.norm(sat_pos - rx_pos, axis=1) / C_LIGHT
-    th = OMEGA_EARTH * tau
-    c, s = np.cos(th), np.sin(th)
-    q = np.stack([c * sat_pos[:, 0] + s * sat_pos[:, 1], c * sat_pos[:, 1] - s * sat_pos[:, 0], sat_pos[:, 2]], 1)
-    w = np.stack([c * sat_vel[:, 0] + s * sat_vel[:, 1], c * sat_vel[:, 1] - s * sat_vel[:, 0], sat_vel[:, 2]], 1)
-    return q, w
-
-
-def range_rate(sat_pos: np.ndarray, sat_vel: np.ndarray, rx_pos: np.ndarray,
-               rx_vel: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Geometric range rate and its gradients, with the Earth rotation during signal transit.
-
-    Same model as the simulator: the satellite of transmit time is rotated
-    into the receive-time frame, and the range rate is
-    ``(u.w - u.v_r) / (1 + (u.w - omega (u_x q_y - u_y q_x)) / c)`` (``q``, ``w``:
-    rotated satellite position and velocity, ``u`` the unit line of sight).
-
-    Parameters
-    ----------
-    sat_pos, sat_vel : ndarray, shape (k, 3)
-        Satellite ECEF position [m] and velocity [m/s] at transmit time.
-    rx_pos, rx_vel : ndarray, shape (3,)
-        Receiver ECEF position [m] and velocity [m/s].
-
-    Returns
-    -------
-    rdot : ndarray, shape (k,)
-        Range rate [m/s] (positive when receding).
-    d_pos : ndarray, shape (k, 3)
-        Partials w.r.t. the receiver position [1/s].
-    d_vel : ndarray, shape (k, 3)
-        Partials w.r.t. the receiver velocity [-].
-    """
-    q, w = _rotated_satellite(sat_pos, sat_vel, rx_pos)
-    d = q - rx_pos
-    rng = np.linalg.norm(d, axis=1)
-    u = d / rng[:, None]
-    rel = w - rx_vel
-    u_rel = np.einsum("ij,ij->i", u, rel)
-    a = np.einsum("ij,ij->i", u, w)
-    den = 1.0 + (a - OMEGA_EARTH * (u[:, 0] * q[:, 1] - u[:, 1] * q[:, 0])) / C_LIGHT
-    rdot = u_rel / den
-    # the denominator differs from 1 by ~1e-5: its gradient is negligible
-    d_pos = -(rel - u * u_rel[:, None]) / (rng * den)[:, None]
-    d_vel = -u / den[:, None]
-    return rdot, d_pos, d_vel
-
-
-def doppler_velocity(sat_pos: np.ndarray, sat_vel: np.ndarray, rx_pos: np.ndarray, range_rate_obs: np.ndarray,
-                     sigma: np.ndarray, iterations: int = 3) -> tuple[np.ndarray, float]:
-    """Least-squares receiver velocity and clock drift from one epoch's Doppler.
-
-    Parameters
-    ----------
-    sat_pos, sat_vel : ndarray, shape (k, 3)
-        Satellite ECEF position [m] and velocity [m/s].
-    rx_pos : ndarray, shape (3,)
-        Receiver position [m] (a few metres of error do not matter).
-    range_rate_obs : ndarray, shape (k,)
-        Observed range rate plus receiver clock drift [m/s] (``-lambda D`` plus the satellite drift).
-    sigma : ndarray, shape (k,)
-        Standard deviations [m/s].
-
-    Returns
-    -------
-    vel : ndarray, shape (3,)
-        ECEF velocity [m/s].
-    drift : float
-        Receiver clock drift times c [m/s].
-    """
-    vel, drift = np.zeros(3), 0.0
-    w = 1.0 / sigma
-    A = np.empty((len(sigma), 4))
-    A[:, 3] = 1.0
-    for _ in range(iterations):
-        rdot, _, d_vel = range_rate(sat_pos, sat_vel, rx_pos, vel)
-        A[:, :3] = d_vel
-        dx, *_ = np.linalg.lstsq(A * w[:, None], (range_rate_obs - rdot - drift) * w, rcond=None)
-        vel = vel + dx[:3]
-        drift += float(dx[3])
-    return vel, drift

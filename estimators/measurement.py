@@ -10,7 +10,7 @@ Model, per satellite ``j`` at one epoch (metres)::
     phase_j = r_j(x) + c dt_r + ZHD m_h(el_j) + ZWD m_w(el_j) + B_arc(j) + e
 
 ``r_j`` is the geometric range with the Earth-rotation (Sagnac) term
-(:func:`simbench.sim.geometry.sagnac_range`), ``ZHD`` the Saastamoinen zenith
+(:func:`simbench.gnss.geometry.sagnac_range`), ``ZHD`` the Saastamoinen zenith
 hydrostatic delay at the current position estimate, ``m_h``/``m_w`` the Niell
 mappings, ``ZWD`` the estimated zenith wet delay and ``B`` a float carrier-phase
 bias (metres) per continuous phase arc. The observations are corrected before:
@@ -25,7 +25,6 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -33,13 +32,14 @@ import pandas as pd
 from simbench.contract import ReceiverData
 from simbench.errors import SimbenchError
 from simbench.sim import atmosphere
-from simbench.sim.constants import C_LIGHT, DEG, IF_A1, IF_A2, OMEGA_EARTH
+from simbench.gnss.geometry import sagnac_range_gradient
+from simbench.gnss.spp import solve_epochs
+from simbench.gnss.troposphere import troposphere_terms
+from simbench.sim.constants import DEG, IF_A1, IF_A2
 from simbench.sim.frames import geodetic_from_ecef
-from simbench.sim.geometry import sagnac_range
 from simbench.sim.gpstime import day_of_year
 
-__all__ = ["PppObservations", "arc_ids", "prepare_ppp", "predict", "predict_given_troposphere",
-           "troposphere_terms", "single_point_solution", "N_BASE_STATES"]
+__all__ = ["PppObservations", "arc_ids", "prepare_ppp", "predict", "predict_given_troposphere", "N_BASE_STATES"]
 
 #: Number of non-ambiguity states in :func:`predict`'s Jacobian: x, y, z, clock, zwd.
 N_BASE_STATES = 5
@@ -51,41 +51,13 @@ _REQUIRED_L2 = ("code_l2", "phase_l2", "lli_l2")
 _ROUGH_POSITION_INTERVAL_S = 60.0
 
 
-# --------------------------------------------------------------------------- small helpers
-
-
-def _geometry(sat_pos: np.ndarray, rx_pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Range with the Sagnac term and its gradient w.r.t. the receiver position."""
-    d = sat_pos - rx_pos
-    dist = np.sqrt(np.einsum("ij,ij->i", d, d))
-    rng = sagnac_range(sat_pos, rx_pos)
-    grad = -d / dist[:, None]
-    # d/dr of omega (s_x r_y - s_y r_x) / c
-    w = OMEGA_EARTH / C_LIGHT
-    grad[:, 0] -= w * sat_pos[:, 1]
-    grad[:, 1] += w * sat_pos[:, 0]
-    return rng, grad
-
-
 # --------------------------------------------------------------------------- prediction
-
-
-def troposphere_terms(el: np.ndarray, lat: float, h: float, doy: float) -> tuple[np.ndarray, np.ndarray]:
-    """Modelled slant hydrostatic delay ``ZHD m_h`` [m] and wet mapping ``m_w`` [-] per satellite.
-
-    The expensive, position-insensitive part of :func:`predict` (a metre of
-    position changes it by well under a millimetre); estimators that predict
-    several times per epoch compute it once and call :func:`predict_given_troposphere`.
-    """
-    zhd, _ = atmosphere.saastamoinen_zenith_m(lat, h)
-    m_h, m_w = atmosphere.niell_mapping(el, lat, h, doy)
-    return zhd * m_h, m_w
 
 
 def predict_given_troposphere(sat_pos: np.ndarray, rx_pos: np.ndarray, clock_m: float, zwd_m: float,
                               slant_hydrostatic_m: np.ndarray, m_wet: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`predict` with the troposphere terms of :func:`troposphere_terms` given."""
-    rng, grad = _geometry(sat_pos, rx_pos)
+    rng, grad = sagnac_range_gradient(sat_pos, rx_pos)
     H = np.empty((len(rng), N_BASE_STATES))
     H[:, :3] = grad
     H[:, 3] = 1.0
@@ -125,84 +97,6 @@ def predict(sat_pos: np.ndarray, rx_pos: np.ndarray, clock_m: float, zwd_m: floa
         Partials w.r.t. ``[x, y, z, clock_m, zwd_m]``: ``[-los_unit (+ Sagnac), 1, m_w]``.
     """
     return predict_given_troposphere(sat_pos, rx_pos, clock_m, zwd_m, *troposphere_terms(el, lat, h, doy))
-
-
-def single_point_solution(sat_pos: np.ndarray, code: np.ndarray, sigma: np.ndarray | None = None, *,
-                          el: np.ndarray | None = None, doy: float | None = None,
-                          x0: np.ndarray | None = None, iterations: int = 10,
-                          tol_m: float = 1e-4, system_index: np.ndarray | None = None) -> tuple[np.ndarray, float]:
-    """Code-only iterative weighted least squares position and clock of one epoch.
-
-    Starts from ``x0`` (default: the Earth's centre). When ``el`` and ``doy``
-    are given, the hydrostatic troposphere (Saastamoinen + Niell) is modelled
-    once the iterate lies near the Earth's surface; the wet delay is ignored.
-
-    Parameters
-    ----------
-    sat_pos : ndarray, shape (k, 3)
-        Satellite positions at transmit time [m].
-    code : ndarray, shape (k,)
-        Corrected code observations [m] (satellite clock applied, ionosphere
-        removed or combined away).
-    sigma : ndarray, shape (k,), optional
-        Standard deviations [m]; unit weights when omitted.
-    el : ndarray, shape (k,), optional
-        Elevations [rad].
-    doy : float, optional
-        Day of year.
-    x0 : ndarray, shape (3,), optional
-        Initial position [m].
-    iterations : int
-        Maximum Gauss-Newton iterations.
-    tol_m : float
-        Stop when the position step is below this [m].
-    system_index : ndarray of int, shape (k,), optional
-        GNSS system of each row (``PppObservations.system_index``): rows of
-        system ``j > 0`` get their own clock offset (inter-system bias).
-
-    Returns
-    -------
-    pos : ndarray, shape (3,)
-        ECEF position [m].
-    clock_m : float
-        Receiver clock times c [m] (of system 0).
-
-    Raises
-    ------
-    SimbenchError
-        With fewer than 4 observations.
-    """
-    k = len(code)
-    if k < 4:
-        raise SimbenchError("observations", f"a single point solution needs 4 satellites, got {k}",
-                            "drop epochs with fewer than 4 satellites (prepare_ppp does)")
-    w = np.ones(k) if sigma is None else 1.0 / np.asarray(sigma, dtype=float)
-    pos = np.zeros(3) if x0 is None else np.array(x0, dtype=float)
-    clock = 0.0
-    sys_idx = np.zeros(k, np.int64) if system_index is None else np.asarray(system_index, np.int64)
-    n_isb = int(sys_idx.max(initial=0))
-    # per-system clock columns; a system absent from this epoch leaves a zero column,
-    # which lstsq's minimum-norm solution keeps at 0
-    A = np.zeros((k, 4 + n_isb))
-    A[:, 3] = 1.0
-    A[np.flatnonzero(sys_idx > 0), 3 + sys_idx[sys_idx > 0]] = 1.0
-    isb = np.zeros(n_isb + 1)
-    for _ in range(iterations):
-        rng, grad = _geometry(sat_pos, pos)
-        model = rng + clock + isb[sys_idx]
-        # the Earth's centre (the default start) has no geodetic coordinates
-        if el is not None and doy is not None and np.dot(pos, pos) > 6.0e6**2:
-            lat, _, h = geodetic_from_ecef(pos)
-            if -1_000.0 < h < 50_000.0:
-                model = model + troposphere_terms(el, lat, h, doy)[0]
-        A[:, :3] = grad
-        dx, *_ = np.linalg.lstsq(A * w[:, None], (code - model) * w, rcond=None)
-        pos += dx[:3]
-        clock += dx[3]
-        isb[1:] += dx[4:]
-        if np.linalg.norm(dx[:3]) < tol_m:
-            break
-    return pos, float(clock)
 
 
 # --------------------------------------------------------------------------- arcs
@@ -412,17 +306,17 @@ def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: floa
     epoch_stop = epoch_start + n_per
     sigma_scale = 1.0 / np.sin(el)
 
-    if not ionosphere_free and not data.nav.iono_corrected:
-        lat, lon = _rough_lat_lon(sat_pos, code, sigma_scale, el, doy, t, epoch_start, epoch_stop)
-        iono = atmosphere.klobuchar_l1_delay_m(data.nav.start_sow_s + t, lat, lon, el, az,
-                                               np.asarray(data.nav.iono_alpha), np.asarray(data.nav.iono_beta))
-        code = code - iono
-        phase = phase + iono
-
     sat_names, sat_index = np.unique(sat, return_inverse=True)
     letters = np.array([str(s)[:1] for s in sat_names])
     systems = tuple(sorted(set(letters.tolist()), key=lambda c: (c != "G", c)))
     system_index = np.array([systems.index(c) for c in letters], np.int64)[sat_index]
+
+    if not ionosphere_free and not data.nav.iono_corrected:
+        lat, lon = _rough_lat_lon(sat_pos, code, sigma_scale, el, doy, t, epoch_start, epoch_stop, system_index)
+        iono = atmosphere.klobuchar_l1_delay_m(data.nav.start_sow_s + t, lat, lon, el, az,
+                                               np.asarray(data.nav.iono_alpha), np.asarray(data.nav.iono_beta))
+        code = code - iono
+        phase = phase + iono
     _, arc = np.unique(arc, return_inverse=True)  # monotone: keeps the start order
     return PppObservations(
         epoch=epoch, t=t, sat=sat, sat_index=sat_index.astype(np.int64), sat_pos=sat_pos, code=code,
@@ -434,7 +328,8 @@ def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: floa
 
 
 def _rough_lat_lon(sat_pos: np.ndarray, code: np.ndarray, sigma: np.ndarray, el: np.ndarray, doy: float,
-                   t: np.ndarray, start: np.ndarray, stop: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                   t: np.ndarray, start: np.ndarray, stop: np.ndarray,
+                   system_index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Receiver latitude/longitude per row for the Klobuchar pierce points.
 
     Single point solutions every ~60 s (each epoch takes the latest one before
@@ -446,35 +341,12 @@ def _rough_lat_lon(sat_pos: np.ndarray, code: np.ndarray, sigma: np.ndarray, el:
     solve_at = np.unique(np.searchsorted(t_epoch, np.arange(t_epoch[0], t_epoch[-1] + 1e-9,
                                                             _ROUGH_POSITION_INTERVAL_S)))
     solve_at = solve_at[solve_at < n]
-    lats, lons = np.empty(len(solve_at)), np.empty(len(solve_at))
-    x0 = None
-    for i, k in enumerate(solve_at):
-        rows = slice(start[k], stop[k])
-        pos, _ = single_point_solution(sat_pos[rows], code[rows], sigma[rows], el=el[rows], doy=doy, x0=x0)
-        x0 = pos
-        lats[i], lons[i], _ = geodetic_from_ecef(pos)
+    rows = np.concatenate([np.arange(start[k], stop[k]) for k in solve_at])
+    which_rows = np.repeat(np.arange(len(solve_at)), stop[solve_at] - start[solve_at])
+    sol = solve_epochs(which_rows, sat_pos[rows], code[rows], n_epochs=len(solve_at), sigma=sigma[rows],
+                       system_index=system_index[rows], el=el[rows], doy=doy, fill_untrusted=True)
+    lats, lons, _ = geodetic_from_ecef(sol.pos)
     which = np.maximum(np.searchsorted(solve_at, np.arange(n), side="right") - 1, 0)
     per_row = np.repeat(which, stop - start)
     return lats[per_row], lons[per_row]
 
-
-def validate_stochastic_model(cfg: Any, where: str) -> None:
-    """One-line :class:`SimbenchError` for out-of-range stochastic-model parameters.
-
-    Shared by EKF-PPP and the GTSAM graph estimators, whose configs carry the same
-    Table 4.4.2 fields; ``where`` is the config node name, e.g. ``estimator.l2``.
-    """
-    if cfg.clock_model not in ("white", "random_walk"):
-        raise SimbenchError(f"{where}.clock_model", f"unknown model '{cfg.clock_model}'", "use white or random_walk")
-    for name in ("pos_sigma_m", "zwd_sigma_m", "clock_sigma_m", "ambiguity_sigma_m", "code_sigma_m",
-                 "phase_sigma_m", "iono_sigma_m"):
-        if not getattr(cfg, name) > 0:
-            raise SimbenchError(f"{where}.{name}", f"must be positive, got {getattr(cfg, name)}",
-                                "give a standard deviation in metres")
-    for name in ("pos_rw_m_rts", "zwd_rw_m_rts", "clock_noise_m_rts", "iono_rw_m_rts"):
-        if not getattr(cfg, name) >= 0:
-            raise SimbenchError(f"{where}.{name}", f"must be non-negative, got {getattr(cfg, name)}",
-                                "give a noise density in m/sqrt(s)")
-    if cfg.max_gap_epochs < 1:
-        raise SimbenchError(f"{where}.max_gap_epochs", f"must be at least 1, got {cfg.max_gap_epochs}",
-                            "1 means every epoch must be present within one arc")

@@ -1,7 +1,7 @@
 """Oracle: the PPP graph weighted with the true error sigmas of the labels (reads labels).
 
 The accuracy floor the adaptive estimators are measured against, and the only
-estimator allowed to read the error labels (``uses_labels = True``):
+estimator allowed to read the error labels (``requires`` holds ``Need.labels``):
 
 * NLOS observations (label ``nlos``) are removed before preparation;
 * each code measurement gets ``sqrt(sigma_code_l1^2 + sigma_multipath_code_l1^2 + o^2)``
@@ -29,7 +29,7 @@ from estimators import register
 from estimators.batch_robust import BatchConfig, BatchGraphEstimator
 from estimators.measurement import prepare_ppp
 from estimators.ppp_graph import PppGraph
-from simbench.contract import ReceiverData
+from simbench.contract import Need, ReceiverData
 from simbench.errors import SimbenchError
 
 __all__ = ["Oracle", "OracleConfig"]
@@ -37,7 +37,11 @@ __all__ = ["Oracle", "OracleConfig"]
 
 @dataclass
 class OracleConfig(BatchConfig):
-    """Oracle parameters: the graph model; the measurement sigmas come from the labels."""
+    """Oracle parameters: the graph model; the measurement sigmas come from the labels.
+
+    ``code_sigma_m`` and ``phase_sigma_m`` only serve preparing the data; the
+    oracle weights with the label sigmas.
+    """
 
 
 @register
@@ -46,7 +50,7 @@ class Oracle(BatchGraphEstimator):
 
     name = "oracle"
     Config = OracleConfig
-    uses_labels = True
+    requires = frozenset({Need.phase, Need.labels})
 
     def _prepare(self, data: ReceiverData):
         if self._labels is None:
@@ -57,7 +61,6 @@ class Oracle(BatchGraphEstimator):
                                             and np.array_equal(lab["sat"].to_numpy(), obs_tab["sat"].to_numpy())):
             raise SimbenchError("labels", "not row-aligned with the observations",
                                 "pass the labels of the same scenario")
-        self._validate()
         los = ~lab["nlos"].to_numpy(bool)
         clean = ReceiverData(obs_tab.loc[los].reset_index(drop=True), data.imu, data.nav)
         obs = prepare_ppp(clean, **self.config.prepare_kwargs())

@@ -29,7 +29,7 @@ Factors
 -------
 * code: ``gtsam.UndifferencedPseudorangeFactor`` -- ``rho = geodist + c dt + m_w ZWD + I``;
   ``geodist`` includes the Sagnac term (checked against
-  :func:`simbench.sim.geometry.sagnac_range` in the tests), so nothing is pre-applied for
+  :func:`simbench.gnss.geometry.sagnac_range` in the tests), so nothing is pre-applied for
   Earth rotation. The satellite clock is already in ``obs.code`` (``prepare_ppp``), so the
   factor's satellite clock argument is 0. The modelled slant hydrostatic delay
   (Saastamoinen + Niell at a per-epoch single point position) is subtracted from the
@@ -96,12 +96,15 @@ from typing import Any
 import gtsam
 import numpy as np
 
-from estimators.measurement import PppObservations, troposphere_terms
+from estimators.measurement import PppObservations
+from estimators.ppp_config import ClockModel, StochasticModelConfig
 from simbench.errors import SimbenchError
+from simbench.gnss.geometry import sagnac_range
+from simbench.gnss.spp import solve_epochs
+from simbench.gnss.troposphere import troposphere_terms
 from simbench.sim import atmosphere
-from simbench.sim.constants import C_LIGHT, OMEGA_EARTH
+from simbench.sim.constants import C_LIGHT
 from simbench.sim.frames import geodetic_from_ecef
-from simbench.sim.geometry import sagnac_range
 
 __all__ = [
     "ZERO_KEY",
@@ -147,33 +150,12 @@ ZERO_KEY = gtsam.symbol("z", 0)
 
 
 @dataclass
-class PppGraphConfig:
-    """Stochastic model of the PPP graph; defaults as :class:`estimators.ekf_ppp.EkfPppConfig` (Table 4.4.2)."""
+class PppGraphConfig(StochasticModelConfig):
+    """Stochastic model of the PPP graph: the shared Table 4.4.2 model of :class:`StochasticModelConfig`.
 
-    pos_sigma_m: float = 1.0  #: a priori position sigma per axis at the first epoch [m]
-    pos_rw_m_rts: float = 5.0  #: position random walk [m/sqrt(s)]
-    zwd_sigma_m: float = 0.3  #: a priori zenith wet delay sigma [m]
-    zwd_rw_m_rts: float = 3e-5  #: zenith wet delay random walk [m/sqrt(s)]
-    clock_sigma_m: float = 3e6  #: a priori receiver clock sigma [m] (every epoch)
-    clock_noise_m_rts: float = 2000.0  #: clock random walk [m/sqrt(s)] (clock_model random_walk)
-    clock_model: str = "white"  #: white (each epoch free, Table 4.4.2) | random_walk
-    ambiguity_sigma_m: float = 100.0  #: a priori arc bias sigma around phase - code [m]
-    code_sigma_m: float = 2.5  #: zenith code sigma [m], scaled by 1/sin(el)
-    phase_sigma_m: float = 0.025  #: zenith phase sigma [m], scaled by 1/sin(el)
-    elevation_mask_deg: float = 7.0
-    min_satellites: int = 4  #: epochs with fewer usable satellites are skipped
-    max_gap_epochs: int = 1  #: a larger epoch step within a satellite's rows starts a new arc
-    ionosphere_free: bool = False  #: L1/L2 ionosphere-free combination (needs dual frequency)
-    #: L1 only: a slant ionosphere residual per row (random walk along the arc), as the EKF's estimate_iono
-    estimate_iono: bool = True
-    iono_sigma_m: float = 2.0  #: a priori sigma of the slant residual after Klobuchar [m]
-    iono_rw_m_rts: float = 0.03  #: random walk of the slant residual [m/sqrt(s)]
-
-    def prepare_kwargs(self) -> dict[str, Any]:
-        """Keyword arguments of :func:`~estimators.measurement.prepare_ppp` for this config."""
-        return {"ionosphere_free": self.ionosphere_free, "code_sigma_m": self.code_sigma_m,
-                "phase_sigma_m": self.phase_sigma_m, "elevation_mask_deg": self.elevation_mask_deg,
-                "min_satellites": self.min_satellites, "max_gap_epochs": self.max_gap_epochs}
+    In the graph the clock prior holds at every epoch and the slant ionosphere
+    residual is one key per row, a random walk along its arc.
+    """
 
 
 #: Random-walk sigmas never go below this (two epochs with the same time) [m or s].
@@ -221,7 +203,13 @@ class PppGraph:
         self.with_iono = bool(cfg.estimate_iono and not obs.ionosphere_free)
         n, nk = obs.n_obs, obs.n_epochs
         self.row_epoch = np.repeat(np.arange(nk), obs.epoch_stop - obs.epoch_start)
-        self.spp_pos, self.spp_clock_m, hydro, self.wet_mapping = _batch_spp(obs, self.row_epoch)
+        # epochs without a trusted fit (four satellites in a bad geometry, NLOS) start from the
+        # nearest trusted epoch's position; the graph does the rest
+        spp = solve_epochs(self.row_epoch, obs.sat_pos, obs.code, n_epochs=nk, sigma=obs.sigma_code, el=obs.el,
+                           doy=obs.doy, fill_untrusted=True)
+        self.spp_pos, self.spp_clock_m = spp.pos, spp.clock_m[:, 0]
+        lat, _, h = geodetic_from_ecef(self.spp_pos)
+        hydro, self.wet_mapping = troposphere_terms(obs.el, lat[self.row_epoch], h[self.row_epoch], obs.doy)
         self.code_z = obs.code - hydro
         self.phase_z = obs.phase - hydro
         # rows of an arc in epoch order: the previous row of the same arc, or -1
@@ -258,7 +246,7 @@ class PppGraph:
                                           gtsam.noiseModel.Isotropic.Sigma(3, cfg.pos_sigma_m)))
             g.add(gtsam.PriorFactorDouble(zwd_key(0), self.zwd0, self._sigma1(cfg.zwd_sigma_m)))
             g.add(gtsam.PriorFactorDouble(ZERO_KEY, 0.0, self._sigma1(_ZERO_SIGMA)))
-        if k == 0 or cfg.clock_model == "white":
+        if k == 0 or cfg.clock_model == ClockModel.white:
             g.add(gtsam.PriorFactorDouble(clock_key(k), self.spp_clock_m[k] / C_LIGHT,
                                           self._sigma1(cfg.clock_sigma_m / C_LIGHT)))
         rows = obs.epoch_slice(k)
@@ -281,7 +269,7 @@ class PppGraph:
                                         gtsam.noiseModel.Isotropic.Sigma(3, self._rw(cfg.pos_rw_m_rts, dt))))
         g.add(gtsam.BetweenFactorDouble(zwd_key(k - 1), zwd_key(k), 0.0,
                                         self._sigma1(self._rw(cfg.zwd_rw_m_rts, dt))))
-        if cfg.clock_model == "random_walk":
+        if cfg.clock_model == ClockModel.random_walk:
             g.add(gtsam.BetweenFactorDouble(clock_key(k - 1), clock_key(k), 0.0,
                                             self._sigma1(self._rw(cfg.clock_noise_m_rts, dt) / C_LIGHT)))
         if self.with_iono:
@@ -563,61 +551,3 @@ def gauss_newton_step(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, o
         pass
     stepped = values.retract(linear.eliminateMultifrontal(ordering, gtsam.EliminateQR).optimize())
     return stepped, graph.error(stepped)
-
-
-def _batch_spp(obs: PppObservations, row_epoch: np.ndarray, iterations: int = 10
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Code-only weighted single point solutions of all epochs at once.
-
-    Gauss-Newton from the Earth's centre on every epoch in parallel (4x4 normal
-    equations per epoch); the hydrostatic troposphere joins once the iterates
-    are near the surface. Returns positions (n_epochs, 3), clocks times c
-    (n_epochs,), the slant hydrostatic delay per row and the wet mapping per row.
-    """
-    nk = obs.n_epochs
-    w = 1.0 / obs.sigma_code**2
-    pos = np.zeros((nk, 3))
-    clock = np.zeros(nk)
-    hydro = np.zeros(obs.n_obs)
-    m_w = np.ones(obs.n_obs)
-    wc = OMEGA_EARTH / C_LIGHT
-    for it in range(iterations + 3):
-        if it >= iterations - 3:  # troposphere from the (by now metre-level) position
-            lat, _, h = geodetic_from_ecef(pos)
-            h = np.clip(h, -1_000.0, 50_000.0)
-            hydro, m_w = troposphere_terms(obs.el, lat[row_epoch], h[row_epoch], obs.doy)
-        rx = pos[row_epoch]
-        d = obs.sat_pos - rx
-        dist = np.linalg.norm(d, axis=1)
-        rng = sagnac_range(obs.sat_pos, rx)
-        A = np.empty((obs.n_obs, 4))
-        A[:, :3] = -d / dist[:, None]
-        A[:, 0] -= wc * obs.sat_pos[:, 1]
-        A[:, 1] += wc * obs.sat_pos[:, 0]
-        A[:, 3] = 1.0
-        res = obs.code - (rng + clock[row_epoch] + (hydro if it >= iterations - 3 else 0.0))
-        N = np.zeros((nk, 4, 4))
-        b = np.zeros((nk, 4))
-        np.add.at(N, row_epoch, (A[:, :, None] * A[:, None, :]) * w[:, None, None])
-        np.add.at(b, row_epoch, A * (w * res)[:, None])
-        # pinv: an epoch with a degenerate geometry must not stop the others
-        dx = np.einsum("kij,kj->ki", np.linalg.pinv(N), b)
-        pos += dx[:, :3]
-        clock += dx[:, 3]
-    # epochs whose iteration diverged (four satellites in a bad geometry, NLOS) take the
-    # nearest good epoch's position and the clock that fits it; the graph does the rest
-    _, _, h = geodetic_from_ecef(pos)
-    good = np.isfinite(pos).all(axis=1) & (h > -1_000.0) & (h < 50_000.0)
-    if not good.any():
-        raise SimbenchError("observations", "no epoch has a usable single point solution",
-                            "check the observations (satellite positions, code units)")
-    if not good.all():
-        idx = np.flatnonzero(good)
-        near = idx[np.clip(np.searchsorted(idx, np.arange(nk)), 0, len(idx) - 1)]
-        pos[~good] = pos[near[~good]]
-        lat, _, h = geodetic_from_ecef(pos)
-        hydro, m_w = troposphere_terms(obs.el, lat[row_epoch], h[row_epoch], obs.doy)
-        res = obs.code - sagnac_range(obs.sat_pos, pos[row_epoch]) - hydro
-        mean_res = np.bincount(row_epoch, res, nk) / np.bincount(row_epoch, minlength=nk)
-        clock[~good] = mean_res[~good]
-    return pos, clock, hydro, m_w

@@ -4,7 +4,9 @@ Each :class:`Claim` names the sweep whose rows it reads, computes one number
 from them (``measured``) with a bootstrap confidence interval over seeds, and
 decides ``holds`` by a stated rule. Statistics are paired over seeds: every
 estimator saw byte-identical data for a given (scenario, seed). A claim whose
-rows are missing is ``not measured`` -- never ``holds``.
+rows are missing is ``not measured`` -- never ``holds``. Estimator settings
+(window length, prior scale) come from the structured ``overrides`` column
+(:mod:`simbench.variants`).
 """
 from __future__ import annotations
 
@@ -14,6 +16,8 @@ from typing import Callable
 import numpy as np
 import pandas as pd
 from scipy import stats
+
+from simbench.variants import config_defaults, is_default, override_value
 
 #: Columns of ``claims.csv``.
 CLAIM_COLUMNS = ["claim_id", "source", "statement", "metric", "measured", "published", "holds", "ci_low",
@@ -50,16 +54,17 @@ class Claim:
 
 
 def per_seed(summary: pd.DataFrame, sweep: str, estimators: list[str], column: str, receiver: str | None = None,
-             variant: str | None = "") -> pd.DataFrame | None:
+             default_only: bool = True) -> pd.DataFrame | None:
     """Seeds x estimators table of one summary column, only seeds where every estimator is ``ok``.
 
+    ``default_only`` keeps the rows whose estimator ran with its default settings (no overrides).
     Returns None when any estimator has no usable row (the claim is then not measured).
     """
     rows = summary[(summary["sweep"] == sweep) & summary["estimator"].isin(estimators)]
     if receiver is not None:
         rows = rows[rows["receiver"] == receiver]
-    if variant is not None:
-        rows = rows[rows["variant"].fillna("") == variant]
+    if default_only:
+        rows = rows[is_default(rows["overrides"])]
     rows = rows[rows["status"] == "ok"]
     if rows.empty:
         return None
@@ -119,7 +124,7 @@ def _ch4_convergence(summary: pd.DataFrame, epochs: pd.DataFrame, diagnostics: d
 
 def _ch4_medians(summary: pd.DataFrame, epochs: pd.DataFrame, diagnostics: dict) -> Outcome | None:
     # the sweep runs both in ionosphere-free mode: its one variant, not the default's
-    table = per_seed(summary, "ch4_convergence", ["isam2_ppp", "ekf_ppp"], "error_3d_median", variant=None)
+    table = per_seed(summary, "ch4_convergence", ["isam2_ppp", "ekf_ppp"], "error_3d_median", default_only=False)
     if table is None:
         return None
     value, lo, hi = ratio_of_means(table, "isam2_ppp", "ekf_ppp")
@@ -133,7 +138,7 @@ def _ch5_sensitivity(summary: pd.DataFrame, epochs: pd.DataFrame, diagnostics: d
                    & (summary["status"] == "ok")]
     if rows.empty or set(names) - set(rows["estimator"]):
         return None
-    means = rows.groupby(["estimator", "variant"])["horizontal_median"].mean()
+    means = rows.groupby(["estimator", "overrides"])["horizontal_median"].mean()
     spread = {name: float(means[name].max() / means[name].min()) for name in names}
     others = min(v for k, v in spread.items() if k != "bce")
     return Outcome(spread["bce"] / others, spread["bce"] <= others, n_seeds=int(rows["seed"].nunique()),
@@ -158,7 +163,7 @@ def _crt_window(summary: pd.DataFrame, epochs: pd.DataFrame, diagnostics: dict) 
                    & (summary["status"] == "ok")]
     if rows.empty:
         return None
-    window = rows["variant"].str.extract(r"window=(\d+)")[0].fillna("10").astype(int)
+    window = override_value(rows["overrides"], "window", config_defaults("crt_lss")["window"])
     per_l = rows.assign(L=window).groupby("L")["error_3d_p95"].mean()
     if len(per_l) < 3:
         return None

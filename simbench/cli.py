@@ -17,7 +17,7 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.types import RunMode
 from omegaconf import DictConfig, open_dict
 
-from simbench.compose import CONF_DIR, compose_config
+from simbench.compose import CONF_DIR, check_group_choices, compose_config
 from simbench.errors import SimbenchError
 
 SHOWN = ["estimator", "variant", "status", "availability", "horizontal_median", "horizontal_mean",
@@ -48,14 +48,16 @@ def _app(cfg: DictConfig) -> None:
 def main() -> None:
     """Entry point: compose once up front so a bad override gets one line, not Hydra's error page."""
     args = sys.argv[1:]
-    if not any(a.startswith("-") for a in args) and not any("," in a or "(" in a for a in args):
-        try:
-            cfg = compose_config(args)
-        except SimbenchError as exc:
-            print(f"error: {exc}", file=sys.stderr)
-            sys.exit(2)
-        if "studies" in cfg:
-            sys.exit(run_studies(list(cfg.studies), Path(cfg.results_dir), args))
+    composable = not any(a.startswith("-") for a in args) and not any("," in a or "(" in a for a in args)
+    try:
+        # group options are checked for sweeps and flags too: Hydra would only say "Could not load"
+        check_group_choices(a for a in args if not a.startswith("-"))
+        cfg = compose_config(args) if composable else None
+    except SimbenchError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        sys.exit(2)
+    if cfg is not None and "studies" in cfg:
+        sys.exit(run_studies(list(cfg.studies), Path(cfg.results_dir), args))
     _app()
 
 

@@ -3,17 +3,60 @@
 Hydra composes YAML from ``conf/``; :func:`to_typed` merges the result into
 these dataclasses, so code reads attributes with known types and units, and a
 malformed value fails early with a one-line :class:`~simbench.errors.SimbenchError`.
-Units are in the field names or in the comments.
+Units are in the field names or in the comments. Choice fields are ``str``
+Enums whose member names are the YAML words, so OmegaConf rejects any other
+value at composition, naming the key and the allowed values.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
-from typing import Any, TypeVar
+from enum import Enum
+from typing import Any, TypeVar, get_type_hints
 
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from simbench.errors import SimbenchError
+
+# --------------------------------------------------------------------------- choices
+
+
+class Choice(str, Enum):
+    """Base of the config choice Enums: a member prints, formats and JSON-encodes as its YAML word.
+
+    (``enum.StrEnum`` does this from Python 3.11; the package supports 3.10.)
+    """
+
+    def __str__(self) -> str:
+        return str(self.value)
+
+    def __format__(self, spec: str) -> str:
+        return format(str(self.value), spec)
+
+
+class TrajectoryKind(Choice):
+    """How the simulated vehicle moves."""
+
+    urban_drive = "urban_drive"  #: street grid with stops (:class:`UrbanDriveConfig`)
+    flight = "flight"  #: fixed-wing UAV (:class:`FlightConfig`)
+    replay = "replay"  #: a recorded trajectory file (:class:`ReplayConfig`)
+
+
+class ConstellationKind(Choice):
+    """Where the satellite orbits and clocks come from."""
+
+    nominal = "nominal"  #: GPS 24-slot constellation, no files
+    broadcast = "broadcast"  #: a RINEX GPS navigation file (``nav_path``)
+
+
+class ScenarioSource(Choice):
+    """Where a scenario's observations come from."""
+
+    simulated = "simulated"  #: the generator (:mod:`simbench.sim`)
+    rinex = "rinex"  #: a real RINEX 3 log (:mod:`simbench.data.rinex`)
+    librsf = "librsf"  #: a real libRSF GNSS text file (:mod:`simbench.data.librsf`)
+
 
 # --------------------------------------------------------------------------- trajectory
 
@@ -57,7 +100,7 @@ class ReplayConfig:
 
 @dataclass
 class TrajectoryConfig:
-    kind: str = "urban_drive"  #: urban_drive | flight | replay
+    kind: TrajectoryKind = TrajectoryKind.urban_drive  #: urban_drive | flight | replay
     origin_lat_deg: float = 39.6295  #: Morgantown, WV
     origin_lon_deg: float = -79.9559
     origin_h_m: float = 290.0
@@ -71,7 +114,7 @@ class TrajectoryConfig:
 
 @dataclass
 class ConstellationConfig:
-    kind: str = "nominal"  #: nominal (GPS 24-slot, no files) | broadcast (RINEX nav file)
+    kind: ConstellationKind = ConstellationKind.nominal  #: nominal (GPS 24-slot, no files) | broadcast (RINEX nav file)
     nav_path: str = ""  #: RINEX 2/3 GPS navigation file, for kind=broadcast
     elevation_mask_deg: float = 7.0
     #: Klobuchar coefficients handed to the receiver with the nominal constellation
@@ -191,7 +234,7 @@ class ErrorsConfig:
 class ScenarioConfig:
     name: str = "urban"
     #: simulated (the generator) | rinex | librsf (real logs, read by simbench.data)
-    source: str = "simulated"
+    source: ScenarioSource = ScenarioSource.simulated
     obs: str = ""  #: rinex: RINEX 3 observation file; librsf: libRSF GNSS text file
     nav: str = ""  #: rinex: RINEX GPS navigation file covering the observations
     nav_bds: str = ""  #: rinex: RINEX 3 BeiDou navigation file (when ``systems`` has C)
@@ -280,8 +323,31 @@ def to_typed(cfg: DictConfig | dict[str, Any], schema: type[T], where: str = "co
                             "check the value and its type in conf/ or on the command line") from None
 
 
+def check_choices(cfg: Any, where: str = "") -> None:
+    """Raise a one-line :class:`SimbenchError` for a choice field holding a value its Enum lacks.
+
+    OmegaConf checks every config composed from YAML or the command line; this
+    catches dataclasses built or changed in Python, recursively.
+
+    Parameters
+    ----------
+    cfg : dataclass instance
+    where : str
+        Config node name prefixed to the field in the message, e.g. ``estimator.l2``.
+    """
+    hints = get_type_hints(type(cfg))
+    for f in dataclasses.fields(cfg):
+        value, kind, key = getattr(cfg, f.name), hints[f.name], f"{where}.{f.name}" if where else f.name
+        if isinstance(kind, type) and issubclass(kind, Choice):
+            if value not in list(kind):
+                raise SimbenchError(key, f"unknown value '{value}'", f"use one of {', '.join(map(str, kind))}")
+        elif dataclasses.is_dataclass(value):
+            check_choices(value, key)
+
+
 def validate_sim(cfg: SimConfig) -> SimConfig:
-    """Check value ranges that the type system cannot (rates, durations, names)."""
+    """Check what the types cannot: value ranges, and the files a source or kind needs."""
+    check_choices(cfg)
     s = cfg.scenario
     if s.duration_s <= 0:
         raise SimbenchError("scenario.duration_s", f"must be positive, got {s.duration_s}",
@@ -292,25 +358,16 @@ def validate_sim(cfg: SimConfig) -> SimConfig:
     if not 100.0 <= cfg.imu.rate_hz <= 1000.0:
         raise SimbenchError("imu.rate_hz", f"must be within 100..1000 Hz, got {cfg.imu.rate_hz}",
                             "set e.g. imu.rate_hz=100")
-    if s.source not in ("simulated", "rinex", "librsf"):
-        raise SimbenchError("scenario.source", f"unknown source '{s.source}'", "use simulated, rinex or librsf")
-    if s.source != "simulated":
-        needed = {"rinex": ("obs", "nav", "truth") + (("nav_bds",) if "C" in s.systems else ()),
-                  "librsf": ("obs",)}[s.source]
-        for key in needed:
-            if not getattr(s, key):
-                raise SimbenchError(f"scenario.{key}", f"no file given for a {s.source} scenario",
-                                    f"set it on the command line, e.g. scenario.{key}=path/to/file")
-    if s.trajectory.kind not in ("urban_drive", "flight", "replay"):
-        raise SimbenchError("scenario.trajectory.kind", f"unknown kind '{s.trajectory.kind}'",
-                            "use urban_drive, flight or replay")
-    if s.constellation.kind not in ("nominal", "broadcast"):
-        raise SimbenchError("scenario.constellation.kind", f"unknown kind '{s.constellation.kind}'",
-                            "use nominal or broadcast")
-    if s.trajectory.kind == "replay" and not s.trajectory.replay.path:
+    needed = {ScenarioSource.rinex: ("obs", "nav", "truth") + (("nav_bds",) if "C" in s.systems else ()),
+              ScenarioSource.librsf: ("obs",)}.get(s.source, ())
+    for key in needed:
+        if not getattr(s, key):
+            raise SimbenchError(f"scenario.{key}", f"no file given for a {s.source} scenario",
+                                f"set it on the command line, e.g. scenario.{key}=path/to/file")
+    if s.trajectory.kind == TrajectoryKind.replay and not s.trajectory.replay.path:
         raise SimbenchError("scenario.trajectory.replay.path", "no trajectory file given",
                             "set it to a 'SOW X Y Z' file, e.g. ../shared/data/wvu_drives/drive_1.xyz")
-    if s.constellation.kind == "broadcast" and not s.constellation.nav_path:
+    if s.constellation.kind == ConstellationKind.broadcast and not s.constellation.nav_path:
         raise SimbenchError("scenario.constellation.nav_path", "no navigation file given",
                             "set it to a RINEX GPS navigation file, e.g. ../shared/data/wvu_drives/brdc.18n")
     for name, value in (("receiver.dll_bw_hz", cfg.receiver.dll_bw_hz),

@@ -4,7 +4,8 @@ A :class:`Scenario` holds four tables. Two of them are what a receiver gives an
 estimator (:class:`ReceiverData`): the observation table and the IMU table.
 The other two are truth: the trajectory and the per-observation error labels.
 Estimators only ever receive :class:`ReceiverData`; the runner hands labels
-only to estimators that declare ``uses_labels`` (the oracle).
+only to estimators that require :attr:`Need.labels` (the oracle), and skips an
+estimator whose :class:`Need` a scenario does not offer (:func:`available_needs`).
 
 Every column, its unit and its meaning is listed in the ``*_COLUMNS`` dicts
 below; README's column table is generated from the same dicts.
@@ -13,6 +14,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
+from enum import Enum
 from pathlib import Path
 from typing import Any
 
@@ -206,6 +208,66 @@ class Scenario:
         nav = meta["nav"]
         nav = NavInfo(**{**nav, "iono_alpha": tuple(nav["iono_alpha"]), "iono_beta": tuple(nav["iono_beta"])})
         return cls(tables["observations"], tables["imu"], tables["truth"], tables["labels"], nav, meta["meta"])
+
+
+class Need(str, Enum):
+    """An input an estimator may require and a scenario may or may not offer.
+
+    Estimators declare theirs (``Estimator.requires``); the runner compares
+    them with :func:`available_needs` and skips an estimator whose needs the
+    scenario cannot meet. Defined here, not in ``estimators/``, because
+    ``simbench/`` never imports ``estimators/``.
+    """
+
+    #: L1 carrier-phase rows (any finite ``phase_l1``).
+    phase = "phase"
+    #: An IMU table with at least two samples.
+    imu = "imu"
+    #: The per-observation error labels (only the oracle).
+    labels = "labels"
+    #: L2 code and phase (``nav.dual_frequency`` and any finite ``code_l2``).
+    dual_frequency = "dual_frequency"
+
+
+#: Why a scenario lacks each need, phrased for the ``message`` column of a skipped row.
+MISSING_NEED_REASONS: dict[Need, str] = {
+    Need.phase: "needs carrier phase; the observations have none (a code-only log)",
+    Need.imu: "needs an IMU table; the scenario has fewer than 2 IMU samples (a GNSS-only log)",
+    Need.labels: "needs error labels; the scenario (real data) has none",
+    Need.dual_frequency: "needs L2 code and phase; the observations are single-frequency",
+}
+
+
+def available_needs(scenario: Scenario) -> frozenset[Need]:
+    """The :class:`Need` members ``scenario`` can satisfy.
+
+    Parameters
+    ----------
+    scenario : Scenario
+
+    Returns
+    -------
+    frozenset of Need
+    """
+    obs = scenario.observations
+    offered = set()
+    if "phase_l1" in obs and np.isfinite(obs["phase_l1"].to_numpy(dtype=float)).any():
+        offered.add(Need.phase)
+    if scenario.imu is not None and len(scenario.imu) >= 2:
+        offered.add(Need.imu)
+    if scenario.labels is not None:
+        offered.add(Need.labels)
+    if (scenario.nav.dual_frequency and "code_l2" in obs
+            and np.isfinite(obs["code_l2"].to_numpy(dtype=float)).any()):
+        offered.add(Need.dual_frequency)
+    return frozenset(offered)
+
+
+def unmet_needs_reason(needs: frozenset[Need], offered: frozenset[Need]) -> str:
+    """One line saying which of ``needs`` a scenario offering ``offered`` (:func:`available_needs`)
+    cannot meet and why; ``""`` when all are met."""
+    missing = needs - offered
+    return "; ".join(MISSING_NEED_REASONS[n] for n in Need if n in missing)
 
 
 def write_parquet(df: pd.DataFrame, path: str | Path, metadata: dict[str, Any] | None = None) -> Path:

@@ -13,3 +13,15 @@ class SimbenchError(ValueError):
     def __init__(self, field: str, problem: str, fix: str) -> None:
         self.field = field
         super().__init__(f"{field}: {problem} -- {fix}")
+
+
+def require_positive(field: str, value: float, fix: str) -> None:
+    """Raise a one-line :class:`SimbenchError` naming ``field`` unless ``value > 0`` (NaN fails)."""
+    if not value > 0:
+        raise SimbenchError(field, f"must be positive, got {value}", fix)
+
+
+def require_at_least(field: str, value: float, low: float, fix: str) -> None:
+    """Raise a one-line :class:`SimbenchError` naming ``field`` unless ``value >= low`` (NaN fails)."""
+    if not value >= low:
+        raise SimbenchError(field, f"must be at least {low}, got {value}", fix)

@@ -1,5 +1,8 @@
 """Run estimators on a scenario and score them.
 
+An estimator whose declared needs (``Estimator.needs``) the scenario cannot
+meet -- carrier phase on a code-only log, an IMU table, error labels on real
+data -- is not run: its row has ``status = "skipped"`` and a one-line reason.
 A failing estimator does not stop the others: its exception becomes a status
 row (``status = "failed"`` and the one-line message) and the run goes on.
 """
@@ -15,7 +18,7 @@ from tqdm.auto import tqdm
 
 import estimators
 from simbench.config import to_typed
-from simbench.contract import Scenario
+from simbench.contract import Need, Scenario, available_needs, unmet_needs_reason
 from simbench.errors import SimbenchError
 from simbench.metrics import enu_errors, summary_stats
 
@@ -28,9 +31,13 @@ SUMMARY_COLUMNS: dict[str, str] = {
     "scenario": "str, scenario name", "receiver": "str, receiver preset", "seed": "int, scenario seed",
     "scenario_key": "str, hash of the resolved scenario config (same key = byte-identical data)",
     "estimator": "str, estimator name",
-    "variant": "str, estimator settings that differ from conf/estimator defaults, k=v,...",
+    "variant": "str, display label of the overrides, k=v,... ('' for the defaults); never parsed",
+    "overrides": "str, JSON object of the estimator settings that differ from its Config dataclass defaults "
+                 "(sorted keys; '{}' for the defaults); read with simbench.variants",
     "uses_labels": "bool, the estimator read error labels (oracle)",
-    "status": "str, ok | diverged | failed | skipped (label-using estimator on real data)", "message": "str, why, when not ok",
+    "status": "str, ok | diverged | failed | skipped (the scenario lacks data the estimator needs: "
+              "carrier phase, IMU, labels, L2)",
+    "message": "str, why, when not ok",
     "n_epochs": "int, epochs in the scenario", "n_solved": "int, epochs with a solution",
     "availability": "-, n_solved / n_epochs", "n_obs": "int, observation rows",
     "horizontal_median": "m", "horizontal_mean": "m", "horizontal_var": "m^2", "horizontal_std": "m",
@@ -44,7 +51,7 @@ SUMMARY_COLUMNS: dict[str, str] = {
 #: Columns of ``epochs.parquet`` (one row per solved epoch).
 EPOCH_COLUMNS: dict[str, str] = {
     "sweep": "str", "scenario": "str", "receiver": "str", "seed": "int", "scenario_key": "str",
-    "estimator": "str", "variant": "str",
+    "estimator": "str", "variant": "str", "overrides": "str, JSON (as in summary.parquet)",
     "epoch": "int, epoch index", "t": "s, since scenario start",
     "e": "m, east error", "n": "m, north error", "u": "m, up error",
     "horizontal": "m, sqrt(e^2 + n^2)", "error_3d": "m", "update_s": "s, update wall time",
@@ -81,19 +88,21 @@ def run_estimators(scenario: Scenario, estimator_configs: Mapping[str, Any], *, 
     key = {"scenario": scenario.meta.get("name", ""), "receiver": receiver, "seed": int(scenario.meta.get("seed", -1))}
     rows, frames, diagnostics = [], [], {}
     data = scenario.receiver_view()
+    offered = available_needs(scenario)  # once: every estimator is checked against the same data
     bar = tqdm(classes.items(), desc="estimators", disable=not progress, leave=False)
     for name, cls in bar:
         bar.set_postfix_str(name)
         row: dict[str, Any] = {**key, "estimator": name, "uses_labels": bool(cls.uses_labels),
                                "n_epochs": scenario.n_epochs, "n_obs": len(scenario.observations)}
-        if cls.uses_labels and scenario.labels is None:  # real logs: nothing to cheat with
-            row.update(status="skipped", message="needs error labels; the scenario (real data) has none",
-                       n_solved=0, availability=0.0)
-            rows.append(row)
-            continue
         try:
             est = cls(to_typed(estimator_configs[name] or {}, cls.Config, f"estimator.{name}"))
-            if cls.uses_labels:
+            needs = est.needs()
+            unmet = unmet_needs_reason(needs, offered)
+            if unmet:
+                row.update(status="skipped", message=unmet, n_solved=0, availability=0.0)
+                rows.append(row)
+                continue
+            if Need.labels in needs:
                 est.attach_labels(scenario.labels)
             sol = est.estimate(data)
         except Exception as exc:  # a failing estimator is a result, not a crash of the run

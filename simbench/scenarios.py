@@ -5,7 +5,7 @@ here as further branches, so the CLI and the sweep cache need not know them.
 """
 from __future__ import annotations
 
-from simbench.config import SimConfig, validate_sim
+from simbench.config import ScenarioSource, SimConfig, validate_sim
 from simbench.contract import Scenario
 from simbench.sim.generator import generate
 
@@ -18,12 +18,12 @@ def build_scenario(cfg: SimConfig) -> Scenario:
     ``labels=None`` and an empty IMU table.
     """
     sc = validate_sim(cfg).scenario
-    if sc.source == "rinex":
+    if sc.source == ScenarioSource.rinex:
         from simbench.data.rinex import load_rinex
 
         return load_rinex(sc.obs, sc.nav, sc.truth, systems=sc.systems, nav_bds_path=sc.nav_bds, name=sc.name,
                           truth_max_gap_s=sc.truth_max_gap_s)
-    if sc.source == "librsf":
+    if sc.source == ScenarioSource.librsf:
         from simbench.data.librsf import load_librsf
 
         return load_librsf(sc.obs, sc.truth or None, gps_week=sc.gps_week, start_sow_s=sc.start_sow_s,

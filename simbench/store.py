@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 import pandas as pd
+import pyarrow.parquet as pq
 
 from simbench.contract import Scenario, json_default, read_parquet_metadata, write_parquet
 from simbench.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS
@@ -37,7 +38,12 @@ def config_key(config: Any) -> str:
 
 
 def result_stem(run_dir: Path, scenario_key: str, estimator: str, estimator_config: Any) -> Path:
-    """Path stem of one estimator's results on one scenario."""
+    """Path stem of one estimator's results on one scenario.
+
+    ``estimator_config`` is the estimator's full composed config (every field,
+    choices as their YAML words), so a rerun of the same settings finds its
+    result whether a value came from the dataclass default, YAML or the command line.
+    """
     return Path(run_dir) / "jobs" / scenario_key / f"{estimator}-{config_key(estimator_config)}"
 
 
@@ -45,10 +51,14 @@ def is_finished(stem: Path) -> bool:
     """A result is finished once its summary row (written last) exists with status ``ok``.
 
     Failed and diverged results are retried by a rerun: the failure may have
-    been fixed in the meantime, and a deterministic failure costs little.
+    been fixed in the meantime, and a deterministic failure costs little. So is
+    a result written before a column joined :data:`SUMMARY_COLUMNS` (e.g.
+    ``overrides``): the aggregate must have every column in every row.
     """
     path = stem.with_suffix(".summary.parquet")
-    return path.is_file() and bool((pd.read_parquet(path, columns=["status"])["status"] == "ok").all())
+    if not path.is_file() or set(SUMMARY_COLUMNS) - set(pq.read_schema(path).names):
+        return False
+    return bool((pd.read_parquet(path, columns=["status"])["status"] == "ok").all())
 
 
 def write_result(stem: Path, summary: pd.DataFrame, epochs: pd.DataFrame, diagnostics: dict[str, Any],

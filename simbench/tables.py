@@ -1,7 +1,8 @@
 """Statistics tables over seeds: bootstrap confidence intervals and paired comparisons.
 
 A group is one (sweep, scenario, receiver); within it every estimator saw the
-same seeds' data, so comparisons are paired by seed.
+same seeds' data, so comparisons are paired by seed. Variants are told apart
+by the structured ``overrides`` column; ``variant`` is carried along as their label.
 """
 from __future__ import annotations
 
@@ -10,6 +11,10 @@ import pandas as pd
 from scipy import stats
 
 from simbench.claims import BOOTSTRAP_RESAMPLES, CONFIDENCE, CONVERGENCE_S, ratio_of_means
+from simbench.variants import NO_OVERRIDES, is_default
+
+#: Columns that identify a variant of an estimator: the structured overrides and their label.
+VARIANT = ["overrides", "variant"]
 
 GROUP = ["sweep", "scenario", "receiver"]
 
@@ -28,15 +33,16 @@ def _mean_ci(values: np.ndarray) -> tuple[float, float, float]:
 def seed_statistics(summary: pd.DataFrame) -> pd.DataFrame:
     """Per group, estimator and variant: mean over seeds of each statistic, CI of the median's mean.
 
-    Columns: group keys, estimator, variant, n_seeds, n_failed, horizontal_median (mean over seeds)
-    with ci_low/ci_high, horizontal_mean, horizontal_p95, horizontal_max, error_3d_median,
+    Columns: group keys, estimator, overrides, variant, n_seeds, n_failed, horizontal_median (mean
+    over seeds) with ci_low/ci_high, horizontal_mean, horizontal_p95, horizontal_max, error_3d_median,
     availability, time_per_obs_s, update_median_s.
     """
     out = []
-    for keys, rows in summary.groupby(GROUP + ["estimator", "variant"], dropna=False):
+    summary = summary.fillna({"overrides": NO_OVERRIDES, "variant": ""})
+    for keys, rows in summary.groupby(GROUP + ["estimator"] + VARIANT, dropna=False):
         ok = rows[rows["status"] == "ok"]
         med, lo, hi = _mean_ci(ok["horizontal_median"].to_numpy(float))
-        out.append({**dict(zip(GROUP + ["estimator", "variant"], keys)), "n_seeds": len(ok),
+        out.append({**dict(zip(GROUP + ["estimator"] + VARIANT, keys)), "n_seeds": len(ok),
                     "n_failed": int((rows["status"] != "ok").sum()), "horizontal_median": med, "ci_low": lo,
                     "ci_high": hi, **{c: float(ok[c].mean()) if len(ok) else np.nan for c in
                                       ("horizontal_mean", "horizontal_p95", "horizontal_max", "error_3d_median",
@@ -51,7 +57,7 @@ def paired_comparisons(summary: pd.DataFrame, baseline: str) -> pd.DataFrame:
     bootstrap CI, wins (fraction of seeds with a lower median) and the Wilcoxon signed-rank p-value.
     """
     out = []
-    ok = summary[(summary["status"] == "ok") & (summary["variant"].fillna("") == "")]
+    ok = summary[(summary["status"] == "ok") & is_default(summary["overrides"])]
     for keys, rows in ok.groupby(GROUP, dropna=False):
         table = rows.pivot_table(index=["seed"], columns="estimator", values="horizontal_median", aggfunc="first")
         if baseline not in table:
@@ -71,7 +77,7 @@ def paired_comparisons(summary: pd.DataFrame, baseline: str) -> pd.DataFrame:
 
 def oracle_gap(summary: pd.DataFrame, oracle: str = "oracle") -> pd.DataFrame:
     """Each estimator's mean per-seed median minus the oracle's, per group [m]."""
-    ok = summary[(summary["status"] == "ok") & (summary["variant"].fillna("") == "")]
+    ok = summary[(summary["status"] == "ok") & is_default(summary["overrides"])]
     out = []
     for keys, rows in ok.groupby(GROUP, dropna=False):
         table = rows.pivot_table(index="seed", columns="estimator", values="horizontal_median", aggfunc="first")
@@ -95,12 +101,12 @@ def convergence_statistics(epochs: pd.DataFrame, t_max: float = CONVERGENCE_S) -
     """
     if epochs.empty or epochs["t"].max() < 1.5 * t_max:
         return pd.DataFrame()
-    early = epochs[epochs["t"] < t_max]
-    per_run = early.groupby(["estimator", "variant", "seed"], dropna=False)["error_3d"].agg(["median", "mean", "max"])
+    early = epochs[epochs["t"] < t_max].fillna({"overrides": NO_OVERRIDES, "variant": ""})
+    per_run = early.groupby(["estimator"] + VARIANT + ["seed"], dropna=False)["error_3d"].agg(["median", "mean", "max"])
     out = []
-    for (name, variant), runs in per_run.groupby(level=["estimator", "variant"], dropna=False):
+    for (name, overrides, variant), runs in per_run.groupby(level=["estimator"] + VARIANT, dropna=False):
         mean, lo, hi = _mean_ci(runs["mean"].to_numpy(float))
-        out.append({"estimator": name, "variant": variant, "n_seeds": len(runs),
+        out.append({"estimator": name, "overrides": overrides, "variant": variant, "n_seeds": len(runs),
                     "error_3d_median": float(runs["median"].mean()), "error_3d_mean": mean, "ci_low": lo,
                     "ci_high": hi, "error_3d_max": float(runs["max"].mean())})
     return pd.DataFrame(out)

@@ -13,7 +13,7 @@ from estimators.batch_robust import (
     MmConfig,
     max_mixture_outliers,
 )
-from estimators.bce import Bce, BceAd, BceAdConfig, BceConfig
+from estimators.bce import FEATURES, Bce, BceAd, BceAdConfig, BceConfig
 from estimators.clustering import fit_dpgmm, mcfs_scores, select_features
 from estimators.ekf_ppp import EkfPpp
 from estimators.measurement import prepare_ppp
@@ -21,7 +21,7 @@ from estimators.oracle import Oracle
 from estimators.ppp_graph import PppGraph, PppGraphConfig, gauss_newton_step, solve
 from simbench.contract import Scenario
 from simbench.metrics import enu_errors
-from simbench.sim.geometry import sagnac_range
+from simbench.gnss.geometry import sagnac_range
 
 
 @pytest.fixture(scope="module")
@@ -206,7 +206,22 @@ def test_bce_records_the_mixture_of_every_iteration(open_sky: Scenario) -> None:
         assert np.array(m["covariances"]).shape == (len(m["weights"]), 2, 2)
 
 
-def test_bce_ad_records_selected_features(open_sky: Scenario) -> None:
-    sol = BceAd(BceAdConfig(max_iterations=2)).estimate(open_sky.receiver_view())
-    for h in sol.diagnostics["history"]:
-        assert len(h["selected_features"]) == 2
+@pytest.mark.parametrize("n_features", [2, 3])
+def test_bce_ad_records_selected_features(open_sky: Scenario, n_features: int) -> None:
+    sol = BceAd(BceAdConfig(max_iterations=2, n_features=n_features)).estimate(open_sky.receiver_view())
+    hist = sol.diagnostics["history"]
+    assert [h["iteration"] for h in hist] == list(range(1, len(hist) + 1))
+    assert 1 <= len(hist) <= 2 and sol.diagnostics["iterations"] == len(hist)
+    n_obs = sol.diagnostics["n_observations"]
+    assert n_obs > 0
+    for h in hist:
+        chosen = h["selected_features"]
+        scores = np.asarray(h["mcfs_scores"])
+        assert scores.shape == (len(FEATURES),) and np.isfinite(scores).all()
+        # MCFS keeps the n best-scoring of the five, in FEATURES order
+        best = sorted(np.argsort(-scores, kind="stable")[:n_features])
+        assert chosen == [FEATURES[i] for i in best]
+        mix = h["mixture"]
+        assert abs(sum(mix["weights"]) - 1) < 1e-9
+        assert sum(mix["counts"]) == n_obs  # every observation belongs to one component
+        assert np.array(mix["covariances"]).shape == (len(mix["weights"]), 2, 2)

@@ -6,7 +6,9 @@ import sys
 from pathlib import Path
 
 import pandas as pd
+import pytest
 
+from simbench.compose import available, config_groups
 from simbench.contract import read_parquet_metadata
 from simbench.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS
 
@@ -58,3 +60,69 @@ def test_cli_negative_duration_is_one_line(tmp_path: Path) -> None:
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines()[-1].startswith("error: scenario.duration_s")
     assert "Traceback" not in proc.stderr
+
+
+def _one_error_line(proc: subprocess.CompletedProcess) -> str:
+    assert proc.returncode == 2, proc.stderr[-2000:]
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), proc.stderr[-2000:]
+    return lines[0]
+
+
+@pytest.mark.parametrize("source", ["missing_rinex", "malformed_librsf"])
+def test_cli_scenario_that_cannot_be_built_ends_the_run_in_one_line(tmp_path: Path, source: str) -> None:
+    if source == "missing_rinex":
+        args, problem = ("scenario=rinex", f"scenario.obs={tmp_path / 'none.obs'}"), "file does not exist"
+    else:
+        bad = tmp_path / "bad.txt"
+        bad.write_text("garbage line\n1 2 3\n")
+        args, problem = ("scenario=librsf", f"scenario.obs={bad}"), "unknown line types"
+    out = tmp_path / "run"
+    proc = _run(*args, "estimator=[ekf_ppp,l2]", f"results_dir={out}", "progress=false")
+    line = _one_error_line(proc)
+    assert line.startswith("error: scenario.obs") and problem in line
+    assert "failed" not in proc.stdout and "ekf_ppp" not in proc.stdout
+    assert not (out / "jobs").exists() and not (out / "summary.parquet").exists()
+
+
+def test_cli_sweep_records_a_scenario_failure_and_goes_on(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.txt"
+    bad.write_text("garbage line\n")
+    out = tmp_path / "sweep"
+    proc = _run("-m", "scenario=librsf", f"scenario.obs={bad}", "seed=0,1", "estimator=[ekf_ppp,l2]",
+                f"results_dir={out}", "progress=false")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    summary = pd.read_parquet(out / "summary.parquet")
+    assert len(summary) == 4 and (summary["status"] == "failed").all()
+    assert sorted(summary["seed"].unique()) == [0, 1]
+    assert summary["message"].str.contains("unknown line types").all()
+
+
+@pytest.mark.parametrize("args", [("estimator=[nosuch]",), ("estimator=nosuch",), ("estimator=[ekf_ppp,nosuch]",),
+                                  ("-m", "estimator=[ekf_ppp],[nosuch]")])
+def test_cli_unknown_estimator_names_the_known_ones(args: tuple[str, ...]) -> None:
+    line = _one_error_line(_run(*args))
+    assert line.startswith("error: estimator: unknown estimator 'nosuch'")
+    assert all(name in line for name in available("estimator"))
+    assert "Could not load" not in line
+
+
+def test_cli_unknown_scenario_in_a_sweep_is_one_line() -> None:
+    line = _one_error_line(_run("-m", "scenario=urban,mars"))
+    assert "unknown scenario 'mars'" in line and "flight" in line
+
+
+def test_cli_help_says_what_simbench_is_and_lists_the_groups() -> None:
+    proc = _run("--help")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    text = proc.stdout
+    assert text.startswith("simbench -- a simulation-and-benchmark harness")
+    for command in ("pip install -e . && python -m simbench", "+sweep=smoke", "python -m simbench.report"):
+        assert command in text
+    assert "schema" not in text and "powered by Hydra" not in text
+    lines = text.splitlines()
+    for group in config_groups():
+        key = "+sweep" if group == "sweep" else group
+        line = next(ln for ln in lines if ln.startswith(f"  {key}: "))
+        assert line.split(": ", 1)[1].split("  (")[0] == ", ".join(available(group))
+    assert {"estimator", "scenario", "receiver", "imu", "sweep"} <= set(config_groups())

@@ -1,7 +1,6 @@
 """EKF PPP: convergence on exact synthetic data, fresh biases for new arcs, configuration."""
 from __future__ import annotations
 
-import dataclasses
 import importlib.util
 import sys
 from pathlib import Path
@@ -9,7 +8,6 @@ from pathlib import Path
 import numpy as np
 import pymap3d
 import pytest
-import yaml
 
 import estimators
 import simbench
@@ -81,13 +79,6 @@ def test_errors_and_registry() -> None:
     with pytest.raises(SimbenchError, match="clock_model"):
         EkfPpp(EkfPppConfig(clock_model="pink")).estimate(single)
     assert estimators.get("ekf_ppp") is EkfPpp
-
-
-def test_yaml_holds_every_field_with_the_defaults() -> None:
-    path = Path(__file__).resolve().parents[1] / "conf" / "estimator" / "ekf_ppp.yaml"
-    node = yaml.safe_load(path.read_text())
-    assert list(node) == ["ekf_ppp"]
-    assert node["ekf_ppp"] == dataclasses.asdict(EkfPppConfig())
 
 
 def test_iono_states_absorb_code_phase_divergence() -> None:

@@ -13,7 +13,9 @@ import simbench
 from estimators.base import SOLUTION_COLUMNS, Solution
 from simbench.compose import CONF_DIR
 from simbench.config import to_typed
+from simbench.contract import MISSING_NEED_REASONS, Need, NavInfo, Scenario, available_needs
 from simbench.errors import SimbenchError
+from simbench.runner import run_estimators
 
 NAMES = sorted(estimators.registered())
 
@@ -29,17 +31,38 @@ def _config(name: str):
     return cls, to_typed(node, cls.Config, f"estimator.{name}")
 
 
+def _needs(name: str) -> frozenset[Need]:
+    cls, cfg = _config(name)
+    return cls(cfg).needs()
+
+
+#: (estimator, need) for every need an estimator declares under its conf/estimator defaults.
+DECLARED = [(name, need) for name in NAMES for need in sorted(_needs(name), key=lambda n: n.value)]
+
+
+def _without(scenario: Scenario, need: Need) -> Scenario:
+    """``scenario`` with exactly what ``need`` names taken away."""
+    obs, imu, labels, nav = scenario.observations, scenario.imu, scenario.labels, scenario.nav
+    if need is Need.phase:
+        obs = obs.assign(phase_l1=np.nan, phase_l2=np.nan)
+    elif need is Need.imu:
+        imu = imu.iloc[:0]
+    elif need is Need.labels:
+        labels = None
+    elif need is Need.dual_frequency:
+        obs = obs.assign(code_l2=np.nan, phase_l2=np.nan)
+        nav = NavInfo(**{**nav.__dict__, "dual_frequency": False})
+    return Scenario(obs, imu, scenario.truth, labels, nav, scenario.meta)
+
+
 def test_registry_is_not_empty() -> None:
     assert "ekf_ppp" in NAMES
 
 
 @pytest.mark.parametrize("name", NAMES)
-def test_config_file_matches_config_class(name: str) -> None:
-    cls = estimators.get(name)
-    assert dataclasses.is_dataclass(cls.Config)
-    node = yaml.safe_load((CONF_DIR / "estimator" / f"{name}.yaml").read_text())
-    assert list(node) == [name], "estimator yaml must nest its fields under its own name"
-    assert set(node[name]) == {f.name for f in dataclasses.fields(cls.Config)}
+def test_config_is_a_dataclass_and_runs_by_default(name: str) -> None:
+    # conf/estimator/<name>.yaml against the dataclass: tests/test_config_files.py
+    assert dataclasses.is_dataclass(estimators.get(name).Config)
     defaults = yaml.safe_load((CONF_DIR / "config.yaml").read_text())["defaults"]
     selected = next(d["estimator"] for d in defaults if isinstance(d, dict) and "estimator" in d)
     assert name in selected, "every registered estimator runs by default"
@@ -49,7 +72,7 @@ def test_config_file_matches_config_class(name: str) -> None:
 def test_estimate_returns_a_timed_per_epoch_solution(name: str, scenario: simbench.Scenario) -> None:
     cls, cfg = _config(name)
     est = cls(cfg)
-    if cls.uses_labels:
+    if Need.labels in est.needs():
         est.attach_labels(scenario.labels)
     data = scenario.receiver_view()
     before = data.observations.copy()
@@ -74,7 +97,7 @@ def test_deterministic(name: str, scenario: simbench.Scenario) -> None:
     runs = []
     for _ in range(2):
         est = cls(cfg)
-        if cls.uses_labels:
+        if Need.labels in est.needs():
             est.attach_labels(scenario.labels)
         runs.append(est.estimate(scenario.receiver_view()).epochs[["x", "y", "z"]].to_numpy())
     np.testing.assert_array_equal(runs[0], runs[1])
@@ -83,9 +106,87 @@ def test_deterministic(name: str, scenario: simbench.Scenario) -> None:
 @pytest.mark.parametrize("name", NAMES)
 def test_labels_only_for_the_oracle(name: str, scenario: simbench.Scenario) -> None:
     cls, cfg = _config(name)
-    if not cls.uses_labels:
+    assert cls.uses_labels == (Need.labels in cls.requires) == (name == "oracle")
+    if name != "oracle":
         with pytest.raises(PermissionError):
             cls(cfg).attach_labels(scenario.labels)
+        return
+    with pytest.raises(SimbenchError, match="needs the error labels"):
+        cls(cfg).estimate(scenario.receiver_view())
+    # the oracle really reads them: labelling a third of the satellites' code 100x noisier moves the solution
+    runs = []
+    for factor in (1.0, 100.0):
+        labels = scenario.labels.copy()
+        labels.loc[labels["sat"].str.endswith(("1", "3", "5")), "sigma_code_l1"] *= factor
+        est = cls(cfg)
+        est.attach_labels(labels)
+        sol = est.estimate(scenario.receiver_view())
+        runs.append(sol.epochs[["x", "y", "z"]].to_numpy())
+        assert sol.diagnostics["median_code_sigma_m"] > 0
+    assert np.max(np.linalg.norm(runs[0] - runs[1], axis=1)) > 1e-3
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_needs_are_declared_needs(name: str) -> None:
+    cls, cfg = _config(name)
+    declared = cls(cfg).needs()
+    assert isinstance(declared, frozenset) and declared <= frozenset(Need)
+    assert all(isinstance(n, Need) for n in declared)
+
+
+def test_needs_follow_the_config() -> None:
+    cls = estimators.get("ekf_ppp")
+    assert cls(cls.Config()).needs() == {Need.phase}
+    assert cls(cls.Config(use_phase=False)).needs() == frozenset()
+    assert cls(cls.Config(ionosphere_free=True)).needs() == {Need.phase, Need.dual_frequency}
+    l2 = estimators.get("l2")
+    assert l2(l2.Config(ionosphere_free=True)).needs() == {Need.phase, Need.dual_frequency}
+
+
+def test_the_simulated_scenario_offers_phase_imu_and_labels(scenario: simbench.Scenario) -> None:
+    offered = available_needs(scenario)
+    assert {Need.phase, Need.imu, Need.labels} <= offered
+    for need in Need:
+        assert need not in available_needs(_without(scenario, need))
+
+
+@pytest.mark.parametrize(("name", "need"), DECLARED, ids=[f"{n}-{d.value}" for n, d in DECLARED])
+def test_unmet_need_is_skipped_with_a_reason(name: str, need: Need, scenario: simbench.Scenario) -> None:
+    res = run_estimators(_without(scenario, need), {name: None}, progress=False)
+    row = res.summary.iloc[0]
+    assert row["status"] == "skipped", row["message"]
+    assert MISSING_NEED_REASONS[need] in row["message"] and "\n" not in row["message"]
+    assert row["n_solved"] == 0 and res.epochs.empty
+
+
+def test_runner_skips_gnss_ins_without_imu_and_phase_estimators_on_code_only_data(
+        scenario: simbench.Scenario) -> None:
+    no_imu = run_estimators(_without(scenario, Need.imu), {"ekf_ins": None, "crt_lss": None}, progress=False)
+    assert list(no_imu.summary["status"]) == ["skipped", "skipped"]
+    assert no_imu.summary["message"].str.contains("IMU").all()
+    code_only = _without(scenario, Need.phase)
+    phase_users = ["l2", "isam2_ppp", "ekf_ppp", "oracle"]
+    rows = run_estimators(code_only, dict.fromkeys(phase_users), progress=False).summary.set_index("estimator")
+    assert (rows.loc[phase_users, "status"] == "skipped").all()
+    assert rows.loc[phase_users, "message"].str.contains("carrier phase").all()
+    # the code-only EKF has nothing missing and runs
+    code_ekf = run_estimators(code_only, {"ekf_ppp": {"use_phase": False}}, progress=False).summary.iloc[0]
+    assert code_ekf["status"] == "ok" and code_ekf["n_solved"] > 0
+    single = run_estimators(_without(scenario, Need.dual_frequency), {"l2": {"ionosphere_free": True}},
+                            progress=False).summary.iloc[0]
+    assert single["status"] == "skipped" and single["message"] == MISSING_NEED_REASONS[Need.dual_frequency]
+
+
+def test_invalid_config_fails_at_construction() -> None:
+    for name, field, value in (("ekf_ppp", "code_sigma_m", 0.0), ("l2", "min_satellites", 3),
+                               ("mm", "outlier_weight", 1.5), ("isam2_dcs", "phi", -1.0), ("ice", "alpha", 2.0),
+                               ("bce_ad", "n_features", 9), ("isam2_ppp", "lag_s", -1.0),
+                               ("isam2_mm", "outlier_weight", 0.0), ("bce", "fit_sample", -1),
+                               ("dcs", "lm_max_iterations", 0), ("isam2_ppp", "relinearize_skip", 0)):
+        cls = estimators.get(name)
+        with pytest.raises(SimbenchError, match=f"estimator.{name}.{field}") as info:
+            cls(cls.Config(**{field: value}))
+        assert "\n" not in str(info.value)
 
 
 def test_unknown_estimator_name_is_one_line() -> None:

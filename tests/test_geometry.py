@@ -10,24 +10,24 @@ import pytest
 
 from simbench.errors import SimbenchError
 from simbench.sim.constants import C_LIGHT, DEG, OMEGA_EARTH
-from simbench.sim.geometry import (
-    elevation_azimuth,
-    line_of_sight,
-    sagnac_range,
-)
+from simbench.gnss.geometry import elevation_azimuth, sagnac_range
+from simbench.sim.geometry import line_of_sight
+from simbench.data.navigation import read_gps_navigation
 from simbench.sim.orbits import BroadcastEphemeris, NominalConstellation
 
-BRDC = Path("/work/shared/data/wvu_drives/brdc.18n")
 T0 = 2032 * 604800 + 432000.0 + 12 * 3600.0  # 2018-12-21 12:00 GPS
 SITE = np.array(pymap3d.geodetic2ecef(39.6, -79.96, 290.0))
+
+
+@pytest.fixture(scope="module")
+def brdc(shared_data: Path) -> Path:
+    return shared_data / "wvu_drives" / "brdc.18n"
 
 
 @pytest.fixture(scope="module", params=["broadcast", "nominal"])
 def constellation(request):
     if request.param == "broadcast":
-        if not BRDC.exists():
-            pytest.skip("WVU data not present")
-        return BroadcastEphemeris.from_rinex(BRDC)
+        return read_gps_navigation(request.getfixturevalue("brdc"))
     return NominalConstellation()
 
 
@@ -178,9 +178,7 @@ def test_line_of_sight_bad_inputs():
         line_of_sight(SITE, None, np.array([]), c)
 
 
-def test_line_of_sight_outside_ephemeris_coverage():
-    if not BRDC.exists():
-        pytest.skip("WVU data not present")
-    eph = BroadcastEphemeris.from_rinex(BRDC)
+def test_line_of_sight_outside_ephemeris_coverage(brdc: Path):
+    eph = read_gps_navigation(brdc)
     with pytest.raises(SimbenchError, match=r"^t_gps: .*brdc\.18n covers 2018-12-20 22:00:00"):
         line_of_sight(SITE, None, np.array([T0, T0 + 5 * 86400.0]), eph)

@@ -1,14 +1,19 @@
-"""GNSS/INS building blocks and the EKF / IEKF: levelling, Doppler model, accuracy, gating."""
+"""GNSS/INS building blocks and the EKF / IEKF: levelling, code and Doppler models, accuracy, gating, validation."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
 import simbench
-from estimators.crt_lss import CrtLssConfig, prepare_gnss_ins, run_gnss_ins
-from estimators.gnss_ins_ekf import EkfIns, EkfInsConfig, IekfIns
-from estimators.ins_mechanisation import level_roll_pitch, range_rate
-from simbench.contract import ReceiverData
+from estimators.crt_lss import CrtLssConfig
+from estimators.gnss_ins_data import prepare_gnss_ins
+from estimators.gnss_ins_driver import run_gnss_ins
+from estimators.gnss_ins_ekf import EkfIns, EkfInsConfig, IekfIns, IekfInsConfig
+from estimators.ins_mechanisation import level_roll_pitch
+from simbench.contract import Need, ReceiverData
+from simbench.errors import SimbenchError
+from simbench.gnss.doppler import range_rate
+from simbench.gnss.geometry import sagnac_range
 from simbench.metrics import enu_errors
 
 
@@ -71,3 +76,37 @@ def test_ekf_gate_rejects_an_injected_outlier(scenario: simbench.Scenario) -> No
     moved_open = np.linalg.norm(open_gate[xyz].to_numpy()[at] - ref.epochs[xyz].to_numpy()[at])
     assert moved_gated < 0.3  # dropping one satellite changes the geometry: decimetres
     assert moved_open > 1.0
+
+
+def test_prepared_code_is_range_plus_clock_after_the_troposphere(scenario: simbench.Scenario) -> None:
+    """Code minus the true range and clock is noise plus the Klobuchar residual; an unmodelled
+    troposphere would leave its ~2.5 m zenith delay mapped up (>= 2.5 m) in the median."""
+    prep = prepare_gnss_ins(scenario.receiver_view(), CrtLssConfig())
+    truth = scenario.truth.set_index("epoch")
+    assert len(prep.fixes) == len(prep.gnss) == scenario.n_epochs  # open sky: every epoch fixes
+    res, fix_err = [], []
+    for e, g in prep.gnss.items():
+        p = truth.loc[e, ["x", "y", "z"]].to_numpy(float)
+        res.append(g.code - sagnac_range(g.sat_pos, p) - truth.loc[e, "rx_clock"])
+        fix_err.append(np.linalg.norm(prep.fixes[e].pos - p))
+    assert abs(np.median(np.concatenate(res))) < 1.0
+    assert np.median(fix_err) < 5.0
+
+
+@pytest.mark.parametrize(("cls", "cfg", "field"), [
+    (EkfIns, EkfInsConfig(gate=0.0), "gate"),
+    (EkfIns, EkfInsConfig(level_s=0.0), "level_s"),
+    (IekfIns, IekfInsConfig(lambda_d=-1.0), "lambda_d"),
+    (IekfIns, IekfInsConfig(tol=0.0), "tol"),
+])
+def test_filters_declare_the_imu_and_reject_bad_configs(cls, cfg, field: str) -> None:
+    assert cls.requires == frozenset({Need.imu})
+    with pytest.raises(SimbenchError, match=rf"^estimator\.{cls.name}\.{field}: must be"):
+        cls(cfg)
+
+
+def test_an_imu_table_of_one_row_is_a_one_line_error(scenario: simbench.Scenario) -> None:
+    data = scenario.receiver_view()
+    short = ReceiverData(data.observations, data.imu.iloc[:1], data.nav)
+    with pytest.raises(SimbenchError, match=r"^imu: the GNSS/INS estimators need the IMU table"):
+        EkfIns().estimate(short)

@@ -11,13 +11,14 @@ import pandas as pd
 import pymap3d
 import pytest
 
-from estimators.measurement import arc_ids, predict, prepare_ppp, single_point_solution
+from estimators.measurement import arc_ids, predict, prepare_ppp
 from simbench.contract import NavInfo, ReceiverData
 from simbench.errors import SimbenchError
 from simbench.sim import atmosphere
 from simbench.sim.constants import DEG, IONO_L2_SCALE, LAMBDA_L1, LAMBDA_L2, SECONDS_PER_WEEK
 from simbench.sim.frames import geodetic_from_ecef
-from simbench.sim.geometry import line_of_sight, sagnac_range
+from simbench.gnss.geometry import sagnac_range
+from simbench.sim.geometry import line_of_sight
 from simbench.sim.gpstime import day_of_year
 from simbench.sim.orbits import NominalConstellation
 
@@ -178,17 +179,6 @@ def test_geodetic_matches_pymap3d() -> None:
         p = np.array(pymap3d.geodetic2ecef(lat, lon, h))
         la, lo, hh = geodetic_from_ecef(p)
         assert abs(np.degrees(la) - lat) < 1e-9 and abs(np.degrees(lo) - lon) < 1e-9 and abs(hh - h) < 1e-4
-
-
-def test_single_point_solution_from_earth_centre() -> None:
-    rx, sat, el = _one_epoch()
-    doy = day_of_year(WEEK, SOW0)
-    lat, _, h = geodetic_from_ecef(rx)
-    code = sagnac_range(sat, rx) + 777.0 + atmosphere.tropo_slant_m(el, lat, h, doy, 0.0)
-    pos, clock = single_point_solution(sat, code, el=el, doy=doy)
-    assert np.linalg.norm(pos - rx) < 1e-3 and abs(clock - 777.0) < 1e-3
-    with pytest.raises(SimbenchError):
-        single_point_solution(sat[:3], code[:3])
 
 
 # --------------------------------------------------------------------------- preparation

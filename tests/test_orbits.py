@@ -1,4 +1,4 @@
-"""Tests of simbench.sim.orbits: broadcast ephemeris vs precise orbits, nominal constellation."""
+"""Orbits (simbench.sim.orbits) and their file readers (simbench.data.navigation, .sp3): broadcast vs precise, nominal."""
 from __future__ import annotations
 
 import math
@@ -11,30 +11,25 @@ import pytest
 from simbench.errors import SimbenchError
 from simbench.sim.constants import C_LIGHT, DEG, OMEGA_EARTH
 from simbench.sim.geometry import line_of_sight
-from simbench.sim.orbits import (
-    BroadcastEphemeris,
-    NominalConstellation,
-    datetime64_to_gps,
-    gps_to_datetime64,
-    load_sp3,
-)
-
-DATA = Path("/work/shared/data")
-BRDC = DATA / "wvu_drives" / "brdc.18n"
-SP3 = DATA / "wvu_drives" / "rapid.sp3"
-RINEX3_NAV = DATA / "hk_tst_2019" / "hksc1180.19n"
-
-needs_data = pytest.mark.skipif(not BRDC.exists() or not SP3.exists(), reason="WVU drive data not present")
+from simbench.data.navigation import read_gps_navigation
+from simbench.data.sp3 import read_sp3
+from simbench.sim.gpstime import datetime64_to_gps, gps_to_datetime64
+from simbench.sim.orbits import BroadcastEphemeris, NominalConstellation
 
 
 @pytest.fixture(scope="module")
-def eph() -> BroadcastEphemeris:
-    return BroadcastEphemeris.from_rinex(BRDC)
+def wvu(shared_data: Path) -> Path:
+    return shared_data / "wvu_drives"
 
 
 @pytest.fixture(scope="module")
-def sp3():
-    return load_sp3(SP3)
+def eph(wvu: Path) -> BroadcastEphemeris:
+    return read_gps_navigation(wvu / "brdc.18n")
+
+
+@pytest.fixture(scope="module")
+def sp3(wvu: Path):
+    return read_sp3(wvu / "rapid.sp3")
 
 
 @pytest.fixture(scope="module")
@@ -60,7 +55,6 @@ def test_gps_time_conversion_known_epochs():
 # --------------------------------------------------------------------------- loading
 
 
-@needs_data
 def test_brdc_loads_gps_only_with_klobuchar(eph):
     # G04 is in the file but flagged unhealthy (63) all day, so it is dropped.
     assert "G04" not in eph.sats
@@ -74,9 +68,8 @@ def test_brdc_loads_gps_only_with_klobuchar(eph):
     assert t1 == 2032 * 604800 + 432000 + 86384 + 7200
 
 
-@pytest.mark.skipif(not RINEX3_NAV.exists(), reason="HK data not present")
-def test_rinex3_nav_file_loads():
-    e = BroadcastEphemeris.from_rinex(RINEX3_NAV)
+def test_rinex3_nav_file_loads(shared_data: Path):
+    e = read_gps_navigation(shared_data / "hk_tst_2019" / "hksc1180.19n")
     np.testing.assert_allclose(e.iono_alpha, [9.3132e-09, 1.4901e-08, -5.9605e-08, -1.1921e-07])
     np.testing.assert_allclose(e.iono_beta, [8.8064e04, 4.9152e04, -1.3107e05, -3.2768e05])
     st = e.states(np.array([e.t_coverage[0] + 4 * 3600.0]))
@@ -85,7 +78,6 @@ def test_rinex3_nav_file_loads():
     assert np.all(np.abs(r - 26_560e3) < 0.03 * 26_560e3)  # a (1 +- e), e < 0.03
 
 
-@needs_data
 def test_sp3_parser(sp3):
     assert sp3.t_gps.size == 96 and np.all(np.diff(sp3.t_gps) == 900.0)
     assert sp3.t_gps[0] == 2032 * 604800 + 432000
@@ -110,7 +102,7 @@ def test_sp3_missing_values_become_nan(tmp_path):
     )
     p = tmp_path / "x.sp3"
     p.write_text(text)
-    o = load_sp3(p)
+    o = read_sp3(p)
     assert o.sats.tolist() == ["G01", "G02"]
     assert np.isnan(o.clock[0, 0]) and np.isnan(o.pos[0, 1]).all() and np.isnan(o.pos[1, 1]).all()
     assert o.clock[0, 1] == pytest.approx(-91.45762e-6)
@@ -120,7 +112,6 @@ def test_sp3_missing_values_become_nan(tmp_path):
 # --------------------------------------------------------------------------- accuracy vs SP3
 
 
-@needs_data
 def test_broadcast_positions_match_sp3(brdc_vs_sp3, sp3):
     common, st, j_eph, j_sp3 = brdc_vs_sp3
     assert st.valid[:, j_eph].all()
@@ -142,7 +133,6 @@ def test_broadcast_positions_match_sp3(brdc_vs_sp3, sp3):
     assert np.median(err) < 2.0
 
 
-@needs_data
 def test_broadcast_clocks_match_sp3(brdc_vs_sp3, sp3):
     common, st, j_eph, j_sp3 = brdc_vs_sp3
     pos, vel = st.pos[:, j_eph], st.vel[:, j_eph]
@@ -173,8 +163,6 @@ def test_broadcast_clocks_match_sp3(brdc_vs_sp3, sp3):
 @pytest.mark.parametrize("which", ["broadcast", "nominal"])
 def test_velocity_and_clock_drift_match_central_difference(which, request):
     if which == "broadcast":
-        if not BRDC.exists():
-            pytest.skip("no data")
         c = request.getfixturevalue("eph")
         t = c.t_coverage[0] + 7200 + np.arange(0.0, 86400 - 7200, 97.3)
     else:
@@ -266,7 +254,6 @@ def test_nominal_visible_satellites_mid_latitude():
 # --------------------------------------------------------------------------- record selection
 
 
-@needs_data
 def test_select_records_closest_toe(eph):
     t = np.array([eph.record_toe[0] + 1.0, eph.t_coverage[1] + 1.0])
     idx = eph.select_records(t)
@@ -304,16 +291,15 @@ def test_selection_across_gps_week_boundary():
     assert abs(step - np.linalg.norm(s.vel[0, 0])) < 1.0
 
 
-@needs_data
-def test_week_number_of_toc_instead_of_toe_is_repaired(tmp_path, eph):
+def test_week_number_of_toc_instead_of_toe_is_repaired(tmp_path, eph, wvu):
     # Some writers put Toc's week next to Toe; simulate a wrong week on G01's first record.
-    lines = BRDC.read_text().splitlines()
+    lines = (wvu / "brdc.18n").read_text().splitlines()
     k = next(i for i, ln in enumerate(lines) if ln.startswith(" 1 18 12 21  0  0"))
     assert "0.203200000000D+04" in lines[k + 5]
     lines[k + 5] = lines[k + 5].replace("0.203200000000D+04", "0.203300000000D+04")
     p = tmp_path / "brdc_badweek.18n"
     p.write_text("\n".join(lines) + "\n")
-    bad = BroadcastEphemeris.from_rinex(p)
+    bad = read_gps_navigation(p)
     t = np.array([eph.record_toe[0] + 600.0])
     np.testing.assert_array_equal(bad.states(t).pos, eph.states(t).pos)
 
@@ -329,7 +315,7 @@ def _one_line(exc: pytest.ExceptionInfo) -> str:
 
 def test_missing_nav_file(tmp_path):
     with pytest.raises(SimbenchError) as exc:
-        BroadcastEphemeris.from_rinex(tmp_path / "nope.18n")
+        read_gps_navigation(tmp_path / "nope.18n")
     msg = _one_line(exc)
     assert msg.startswith("nav_file") and "nope.18n" in msg and "does not exist" in msg
 
@@ -339,24 +325,20 @@ def test_garbage_nav_file(tmp_path, content):
     p = tmp_path / "garbage.18n"
     p.write_text(content)
     with pytest.raises(SimbenchError) as exc:
-        BroadcastEphemeris.from_rinex(p)
+        read_gps_navigation(p)
     msg = _one_line(exc)
     assert "garbage.18n" in msg and "RINEX navigation" in msg
 
 
-@needs_data
-def test_non_nav_files_rejected():
+def test_non_nav_files_rejected(shared_data: Path):
     with pytest.raises(SimbenchError, match=r"rapid\.sp3.*SP3 orbit file"):
-        BroadcastEphemeris.from_rinex(SP3)
+        read_gps_navigation(shared_data / "wvu_drives" / "rapid.sp3")
     with pytest.raises(SimbenchError, match=r"drive_1\.xyz.*not a RINEX file"):
-        BroadcastEphemeris.from_rinex(DATA / "wvu_drives" / "drive_1.xyz")
-    beidou = DATA / "hk_tst_2019" / "hksc1180.19b"
-    if beidou.exists():
-        with pytest.raises(SimbenchError, match=r"hksc1180\.19b.*no GPS"):
-            BroadcastEphemeris.from_rinex(beidou)
+        read_gps_navigation(shared_data / "wvu_drives" / "drive_1.xyz")
+    with pytest.raises(SimbenchError, match=r"hksc1180\.19b.*no GPS"):
+        read_gps_navigation(shared_data / "hk_tst_2019" / "hksc1180.19b")
 
 
-@needs_data
 def test_times_outside_coverage(eph):
     t_ok = eph.t_coverage[1] - 60.0
     with pytest.raises(SimbenchError) as exc:
@@ -385,8 +367,8 @@ def test_bad_time_arguments():
 
 def test_sp3_bad_input(tmp_path):
     with pytest.raises(SimbenchError, match="sp3_file.*does not exist"):
-        load_sp3(tmp_path / "none.sp3")
+        read_sp3(tmp_path / "none.sp3")
     p = tmp_path / "bad.sp3"
     p.write_text("hello\n")
     with pytest.raises(SimbenchError, match=r"sp3_file.*bad\.sp3.*not an SP3 file"):
-        load_sp3(p)
+        read_sp3(p)

@@ -1,6 +1,7 @@
 """RINEX 3 ingest on the Hong Kong u-blox log, references, bad input, the real-data scenario path."""
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -10,42 +11,44 @@ import pytest
 
 import estimators
 from estimators.base import Estimator
-from estimators.measurement import prepare_ppp, single_point_solution
+from estimators.measurement import prepare_ppp
+from simbench.gnss.spp import solve_epochs
 from simbench.config import SimConfig
-from simbench.contract import OBSERVATION_COLUMNS, Scenario
+from simbench.contract import MISSING_NEED_REASONS, OBSERVATION_COLUMNS, Need, Scenario
 from simbench.data.reference import match_reference, read_reference
 from simbench.data.rinex import RinexObs, _satellite_states, load_rinex, read_rinex_obs
 from simbench.errors import SimbenchError
 from simbench.runner import run_estimators
 from simbench.scenarios import build_scenario
 from simbench.sim.constants import C_LIGHT, SECONDS_PER_WEEK
-from simbench.sim.geometry import sagnac_range
-from simbench.sim.orbits import BroadcastEphemeris, load_sp3
+from simbench.gnss.geometry import sagnac_range
+from simbench.data.navigation import read_gps_navigation
+from simbench.data.sp3 import read_sp3
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 HK = DATA / "hk_tst_2019"
 OBS, NAV, TRUTH = HK / "COM3_190428_124409.obs", HK / "hksc1180.19n", HK / "groundTruth_TST.csv"
 
 WVU = DATA / "wvu_drives"
-needs_hk = pytest.mark.skipif(not OBS.is_file(), reason="Hong Kong data not available")
+# the conftest fixture fails these tests when ../shared is missing (skips with SIMBENCH_ALLOW_MISSING_SHARED)
+needs_shared = pytest.mark.usefixtures("shared_data")
+needs_hk = needs_shared
 
 
 @pytest.fixture(scope="module")
-def hk() -> Scenario:
-    if not OBS.is_file():
-        pytest.skip("Hong Kong data not available")
+def hk(shared_data: Path) -> Scenario:
     return load_rinex(OBS, NAV, TRUTH, name="hk")
 
 
-@pytest.mark.skipif(not (WVU / "rapid.sp3").is_file(), reason="WVU data not available")
+@needs_shared
 def test_transmit_time_states_match_sp3() -> None:
     """The ingest's transmit-time orbit (brdc.18n) against JPL rapid orbits at the same instants.
 
     Pseudoranges are built so that the transmit time lands exactly on SP3 epochs:
     P = c (tau - dt_sv) with the receive tag t_k + tau.
     """
-    sp3 = load_sp3(WVU / "rapid.sp3")
-    eph = BroadcastEphemeris.from_rinex(WVU / "brdc.18n")
+    sp3 = read_sp3(WVU / "rapid.sp3")
+    eph = read_gps_navigation(WVU / "brdc.18n")
     k = np.arange(4, 92, 8)
     t_k = sp3.t_gps[k]
     common = [s for s in sp3.sats.tolist() if s in set(eph.sats.tolist())]
@@ -111,14 +114,16 @@ def test_single_point_solution_within_tens_of_metres(hk: Scenario) -> None:
     obs = prepare_ppp(hk.receiver_view(), ionosphere_free=False, code_sigma_m=2.5, phase_sigma_m=0.03,
                       elevation_mask_deg=10.0, require_phase=False)
     truth = hk.truth.set_index("epoch")[["x", "y", "z"]]
+    row_k = np.repeat(np.arange(obs.n_epochs), obs.epoch_stop - obs.epoch_start)
+    fixes = solve_epochs(row_k, obs.sat_pos, obs.code, sigma=obs.sigma_code, el=obs.el, doy=obs.doy,
+                         system_index=obs.system_index)
     horiz, resid = [], []
     for k, rows in obs.iter_epochs():
         e = int(obs.epoch_ids[k])
-        if e not in truth.index:
+        if e not in truth.index or not fixes.trusted[k]:
             continue
         ref = truth.loc[e].to_numpy()
-        pos, clk = single_point_solution(obs.sat_pos[rows], obs.code[rows], obs.sigma_code[rows],
-                                         el=obs.el[rows], doy=obs.doy, x0=ref)
+        pos = fixes.pos[k]
         lat, lon, _ = pymap3d.ecef2geodetic(*ref)
         de, dn, _ = pymap3d.ecef2enuv(*(pos - ref), lat, lon)
         horiz.append(np.hypot(de, dn))
@@ -189,9 +194,15 @@ def test_scenario_dispatch_validates_paths() -> None:
         build_scenario(cfg)
 
 
+@dataclasses.dataclass
+class _NoParameters:
+    pass
+
+
 class _LabelUser(Estimator):
     name = "label_user_test"
-    uses_labels = True
+    Config = _NoParameters
+    requires = frozenset({Need.labels})
 
     def _estimate(self, data):  # pragma: no cover - must never run on real data
         raise AssertionError("ran without labels")
@@ -204,6 +215,8 @@ def test_label_estimators_are_skipped_on_real_data(hk: Scenario, monkeypatch: py
     res = run_estimators(hk, {_LabelUser.name: {}, "ekf_ppp": {"use_phase": False}}, progress=False)
     rows = res.summary.set_index("estimator")
     assert rows.loc[_LabelUser.name, "status"] == "skipped"
+    assert rows.loc[_LabelUser.name, "message"] == MISSING_NEED_REASONS[Need.labels]
+    assert bool(rows.loc[_LabelUser.name, "uses_labels"])
     assert rows.loc["ekf_ppp", "status"] == "ok"
     # scored only where the reference exists
     assert rows.loc["ekf_ppp", "n_epochs"] == len(hk.truth)

@@ -1,6 +1,7 @@
 """Sweeps: store layout, resume after a kill, failure isolation, report rebuild."""
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -64,14 +65,15 @@ def test_killed_sweep_resumes_without_recomputing(tmp_path: Path) -> None:
 
 def test_failing_job_leaves_a_status_row_and_the_report_builds(tmp_path: Path) -> None:
     out = tmp_path / "failing"
-    # ionosphere-free processing of single-frequency data is a user error inside the estimator
-    proc = _simbench("-m", "scenario.dual_frequency=true,false", "estimator.ekf_ppp.ionosphere_free=true",
-                     f"results_dir={out}", *SHORT)
+    # a mask no satellite clears: the estimator raises inside its run, the sweep goes on;
+    # ionosphere-free processing of single-frequency data is an unmet need: skipped, not failed
+    proc = _simbench("-m", "estimator.ekf_ppp.elevation_mask_deg=10,89", f"results_dir={out}", *SHORT)
     assert proc.returncode == 0, proc.stderr[-2000:]
     summary = pd.read_parquet(out / "summary.parquet").set_index("status")
     assert set(summary.index) == {"ok", "failed"}
-    assert "ionosphere_free" in summary.loc["failed", "message"]
-    assert summary.loc["ok", "variant"] == "ionosphere_free=True"
+    assert "mask" in summary.loc["failed", "message"]
+    assert summary.loc["ok", "variant"] == "elevation_mask_deg=10.0"
+    assert json.loads(summary.loc["ok", "overrides"]) == {"elevation_mask_deg": 10.0}
     assert "Jobs not ok" in (out / "report" / "index.html").read_text()
 
 
@@ -88,3 +90,18 @@ def test_report_rebuilds_from_job_files(tmp_path: Path) -> None:
     bad = subprocess.run([sys.executable, "-m", "simbench.report", str(tmp_path / "nothing")], cwd=ROOT,
                          capture_output=True, text=True, timeout=60)
     assert bad.returncode == 2 and bad.stderr.strip().startswith("error: run_dir")
+
+
+def test_a_result_from_before_the_overrides_column_is_recomputed(tmp_path: Path) -> None:
+    from simbench.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS
+    from simbench.store import is_finished, write_result
+
+    stem = tmp_path / "jobs" / "0123456789abcdef" / "l2-fedcba9876543210"
+    row = pd.DataFrame([{c: None for c in SUMMARY_COLUMNS}]).assign(status="ok", overrides="{}", seed=0)
+    epochs = pd.DataFrame(columns=list(EPOCH_COLUMNS))
+    write_result(stem, row, epochs, {}, {})
+    assert is_finished(stem)
+    write_result(stem, row.drop(columns=["overrides"]), epochs, {}, {})
+    assert not is_finished(stem)
+    write_result(stem, row.assign(status="failed"), epochs, {}, {})
+    assert not is_finished(stem)

@@ -1,155 +1,98 @@
-"""BeiDou (BDS) broadcast ephemerides: the GPS Keplerian algorithm with BDS constants and time.
+"""RINEX 3 BeiDou navigation files -> :class:`~simbench.sim.beidou_orbits.BeidouEphemeris`.
 
-Differences from GPS (BDS-SIS-ICD-B1I 3.0, section 5.2.4):
-
-* CGCS2000 constants: mu = 3.986004418e14 m^3/s^2, Earth rate 7.2921150e-5 rad/s;
-  the relativistic constant follows as F = -2 sqrt(mu) / c^2;
-* BeiDou time: BDT = GPST - 14 s, BDT week 0 = GPS week 1356; Toe is in
-  seconds of the BDT week and Omega0 refers to the BDT week start;
-* geostationary satellites (C01-C05, C59-C63) are computed in a frame that
-  does not rotate with the Earth (``Omega_k = Omega0 + OmegaDot tk - Omega_e
-  Toe``) and then rotated: ``x = R_Z(Omega_e tk) R_X(-5 deg) x_GK``;
-* the clock refers to B3I: a B1I user applies ``dt_sv - TGD1``.
-
-Everything else (record selection by closest Toe, Kepler solution, harmonic
-corrections) is :class:`simbench.sim.orbits.BroadcastEphemeris`; times stay
-continuous GPS seconds, so BeiDou and GPS states come out in one time scale.
+The ephemeris computation (CGCS2000 constants, BDT, geostationary rotation)
+lives in :mod:`simbench.sim.beidou_orbits`; this module only parses the file
+and converts BDT weeks and seconds to continuous GPS seconds.
 """
 from __future__ import annotations
 
-import math
 import os
 
 import numpy as np
 
 from simbench.errors import SimbenchError
-from simbench.sim.constants import C_LIGHT, DEG, SECONDS_PER_WEEK
+from simbench.sim.beidou_orbits import BDT_WEEK_OFFSET, GPS_MINUS_BDT_S, BeidouEphemeris
+from simbench.sim.constants import SECONDS_PER_WEEK
 from simbench.sim.gpstime import datetime64_to_gps
-from simbench.sim.orbits import FIT_HALF_WINDOW_S, BroadcastEphemeris
+from simbench.sim.orbits import FIT_HALF_WINDOW_S
 
-__all__ = ["BeidouEphemeris", "BDS_MU", "BDS_OMEGA_EARTH", "GPS_MINUS_BDT_S", "BDT_WEEK_OFFSET"]
-
-BDS_MU: float = 3.986004418e14  #: CGCS2000 gravitational parameter [m^3/s^2]
-BDS_OMEGA_EARTH: float = 7.2921150e-5  #: CGCS2000 Earth rotation rate [rad/s]
-BDS_F_REL: float = -2.0 * math.sqrt(BDS_MU) / C_LIGHT**2  #: relativistic clock constant [s/sqrt(m)]
-GPS_MINUS_BDT_S: float = 14.0  #: GPST - BDT [s]
-BDT_WEEK_OFFSET: int = 1356  #: GPS week of BDT week 0
-#: Geostationary PRNs (BDS-2 C01-C05, BDS-3 C59-C63).
-GEO_PRNS = frozenset([1, 2, 3, 4, 5, 59, 60, 61, 62, 63])
-_GEO_TILT_RAD = -5.0 * DEG
+__all__ = ["read_beidou_navigation"]
 
 #: Record quantities the orbit and clock need (``tgd`` is TGD1, the B1I group delay).
 _FIELDS = ("af0", "af1", "af2", "crs", "dn", "m0", "cuc", "e", "cus", "sqrta", "cic", "omega0", "cis", "i0",
            "crc", "w", "omegadot", "idot", "tgd")
 
 
-class BeidouEphemeris(BroadcastEphemeris):
-    """BeiDou broadcast ephemerides (see the module docstring); ``tgd`` holds TGD1 (B1I).
+def read_beidou_navigation(path: str | os.PathLike[str], max_age_s: float = FIT_HALF_WINDOW_S) -> BeidouEphemeris:
+    """Read BeiDou ephemerides from a RINEX 3 navigation file.
 
-    Build with :meth:`from_rinex_bds`. ``records`` as for
-    :class:`~simbench.sim.orbits.BroadcastEphemeris`, with ``toe``/``toc`` in
-    continuous GPS seconds.
+    An own fixed-column reader: georinex 1.16 returns all-NaN records for
+    files whose spare fields are blank (as in ``hksc1180.19b``).
+
+    Parameters
+    ----------
+    path : str or PathLike
+        RINEX 3 navigation file; only ``C`` (BeiDou) records are read, and
+        unhealthy or incomplete ones are dropped.
+    max_age_s : float
+        Largest |t - Toe| at which a record may be used [s]; default 7200.
+
+    Returns
+    -------
+    BeidouEphemeris
+        Toe/Toc converted from BDT to continuous GPS seconds; ``tgd`` is TGD1.
+
+    Raises
+    ------
+    SimbenchError
+        Missing file, not RINEX 3 navigation data, or no healthy BeiDou record.
     """
-
-    def __init__(self, sats: np.ndarray, records: dict[str, np.ndarray], iono_alpha: np.ndarray | None = None,
-                 iono_beta: np.ndarray | None = None, source: str = "",
-                 max_age_s: float = FIT_HALF_WINDOW_S) -> None:
-        super().__init__(sats, records, iono_alpha, iono_beta, source, max_age_s)
-        # The parent sorted the records by (sat, toe) and derived its constants
-        # with GPS values; redo the constant-dependent parameters for BDS.
-        order = np.lexsort((records["toe"], records["sat"]))
-        r = {k: np.asarray(v)[order] for k, v in records.items()}
-        prn = np.array([int(s[1:3]) for s in self.sats.tolist()])
-        self._geo_record = np.isin(prn, list(GEO_PRNS))[self._sat_idx]
-        toe_bdt_sow = np.mod(self._toe - GPS_MINUS_BDT_S, SECONDS_PER_WEEK)
-        a = r["sqrta"] ** 2
-        p = self._p
-        p["n"] = np.sqrt(BDS_MU / a**3) + r["dn"]
-        p["lam0"] = r["omega0"] - BDS_OMEGA_EARTH * toe_bdt_sow
-        p["lamdot"] = np.where(self._geo_record, r["omegadot"], r["omegadot"] - BDS_OMEGA_EARTH)
-        p["frel"] = BDS_F_REL * r["e"] * r["sqrta"]
-        self._param_table = np.stack(list(p.values()), axis=0)
-
-    def _kepler(self, gi: np.ndarray, tk: np.ndarray, tc: np.ndarray, pos: np.ndarray, vel: np.ndarray,
-                clk: np.ndarray, drift: np.ndarray) -> None:
-        """Parent algorithm, then the GEO rotation from the inertial-like frame into BDCS."""
-        super()._kepler(gi, tk, tc, pos, vel, clk, drift)
-        geo = self._geo_record[gi]
-        if not geo.any():
-            return
-        t = tk[geo]
-        th = BDS_OMEGA_EARTH * t
-        ct, st = np.cos(th), np.sin(th)
-        cp, sp = math.cos(_GEO_TILT_RAD), math.sin(_GEO_TILT_RAD)
-        x, v = pos[geo], vel[geo]
-        # R_X(phi) = [[1,0,0],[0,c,s],[0,-s,c]] then R_Z(th) = [[c,s,0],[-s,c,0],[0,0,1]]
-        def rx(u: np.ndarray) -> np.ndarray:
-            return np.stack([u[:, 0], cp * u[:, 1] + sp * u[:, 2], -sp * u[:, 1] + cp * u[:, 2]], axis=1)
-        xr, vr = rx(x), rx(v)
-        pos[geo] = np.stack([ct * xr[:, 0] + st * xr[:, 1], -st * xr[:, 0] + ct * xr[:, 1], xr[:, 2]], axis=1)
-        w = BDS_OMEGA_EARTH
-        vel[geo] = np.stack([ct * vr[:, 0] + st * vr[:, 1] + w * (-st * xr[:, 0] + ct * xr[:, 1]),
-                             -st * vr[:, 0] + ct * vr[:, 1] + w * (-ct * xr[:, 0] - st * xr[:, 1]),
-                             vr[:, 2]], axis=1)
-
-    @classmethod
-    def from_rinex_bds(cls, path: str | os.PathLike[str], max_age_s: float = FIT_HALF_WINDOW_S) -> BeidouEphemeris:
-        """Read BeiDou ephemerides from a RINEX 3 navigation file.
-
-        An own fixed-column reader: georinex 1.16 returns all-NaN records for
-        files whose spare fields are blank (as in ``hksc1180.19b``).
-
-        Raises
-        ------
-        SimbenchError
-            Missing file, not RINEX 3 navigation data, or no healthy BeiDou record.
-        """
-        p = os.fspath(path)
-        field = f"scenario.nav_bds '{p}'"
-        fix = "pass a RINEX 3 BeiDou navigation file (e.g. hksc1180.19b)"
-        if not os.path.isfile(p):
-            raise SimbenchError(field, "file does not exist", fix)
-        with open(p, errors="replace") as fh:
-            lines = fh.read().splitlines()
-        if not lines or lines[0][20:21] != "N" or not lines[0][:9].strip().startswith("3"):
-            raise SimbenchError(field, "is not RINEX 3 navigation data", fix)
-        body = next((i + 1 for i, ln in enumerate(lines) if "END OF HEADER" in ln), None)
-        if body is None:
-            raise SimbenchError(field, "has no END OF HEADER line", fix)
-        stamps, values = [], []
-        i = body
-        while i + 7 < len(lines) + 1:  # 8-line records; text parsing is one step per record
-            head = lines[i]
-            if not head.startswith("C"):
-                i += 1
-                continue
-            rec = [_num(head[23 + 19 * k:42 + 19 * k]) for k in range(3)]
-            for ln in lines[i + 1:i + 8]:
-                rec += [_num(ln[4 + 19 * k:23 + 19 * k]) for k in range(4)]
-            f = head[4:23].split()
-            stamps.append(f"{head[:3]} {int(f[0]):04d}-{int(f[1]):02d}-{int(f[2]):02d}T{int(f[3]):02d}:"
-                          f"{int(f[4]):02d}:{int(float(f[5])):02d}")
-            values.append(rec)
-            i += 8
-        if not values:
-            raise SimbenchError(field, "contains no BeiDou ephemerides", fix)
-        a = np.array(values, dtype=float)
-        col = {name: k for k, name in enumerate(_LAYOUT) if name}
-        v = {key: a[:, col[key]] for key in _FIELDS}
-        sv = np.array([st[:3] for st in stamps])
-        toc = datetime64_to_gps(np.array([st[4:] for st in stamps], dtype="datetime64[s]")) + GPS_MINUS_BDT_S
-        week, toe_sow, health = a[:, col["week"]], a[:, col["toe"]], a[:, col["health"]]
-        keep = np.all(np.isfinite(np.stack(list(v.values()))), axis=0) & np.isfinite(week) & np.isfinite(toe_sow) \
-            & (health == 0) & (v["sqrta"] > 1000.0)
-        if not keep.any():
-            raise SimbenchError(field, "has no complete healthy BeiDou record", fix)
-        toe = (week[keep] + BDT_WEEK_OFFSET) * SECONDS_PER_WEEK + toe_sow[keep] + GPS_MINUS_BDT_S
-        toc = toc[keep]
-        toe += SECONDS_PER_WEEK * np.round((toc - toe) / SECONDS_PER_WEEK)
-        sats, sat_idx = np.unique(sv[keep], return_inverse=True)
-        records = {k: x[keep] for k, x in v.items()}
-        records.update(sat=sat_idx, toe=toe, toc=toc)
-        return cls(sats, records, source=os.path.basename(p), max_age_s=max_age_s)
+    p = os.fspath(path)
+    field = f"scenario.nav_bds '{p}'"
+    fix = "pass a RINEX 3 BeiDou navigation file (e.g. hksc1180.19b)"
+    if not os.path.isfile(p):
+        raise SimbenchError(field, "file does not exist", fix)
+    with open(p, errors="replace") as fh:
+        lines = fh.read().splitlines()
+    if not lines or lines[0][20:21] != "N" or not lines[0][:9].strip().startswith("3"):
+        raise SimbenchError(field, "is not RINEX 3 navigation data", fix)
+    body = next((i + 1 for i, ln in enumerate(lines) if "END OF HEADER" in ln), None)
+    if body is None:
+        raise SimbenchError(field, "has no END OF HEADER line", fix)
+    stamps, values = [], []
+    i = body
+    while i + 7 < len(lines) + 1:  # 8-line records; text parsing is one step per record
+        head = lines[i]
+        if not head.startswith("C"):
+            i += 1
+            continue
+        rec = [_num(head[23 + 19 * k:42 + 19 * k]) for k in range(3)]
+        for ln in lines[i + 1:i + 8]:
+            rec += [_num(ln[4 + 19 * k:23 + 19 * k]) for k in range(4)]
+        f = head[4:23].split()
+        stamps.append(f"{head[:3]} {int(f[0]):04d}-{int(f[1]):02d}-{int(f[2]):02d}T{int(f[3]):02d}:"
+                      f"{int(f[4]):02d}:{int(float(f[5])):02d}")
+        values.append(rec)
+        i += 8
+    if not values:
+        raise SimbenchError(field, "contains no BeiDou ephemerides", fix)
+    a = np.array(values, dtype=float)
+    col = {name: k for k, name in enumerate(_LAYOUT) if name}
+    v = {key: a[:, col[key]] for key in _FIELDS}
+    sv = np.array([st[:3] for st in stamps])
+    toc = datetime64_to_gps(np.array([st[4:] for st in stamps], dtype="datetime64[s]")) + GPS_MINUS_BDT_S
+    week, toe_sow, health = a[:, col["week"]], a[:, col["toe"]], a[:, col["health"]]
+    keep = np.all(np.isfinite(np.stack(list(v.values()))), axis=0) & np.isfinite(week) & np.isfinite(toe_sow) \
+        & (health == 0) & (v["sqrta"] > 1000.0)
+    if not keep.any():
+        raise SimbenchError(field, "has no complete healthy BeiDou record", fix)
+    toe = (week[keep] + BDT_WEEK_OFFSET) * SECONDS_PER_WEEK + toe_sow[keep] + GPS_MINUS_BDT_S
+    toc = toc[keep]
+    toe += SECONDS_PER_WEEK * np.round((toc - toe) / SECONDS_PER_WEEK)
+    sats, sat_idx = np.unique(sv[keep], return_inverse=True)
+    records = {k: x[keep] for k, x in v.items()}
+    records.update(sat=sat_idx, toe=toe, toc=toc)
+    return BeidouEphemeris(sats, records, source=os.path.basename(p), max_age_s=max_age_s)
 
 
 #: Order of the 31 numbers of a RINEX 3 BeiDou record (3 on the first line, 4 on each of 7 more).

@@ -41,11 +41,13 @@ import pandas as pd
 
 from simbench.contract import NavInfo, Scenario
 from simbench.data.reference import Reference, match_reference, read_reference, truth_table
-from simbench.data.rinex import empty_imu, epoch_grid, receiver_positions
+from simbench.data.rinex import empty_imu, epoch_grid
 from simbench.errors import SimbenchError
 from simbench.sim.constants import DEG, SECONDS_PER_WEEK
 from simbench.sim.frames import geodetic_from_ecef
-from simbench.sim.geometry import elevation_azimuth
+from simbench.gnss.geometry import elevation_azimuth
+from simbench.gnss.spp import ROUGH_FIX_MAX_RMS_M, solve_epochs
+from simbench.gnss.troposphere import troposphere_terms
 from simbench.sim.gpstime import day_of_year
 
 __all__ = ["LibrsfLog", "read_librsf", "read_librsf_points", "load_librsf", "write_synthetic_librsf",
@@ -195,14 +197,13 @@ def load_librsf(path: str | os.PathLike[str], truth_path: str | os.PathLike[str]
     n_grid = int(grid[-1]) + 1
     sat_pos = rg[["sat_x", "sat_y", "sat_z"]].to_numpy(float)
     rho = rg["rho"].to_numpy(float)
-    rx = receiver_positions(row_epoch, sat_pos, rho, t_epoch.size)
+    rx = solve_epochs(row_epoch, sat_pos, rho, n_epochs=t_epoch.size, max_rms_m=ROUGH_FIX_MAX_RMS_M,
+                      fill_untrusted=True).pos
     el_rad, az_rad = (a[:, 0] for a in elevation_azimuth(rx[row_epoch], sat_pos[:, None, :]))
     el_file = rg["el"].to_numpy(float)
     el_deg = np.where(np.isfinite(el_file), el_file, np.degrees(el_rad))
 
     # Re-insert the modelled hydrostatic delay that the shared model subtracts (module docstring).
-    from estimators.measurement import troposphere_terms
-
     t0_sow = start_sow_s + log.t0
     doy = day_of_year(gps_week, t0_sow)
     lat, _, h = geodetic_from_ecef(np.median(rx, axis=0))
@@ -297,7 +298,7 @@ def write_synthetic_librsf(path: str | os.PathLike[str], duration_s: float = 10.
     Path
     """
     from simbench.sim.frames import dcm_ned_to_ecef, ecef_from_geodetic
-    from simbench.sim.geometry import sagnac_range
+    from simbench.gnss.geometry import sagnac_range
     from simbench.sim.orbits import NominalConstellation
 
     rng = np.random.default_rng(seed)

@@ -21,6 +21,7 @@ from simbench.contract import TRUTH_COLUMNS
 from simbench.errors import SimbenchError
 from simbench.sim.constants import DEG, SECONDS_PER_WEEK
 from simbench.sim.frames import ecef_from_geodetic
+from simbench.sim.gpstime import format_gps_time
 
 __all__ = ["Reference", "read_reference", "match_reference", "truth_table"]
 
@@ -139,12 +140,10 @@ def match_reference(ref: Reference, t_gps: np.ndarray, max_gap_s: float = 2.0) -
         out[ok, :3] = pos[ok]
         out[ok, 3:] = vel[ok]
     if not np.isfinite(out[:, 0]).any():
-        from simbench.sim.orbits import _fmt_gps
-
-        span = f"{_fmt_gps(rt[0])} .. {_fmt_gps(rt[-1])}" if rt.size else "nothing"
+        span = f"{format_gps_time(rt[0])} .. {format_gps_time(rt[-1])}" if rt.size else "nothing"
         raise SimbenchError(f"scenario.truth '{ref.path}'",
                             f"does not overlap the observations: reference {span} GPS, observations "
-                            f"{_fmt_gps(t.min())} .. {_fmt_gps(t.max())} GPS",
+                            f"{format_gps_time(t.min())} .. {format_gps_time(t.max())} GPS",
                             "pass the reference of the same log (GPS time)")
     return out
 

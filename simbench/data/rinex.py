@@ -40,22 +40,23 @@ import numpy as np
 import pandas as pd
 
 from simbench.contract import IMU_COLUMNS, NavInfo, Scenario
+from simbench.data.beidou import read_beidou_navigation
+from simbench.data.navigation import read_gps_navigation
 from simbench.data.reference import Reference, match_reference, read_reference, truth_table
 from simbench.errors import SimbenchError
 from simbench.sim.constants import C_LIGHT, F_L1, SECONDS_PER_WEEK
-from simbench.sim.geometry import elevation_azimuth
-from simbench.sim.gpstime import datetime64_to_gps
+from simbench.gnss.geometry import elevation_azimuth
+from simbench.gnss.spp import ROUGH_FIX_MAX_RMS_M, solve_epochs
+from simbench.sim.gpstime import datetime64_to_gps, format_gps_time
 from simbench.sim.orbits import BroadcastEphemeris
 
-__all__ = ["RinexObs", "read_rinex_obs", "load_rinex", "receiver_positions", "SIGNALS"]
+__all__ = ["RinexObs", "read_rinex_obs", "load_rinex", "SIGNALS"]
 
 #: Observation code (band + attribute) used per system and the carrier frequency [Hz]:
 #: GPS L1 C/A and BeiDou B1I (RINEX 3 band 2).
 SIGNALS: dict[str, tuple[str, float]] = {"G": ("1C", F_L1), "C": ("2I", 1_561.098e6)}
 #: Transit time used when no pseudorange is available for a satellite (keeps arrays finite) [s].
 _TAU_NOMINAL_S = 0.075
-#: Single-point solutions with a larger post-fit RMS are not trusted for el/az [m].
-_SPP_MAX_RMS_M = 300.0
 
 
 @dataclass(frozen=True)
@@ -244,21 +245,14 @@ def _load_ephemeris(nav_path: str, obs: RinexObs, system: str = "G") -> Broadcas
         raise SimbenchError(key, "no navigation file given",
                             f"set {key} to a RINEX navigation file, e.g. ../shared/data/hk_tst_2019/hksc1180.19"
                             + ("n" if system == "G" else "b"))
-    if system == "C":
-        from simbench.data.beidou import BeidouEphemeris
-
-        eph: BroadcastEphemeris = BeidouEphemeris.from_rinex_bds(nav_path)
-    else:
-        eph = BroadcastEphemeris.from_rinex(nav_path)
+    eph = read_beidou_navigation(nav_path) if system == "C" else read_gps_navigation(nav_path)
     t0 = float(obs.epoch_t_int[0]) + obs.epoch_t_frac[0]
     t1 = float(obs.epoch_t_int[-1]) + obs.epoch_t_frac[-1]
     lo, hi = eph.t_coverage
     if t0 < lo or t1 > hi:
-        from simbench.sim.orbits import _fmt_gps
-
         raise SimbenchError(f"{key} '{nav_path}'",
-                            f"covers {_fmt_gps(lo)} .. {_fmt_gps(hi)} GPS, the observations span "
-                            f"{_fmt_gps(t0)} .. {_fmt_gps(t1)} GPS",
+                            f"covers {format_gps_time(lo)} .. {format_gps_time(hi)} GPS, the observations span "
+                            f"{format_gps_time(t0)} .. {format_gps_time(t1)} GPS",
                             "pass the navigation file of the observation day")
     return eph
 
@@ -289,67 +283,6 @@ def _satellite_states(obs: RinexObs, ephs: dict[str, BroadcastEphemeris]) -> dic
         out["clock"][has] = C_LIGHT * (st.clock[e_r, j_r] - np.nan_to_num(eph.tgd[j_r]))
         out["drift"][has] = C_LIGHT * st.clock_drift[e_r, j_r]
     return out
-
-
-def receiver_positions(epoch: np.ndarray, sat_pos: np.ndarray, code: np.ndarray, n_epochs: int,
-                       x0: np.ndarray | None = None) -> np.ndarray:
-    """Rough receiver position per epoch for elevation and azimuth (single-point solutions).
-
-    Epochs with fewer than four satellites, a failed fit or a post-fit RMS above
-    300 m take the nearest trusted epoch's position.
-
-    Parameters
-    ----------
-    epoch : np.ndarray of int, shape (N,)
-        Epoch index (0..n_epochs-1) of each row.
-    sat_pos : np.ndarray, shape (N, 3)
-        Satellite ECEF positions at transmit time [m].
-    code : np.ndarray, shape (N,)
-        Pseudoranges with the satellite clock applied [m].
-    n_epochs : int
-    x0 : np.ndarray, shape (3,), optional
-        Start of the first fit (e.g. the RINEX approximate position) [m].
-
-    Returns
-    -------
-    np.ndarray, shape (n_epochs, 3)
-        ECEF positions [m].
-
-    Raises
-    ------
-    SimbenchError
-        When no epoch gives a trusted solution.
-    """
-    from estimators.measurement import single_point_solution
-    from simbench.sim.geometry import sagnac_range
-
-    ok_row = np.isfinite(code) & np.isfinite(sat_pos).all(axis=1)
-    e, s, c = epoch[ok_row], sat_pos[ok_row], code[ok_row]
-    order = np.argsort(e, kind="stable")
-    e, s, c = e[order], s[order], c[order]
-    bounds = np.searchsorted(e, np.arange(n_epochs + 1))
-    pos = np.full((n_epochs, 3), np.nan)
-    start = None if x0 is None or not np.any(x0) else np.asarray(x0, float)
-    for k in range(n_epochs):
-        a, b = bounds[k], bounds[k + 1]
-        if b - a < 4:
-            continue
-        try:
-            p, clk = single_point_solution(s[a:b], c[a:b], x0=start)
-        except (SimbenchError, np.linalg.LinAlgError):
-            continue
-        rms = np.sqrt(np.mean((c[a:b] - sagnac_range(s[a:b], p) - clk) ** 2))
-        if np.all(np.isfinite(p)) and rms < _SPP_MAX_RMS_M and 6.0e6 < np.linalg.norm(p) < 6.5e6:
-            pos[k] = p
-            start = p
-    good = np.flatnonzero(np.isfinite(pos[:, 0]))
-    if good.size == 0:
-        raise SimbenchError("observations", "no epoch gives a single-point solution",
-                            "check that the navigation file belongs to the observations")
-    nearest = good[np.clip(np.searchsorted(good, np.arange(n_epochs)), 0, good.size - 1)]
-    prev = good[np.clip(np.searchsorted(good, np.arange(n_epochs)) - 1, 0, good.size - 1)]
-    pick = np.where(np.abs(prev - np.arange(n_epochs)) < np.abs(nearest - np.arange(n_epochs)), prev, nearest)
-    return pos[pick]
 
 
 def epoch_grid(t_rel: np.ndarray, interval_s: float) -> np.ndarray:
@@ -419,7 +352,11 @@ def load_rinex(obs_path: str | os.PathLike[str], nav_path: str | os.PathLike[str
     re = obs.row_epoch[keep]
     sat_pos = np.stack([st[k][keep] for k in "xyz"], axis=1)
     corrected = obs.code[keep] + st["clock"][keep]
-    rx = receiver_positions(re, sat_pos, corrected, obs.epoch_t_int.size, obs.approx_position)
+    letters = np.array([s[:1] for s in obs.sat[keep].tolist()])
+    system_index = np.searchsorted(np.array(sorted(set(systems))), letters)
+    x0 = obs.approx_position if obs.approx_position is not None and np.any(obs.approx_position) else None
+    rx = solve_epochs(re, sat_pos, corrected, n_epochs=obs.epoch_t_int.size, system_index=system_index, x0=x0,
+                      max_rms_m=ROUGH_FIX_MAX_RMS_M, fill_untrusted=True).pos
     el, az = elevation_azimuth(rx[re], sat_pos[:, None, :])
     freq = np.array([SIGNALS[s[0]][1] for s in obs.sat[keep].tolist()])
     observations = pd.DataFrame({

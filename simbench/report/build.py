@@ -34,6 +34,7 @@ from simbench.tables import (
     paired_comparisons,
     seed_statistics,
 )
+from simbench.variants import NO_OVERRIDES, config_defaults, is_default, override_value
 
 #: The comparison baseline when present (the a priori L2 estimator), else the first estimator.
 BASELINES = ("l2", "isam2_ppp", "ekf_ppp")
@@ -61,11 +62,11 @@ def finalize(run_dir: str | Path, config: dict[str, Any] | None) -> Path:
 
 def _ok_epochs(epochs: pd.DataFrame, summary: pd.DataFrame) -> pd.DataFrame:
     """Epoch rows of results whose status is ``ok`` (a diverged run is listed, not plotted)."""
-    keys = ["scenario_key", "estimator", "variant"]
+    keys = ["scenario_key", "estimator", "overrides"]
     if epochs.empty or summary.empty:
         return epochs
-    ok = summary.loc[summary["status"] == "ok", keys].fillna("").drop_duplicates()
-    return epochs[pd.MultiIndex.from_frame(epochs[keys].fillna("")).isin(pd.MultiIndex.from_frame(ok))]
+    ok = summary.loc[summary["status"] == "ok", keys].fillna(NO_OVERRIDES).drop_duplicates()
+    return epochs[pd.MultiIndex.from_frame(epochs[keys].fillna(NO_OVERRIDES)).isin(pd.MultiIndex.from_frame(ok))]
 
 
 def build_report(run_dir: Path, summary: pd.DataFrame, epochs: pd.DataFrame, claims: pd.DataFrame,
@@ -94,7 +95,7 @@ def build_report(run_dir: Path, summary: pd.DataFrame, epochs: pd.DataFrame, cla
         tag = re.sub(r"[^A-Za-z0-9_-]+", "_", "_".join(str(k) for k in keys if k))
         name = f"{scenario}, {receiver} receiver" + (f" (sweep {sweep})" if sweep else "")
         page.h2(name)
-        default = group[group["variant"].fillna("") == ""]
+        default = group[is_default(group["overrides"])]
         shown = (default if len(default) else group).copy()
         # figures mark the estimators that read truth labels, as the tables' note does
         shown["estimator"] = shown["estimator"].map(lambda e: f"{e} (truth labels)" if e in oracles else e)
@@ -107,12 +108,12 @@ def build_report(run_dir: Path, summary: pd.DataFrame, epochs: pd.DataFrame, cla
         group_stats = stats[_in_group(stats, keys)]
         page.h3("Statistics over seeds (errors in m; horizontal_median is the mean of per-seed medians, "
                 "95 % bootstrap CI)")
-        page.table(group_stats.drop(columns=GROUP))
+        page.table(group_stats.drop(columns=GROUP + ["overrides"]))
         early = convergence_statistics(group)
         if len(early):
             page.h3(f"Convergence: 3-D error over the first {CONVERGENCE_S / 60:.0f} minutes (mean over seeds of "
                     "each run's median, mean and max; 95 % bootstrap CI of the mean) [m]")
-            page.table(early)
+            page.table(early.drop(columns=["overrides"]))
         sensitivity = _sensitivity_curves(group_stats)
         if sensitivity is not None:
             page.img(sensitivity_figure(sensitivity, out / f"sensitivity_{tag}.png",
@@ -140,10 +141,14 @@ def _in_group(summary: pd.DataFrame, keys: tuple) -> np.ndarray:
 
 
 def _sensitivity_curves(group_stats: pd.DataFrame) -> pd.DataFrame | None:
-    scale = group_stats["variant"].fillna("").str.extract(r"prior_scale=([0-9.eE+-]+)")[0]
-    if scale.notna().sum() < 2:
+    """Median against the a priori covariance scale, for a group that ran at least two scales."""
+    defaults = {name: config_defaults(name).get("prior_scale") for name in group_stats["estimator"].unique()}
+    scaled = group_stats[group_stats["estimator"].map(defaults).notna()]
+    if override_value(scaled["overrides"], "prior_scale", None).notna().sum() < 2:
         return None
-    curves = group_stats.assign(scale=scale.astype(float).fillna(1.0))
+    scale = pd.concat([override_value(rows["overrides"], "prior_scale", defaults[name])
+                       for name, rows in scaled.groupby("estimator")]).astype(float)
+    curves = scaled.assign(scale=scale)
     return curves[["estimator", "scale", "horizontal_median", "ci_low", "ci_high"]]
 
 

@@ -22,8 +22,9 @@ import numpy as np
 import pandas as pd
 import pymap3d
 
-from simbench.config import SimConfig, validate_sim
+from simbench.config import ConstellationKind, SimConfig, TrajectoryKind, validate_sim
 from simbench.contract import NavInfo, Scenario
+from simbench.data.navigation import read_gps_navigation
 from simbench.errors import SimbenchError
 from simbench.sim import atmosphere, tracking
 from simbench.sim.canyon import canyon_visibility
@@ -32,7 +33,7 @@ from simbench.sim.frames import dcm_body_to_ned
 from simbench.sim.geometry import line_of_sight
 from simbench.sim.gpstime import day_of_year
 from simbench.sim.imu import simulate_imu
-from simbench.sim.orbits import BroadcastEphemeris, NominalConstellation
+from simbench.sim.orbits import NominalConstellation
 from simbench.sim.processes import gauss_markov, random_walk, receiver_clock, stream
 from simbench.sim.slips import phase_arcs
 from simbench.sim.trajectory import Trajectory, flight, replay, urban_drive
@@ -251,18 +252,18 @@ def _trajectory(cfg: SimConfig) -> tuple[Trajectory, float]:
     sc = cfg.scenario
     rng = stream(cfg.seed, "trajectory")
     kind = sc.trajectory.kind
-    if kind == "urban_drive":
+    if kind == TrajectoryKind.urban_drive:
         return urban_drive(sc.trajectory, sc.errors.nlos, sc.duration_s, cfg.imu.rate_hz, rng), sc.start_sow_s
-    if kind == "flight":
+    if kind == TrajectoryKind.flight:
         return flight(sc.trajectory, sc.duration_s, cfg.imu.rate_hz, rng), sc.start_sow_s
     return replay(sc.trajectory.replay, cfg.imu.rate_hz, sc.duration_s)
 
 
 def _constellation(cfg: SimConfig):
     con = cfg.scenario.constellation
-    if con.kind == "nominal":
+    if con.kind == ConstellationKind.nominal:
         return NominalConstellation(), con.iono_alpha, con.iono_beta
-    eph = BroadcastEphemeris.from_rinex(con.nav_path)
+    eph = read_gps_navigation(con.nav_path)
     alpha = eph.iono_alpha if eph.iono_alpha is not None else con.iono_alpha
     beta = eph.iono_beta if eph.iono_beta is not None else con.iono_beta
     return eph, alpha, beta

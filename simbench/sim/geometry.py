@@ -3,7 +3,7 @@
 The simulator computes the *exact* geometric range: the signal leaves the
 satellite at ``t_tx`` (satellite position in ECEF(t_tx)), and while it travels
 the Earth, and with it the ECEF frame, turns by ``omega_e * (t_rx - t_tx)``.
-Estimators normally use the first-order Sagnac model :func:`sagnac_range` with
+Estimators use the first-order Sagnac model :func:`simbench.gnss.geometry.sagnac_range` with
 the satellite position at transmit time; the two agree to better than 0.5 mm
 (measured <= 0.12 mm; see ``tests/test_geometry.py``).
 """
@@ -16,9 +16,10 @@ import numpy as np
 from simbench.errors import SimbenchError
 from simbench.sim.constants import C_LIGHT, MU_EARTH, OMEGA_EARTH
 from simbench.sim.frames import geodetic_from_ecef
+from simbench.gnss.geometry import as_xyz
 from simbench.sim.orbits import Constellation
 
-__all__ = ["LineOfSight", "line_of_sight", "sagnac_range", "elevation_azimuth"]
+__all__ = ["LineOfSight", "line_of_sight"]
 
 #: Initial guess of the signal travel time for a ground receiver [s].
 _TAU_GUESS_S = 0.075
@@ -78,97 +79,6 @@ class LineOfSight:
     valid: np.ndarray
 
 
-def _as_xyz(name: str, a: np.ndarray | None, n: int | None) -> np.ndarray:
-    try:
-        arr = np.asarray(a, dtype=float)
-    except (TypeError, ValueError):
-        raise SimbenchError(name, "is not numeric", "pass an (n, 3) array of ECEF coordinates") from None
-    if arr.ndim == 1 and arr.shape == (3,):
-        arr = arr[None, :]
-    if arr.ndim != 2 or arr.shape[1] != 3 or (n is not None and arr.shape[0] not in (1, n)):
-        want = "(n, 3)" if n is None else f"({n}, 3)"
-        raise SimbenchError(name, f"has shape {np.shape(a)}, expected {want}", "pass one ECEF xyz row per epoch")
-    if not np.all(np.isfinite(arr)):
-        raise SimbenchError(name, "contains NaN or infinite values", "remove non-finite epochs")
-    return arr
-
-
-def _enu_basis(rx_pos: np.ndarray) -> np.ndarray:
-    """Rows east, north, up of the local geodetic frame, shape (n, 3, 3)."""
-    lat, lon, _ = geodetic_from_ecef(rx_pos)
-    sl, cl = np.sin(lat), np.cos(lat)
-    so, co = np.sin(lon), np.cos(lon)
-    zero = np.zeros_like(sl)
-    return np.stack(
-        [
-            np.stack([-so, co, zero], axis=-1),
-            np.stack([-sl * co, -sl * so, cl], axis=-1),
-            np.stack([cl * co, cl * so, sl], axis=-1),
-        ],
-        axis=-2,
-    )
-
-
-def _el_az_from_unit(u: np.ndarray, basis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Elevation/azimuth of unit vectors u (n, m, 3) with ENU basis (n, 3, 3)."""
-    enu = np.einsum("nij,nmj->nmi", basis, u, optimize=False)
-    el = np.arcsin(np.clip(enu[..., 2], -1.0, 1.0))
-    az = np.mod(np.arctan2(enu[..., 0], enu[..., 1]), 2.0 * np.pi)
-    return el, az
-
-
-def elevation_azimuth(rx_pos: np.ndarray, sat_pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Elevation and azimuth of satellites seen from receivers (local geodetic frame).
-
-    Parameters
-    ----------
-    rx_pos : np.ndarray, shape (n, 3)
-        Receiver ECEF positions [m].
-    sat_pos : np.ndarray, shape (n, m, 3)
-        Satellite ECEF positions in the same frame [m].
-
-    Returns
-    -------
-    el : np.ndarray, shape (n, m)
-        Elevation above the ellipsoidal horizon [rad].
-    az : np.ndarray, shape (n, m)
-        Azimuth clockwise from north, in [0, 2 pi) [rad].
-    """
-    rx = _as_xyz("rx_pos", rx_pos, None)
-    sat = np.asarray(sat_pos, dtype=float)
-    if sat.ndim == 2:
-        sat = sat[None]
-    d = sat - rx[:, None, :]
-    u = d / np.linalg.norm(d, axis=-1, keepdims=True)
-    return _el_az_from_unit(u, _enu_basis(rx))
-
-
-def sagnac_range(sat_pos_tx: np.ndarray, rx_pos: np.ndarray) -> np.ndarray:
-    """Estimator-side range model with the first-order Earth-rotation correction.
-
-    ``|s - r| + omega_e (s_x r_y - s_y r_x) / c`` with the satellite at transmit
-    time in ECEF(t_tx) and the receiver at receive time (RTKLIB ``geodist``).
-    Differs from the exact rotation by second-order terms, < 0.5 mm for
-    receivers near the Earth (measured <= 0.12 mm).
-
-    Parameters
-    ----------
-    sat_pos_tx : np.ndarray, shape (..., 3)
-        Satellite position at transmit time in ECEF(t_tx) [m].
-    rx_pos : np.ndarray, shape (..., 3)
-        Receiver position at receive time in ECEF(t_rx) [m]; broadcastable.
-
-    Returns
-    -------
-    rho : np.ndarray, shape (...)
-        Range including the Sagnac term [m].
-    """
-    s = np.asarray(sat_pos_tx, dtype=float)
-    r = np.asarray(rx_pos, dtype=float)
-    d = s - r
-    return np.sqrt(np.sum(d * d, axis=-1)) + OMEGA_EARTH * (s[..., 0] * r[..., 1] - s[..., 1] * r[..., 0]) / C_LIGHT
-
-
 def line_of_sight(
     rx_pos: np.ndarray,
     rx_vel: np.ndarray | None,
@@ -217,9 +127,9 @@ def line_of_sight(
     n = t_rx.size
     if n == 0:
         raise SimbenchError("t_rx_gps", "is empty", "pass at least one epoch")
-    rx = _as_xyz("rx_pos", rx_pos, n)
+    rx = as_xyz("rx_pos", rx_pos, n)
     rx = np.broadcast_to(rx, (n, 3))
-    v_rx = np.zeros((n, 3)) if rx_vel is None else np.broadcast_to(_as_xyz("rx_vel", rx_vel, n), (n, 3))
+    v_rx = np.zeros((n, 3)) if rx_vel is None else np.broadcast_to(as_xyz("rx_vel", rx_vel, n), (n, 3))
     m = len(constellation.sats)
     lat, lon, _ = geodetic_from_ecef(np.ascontiguousarray(rx))
     trig = np.stack([np.sin(lat), np.cos(lat), np.sin(lon), np.cos(lon)], axis=1)

@@ -49,6 +49,22 @@ def gps_to_datetime64(t_gps: np.ndarray | float) -> np.ndarray:
     return _GPS_EPOCH.astype("datetime64[ms]") + ms.astype("timedelta64[ms]")
 
 
+def format_gps_time(t_gps: float) -> str:
+    """A GPS time as ``'YYYY-MM-DD hh:mm:ss'`` (GPS time scale, whole seconds), for error messages.
+
+    Parameters
+    ----------
+    t_gps : float
+        Continuous GPS seconds [s].
+
+    Returns
+    -------
+    str
+        Calendar date and time, truncated to the second.
+    """
+    return str(gps_to_datetime64(t_gps).astype("datetime64[s]")).replace("T", " ")
+
+
 def day_of_year(gps_week: int, sow_s: float) -> float:
     """Day of year (1-based, fractional) of a GPS time, as the Niell mapping wants it.
 

@@ -1,4 +1,4 @@
-"""GPS satellite orbits and clocks: nominal constellation, broadcast ephemeris, SP3.
+"""GPS satellite orbits and clocks: nominal constellation and broadcast ephemeris.
 
 Time convention (everywhere in :mod:`simbench.sim`): ``t_gps`` is continuous GPS
 time in seconds since the GPS epoch 1980-01-06 00:00:00 GPS, i.e.
@@ -16,8 +16,6 @@ from __future__ import annotations
 
 import decimal
 import math
-import os
-import warnings
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -31,17 +29,14 @@ from simbench.sim.constants import (
     MU_EARTH,
     OMEGA_EARTH,
 )
-from simbench.sim.gpstime import datetime64_to_gps, gps_to_datetime64
+from simbench.sim.gpstime import datetime64_to_gps, format_gps_time
 
 __all__ = [
     "SatelliteStates",
     "Constellation",
     "NominalConstellation",
     "BroadcastEphemeris",
-    "Sp3Orbits",
-    "load_sp3",
-    "datetime64_to_gps",
-    "gps_to_datetime64",
+    "FIT_HALF_WINDOW_S",
 ]
 
 _TWO_PI_DEC = decimal.Decimal("6.28318530717958647692528676655900576839433879875021")
@@ -61,10 +56,6 @@ def _angle_mod_2pi(angle0: float, rate: float, dt: float) -> float:
         ctx.prec = 50
         a = decimal.Decimal(angle0) + decimal.Decimal(rate) * decimal.Decimal(dt)
         return float(a % _TWO_PI_DEC)
-
-
-def _fmt_gps(t_gps: float) -> str:
-    return str(gps_to_datetime64(t_gps).astype("datetime64[s]")).replace("T", " ")
 
 
 # --------------------------------------------------------------------------- states
@@ -259,24 +250,13 @@ class NominalConstellation:
 
 # --------------------------------------------------------------------------- broadcast
 
-_NAV_FIELDS = (
-    "SVclockBias", "SVclockDrift", "SVclockDriftRate", "Crs", "DeltaN", "M0", "Cuc",
-    "Eccentricity", "Cus", "sqrtA", "Toe", "Cic", "Omega0", "Cis", "Io", "Crc",
-    "omega", "OmegaDot", "IDOT", "GPSWeek", "health", "TGD",
-)
-
-
-def _nav_error(path: str, problem: str) -> SimbenchError:
-    return SimbenchError(
-        f"nav_file '{path}'", problem, "pass a RINEX 2/3 GPS navigation file (e.g. brdc<doy>0.<yy>n)"
-    )
-
 
 class BroadcastEphemeris:
     """GPS broadcast ephemerides evaluated with the IS-GPS-200 user algorithm.
 
-    Build with :meth:`from_rinex`. For each requested (epoch, satellite) the
-    healthy record whose Toe is closest to the epoch is used, provided
+    Read from a file with :func:`simbench.data.navigation.read_gps_navigation`.
+    For each requested (epoch, satellite) the healthy record whose Toe is
+    closest to the epoch is used, provided
     |t - Toe| <= ``max_age_s`` (half the 4-hour fit interval); otherwise the
     entry is invalid.
 
@@ -311,7 +291,7 @@ class BroadcastEphemeris:
         source: str = "",
         max_age_s: float = FIT_HALF_WINDOW_S,
     ) -> None:
-        """Build from per-record arrays (normally via :meth:`from_rinex`).
+        """Build from per-record arrays (a navigation file reader fills them).
 
         Parameters
         ----------
@@ -393,89 +373,6 @@ class BroadcastEphemeris:
             table[:, j] = lo + k
         self._breakpoints = bp
         self._select_table = table
-
-    # ------------------------------------------------------------------ loading
-
-    @classmethod
-    def from_rinex(cls, path: str | os.PathLike[str], max_age_s: float = FIT_HALF_WINDOW_S) -> BroadcastEphemeris:
-        """Read GPS ephemerides from a RINEX 2 or 3 navigation file (via georinex).
-
-        Parameters
-        ----------
-        path : str or PathLike
-            RINEX navigation file (``.yyn``, ``.rnx``; gzip allowed). Only GPS
-            records are kept; unhealthy or incomplete records are dropped.
-        max_age_s : float
-            Largest |t - Toe| at which a record may be used [s]; default 7200.
-
-        Returns
-        -------
-        BroadcastEphemeris
-
-        Raises
-        ------
-        SimbenchError
-            Missing file, not a navigation file, or no healthy GPS record.
-        """
-        import georinex  # deferred: importing xarray/georinex costs ~1 s
-
-        p = os.fspath(path)
-        if not os.path.isfile(p):
-            raise _nav_error(p, "file does not exist")
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                info = georinex.rinexinfo(p)
-                kind = info.get("rinextype")
-                if kind != "nav":
-                    what = {"obs": "a RINEX observation file", "sp3": "an SP3 orbit file"}.get(
-                        str(kind), "not a RINEX file"
-                    )
-                    raise _nav_error(p, f"is {what}, not RINEX navigation data")
-                ds = georinex.load(p)
-        except SimbenchError:
-            raise
-        except Exception as exc:  # georinex raises many types on malformed text
-            msg = " ".join(str(exc).split()) or type(exc).__name__
-            msg = msg if len(msg) <= 60 else msg[:57] + "..."
-            raise _nav_error(p, f"cannot be parsed as RINEX navigation data (georinex: {msg})") from None
-        if "sv" not in ds.coords or not all(k in ds for k in _NAV_FIELDS):
-            raise _nav_error(p, "contains no GPS ephemerides (e.g. GLONASS/BeiDou-only file)")
-        is_gps = np.char.startswith(ds.sv.values.astype(str), "G")
-        if not is_gps.any():
-            raise _nav_error(p, "contains no GPS ephemerides")
-        ds = ds.isel(sv=np.flatnonzero(is_gps))
-
-        # (time, sv) grid -> flat record list; georinex leaves NaN where a sat has no record.
-        v = {k: ds[k].values.astype(float).ravel() for k in _NAV_FIELDS}
-        n_t, n_s = ds.sizes["time"], ds.sizes["sv"]
-        toc = np.repeat(datetime64_to_gps(ds.time.values), n_s)
-        sv_all = np.tile(ds.sv.values.astype(str), n_t)
-        complete = np.all(np.isfinite(np.stack(list(v.values()))), axis=0)
-        keep = complete & (v["health"] == 0) & (v["sqrtA"] > 1000.0)
-        if not keep.any():
-            raise _nav_error(p, "has no complete healthy GPS ephemeris record")
-        toe = v["GPSWeek"][keep] * 604_800.0 + v["Toe"][keep]
-        toc = toc[keep]
-        # GPSWeek belongs to Toe, but some writers use Toc's week; Toe and Toc are
-        # within hours of each other, so fix a one-week mismatch from Toc.
-        toe += 604_800.0 * np.round((toc - toe) / 604_800.0)
-        sats, sat_idx = np.unique(sv_all[keep], return_inverse=True)
-        rename = {
-            "af0": "SVclockBias", "af1": "SVclockDrift", "af2": "SVclockDriftRate", "crs": "Crs",
-            "dn": "DeltaN", "m0": "M0", "cuc": "Cuc", "e": "Eccentricity", "cus": "Cus",
-            "sqrta": "sqrtA", "cic": "Cic", "omega0": "Omega0", "cis": "Cis", "i0": "Io",
-            "crc": "Crc", "w": "omega", "omegadot": "OmegaDot", "idot": "IDOT", "tgd": "TGD",
-        }
-        records = {k: v[src][keep] for k, src in rename.items()}
-        records.update(sat=sat_idx, toe=toe, toc=toc)
-        iono = ds.attrs.get("ionospheric_corr_GPS")
-        alpha = beta = None
-        if iono is not None and np.size(iono) == 8 and np.all(np.isfinite(iono)):
-            alpha, beta = np.asarray(iono[:4], float), np.asarray(iono[4:], float)
-        return cls(sats, records, alpha, beta, source=os.path.basename(p), max_age_s=max_age_s)
-
-    # ------------------------------------------------------------------ evaluation
 
     def select_records(self, t_gps: np.ndarray) -> np.ndarray:
         """Index of the record used for each (epoch, satellite), -1 if none.
@@ -563,8 +460,8 @@ class BroadcastEphemeris:
         raise SimbenchError(
             "t_gps",
             f"no valid GPS ephemeris at {n_bad} of {t_epochs.size} epochs "
-            f"(first {_fmt_gps(first)} GPS); {self.source or 'the ephemeris'} covers "
-            f"{_fmt_gps(self.t_coverage[0])} .. {_fmt_gps(self.t_coverage[1])} GPS",
+            f"(first {format_gps_time(first)} GPS); {self.source or 'the ephemeris'} covers "
+            f"{format_gps_time(self.t_coverage[0])} .. {format_gps_time(self.t_coverage[1])} GPS",
             "choose a start time inside that span or a navigation file for the simulated dates",
         )
 
@@ -642,103 +539,3 @@ class BroadcastEphemeris:
         clk[...] = P["af0"] + tc * (P["af1"] + tc * P["af2"]) + P["frel"] * sE
         drift[...] = P["af1"] + 2.0 * P["af2"] * tc + P["frel"] * cE * Edot
 
-
-# --------------------------------------------------------------------------- SP3
-
-
-@dataclass(frozen=True)
-class Sp3Orbits:
-    """Precise orbits and clocks from an SP3 file (NaN where missing).
-
-    Attributes
-    ----------
-    t_gps : np.ndarray, shape (k,)
-        Epochs, continuous GPS seconds [s].
-    sats : np.ndarray of str, shape (m,)
-        Satellite ids, e.g. ``'G01'``.
-    pos : np.ndarray, shape (k, m, 3)
-        Centre-of-mass positions in ECEF(t) [m].
-    clock : np.ndarray, shape (k, m)
-        Satellite clock offsets [s].
-    """
-
-    t_gps: np.ndarray
-    sats: np.ndarray
-    pos: np.ndarray
-    clock: np.ndarray
-
-
-def load_sp3(path: str | os.PathLike[str], systems: str = "G") -> Sp3Orbits:
-    """Read an SP3-c/d precise orbit file (positions and clocks).
-
-    A small own parser: georinex's reader returns uninitialised memory for the
-    clock rates and does not flag the 999999.999999 "bad clock" value.
-
-    Parameters
-    ----------
-    path : str or PathLike
-        SP3-c or SP3-d file in the GPS time scale.
-    systems : str
-        System letters to keep (``'G'`` = GPS only; ``''`` keeps all).
-
-    Returns
-    -------
-    Sp3Orbits
-
-    Raises
-    ------
-    SimbenchError
-        Missing file, not SP3, or an unsupported time system.
-    """
-    p = os.fspath(path)
-    field = f"sp3_file '{p}'"
-    if not os.path.isfile(p):
-        raise SimbenchError(field, "file does not exist", "pass an SP3 precise orbit file")
-    opener = open
-    if p.endswith(".gz"):
-        import gzip
-
-        opener = gzip.open  # type: ignore[assignment]
-    with opener(p, "rt", errors="replace") as fh:
-        lines = fh.read().splitlines()
-    if not lines or not lines[0].startswith("#") or lines[0][1:2] not in ("a", "b", "c", "d"):
-        raise SimbenchError(field, "is not an SP3 file (first line must start with #c or #d)", "pass an SP3-c/d file")
-    for ln in lines:
-        if ln.startswith("%c"):
-            tsys = ln[9:12].strip()
-            if tsys not in ("GPS", "ccc", ""):
-                raise SimbenchError(field, f"time system '{tsys}' is not supported", "use an SP3 file in GPS time")
-            break
-    epochs: list[float] = []
-    recs: list[tuple[int, str, float, float, float, float]] = []
-    for ln in lines:  # text parsing: one line per (epoch, sat) record, unavoidable
-        if ln.startswith("* "):
-            f = ln[1:].split()
-            sec = float(f[5])
-            iso = f"{int(f[0]):04d}-{int(f[1]):02d}-{int(f[2]):02d}T{int(f[3]):02d}:{int(f[4]):02d}:00"
-            epochs.append(float(datetime64_to_gps(np.datetime64(iso))[()]) + sec)
-        elif ln.startswith("P") and epochs:
-            sv = ln[1:4].replace(" ", "0")
-            if systems and sv[0] not in systems:
-                continue
-            try:
-                x, y, z = float(ln[4:18]), float(ln[18:32]), float(ln[32:46])
-                c = float(ln[46:60]) if len(ln.rstrip()) > 46 else 999999.999999
-            except ValueError:
-                raise SimbenchError(field, f"malformed position record '{ln[:30]}'", "check the SP3 file") from None
-            recs.append((len(epochs) - 1, sv, x, y, z, c))
-        elif ln.startswith("EOF"):
-            break
-    if not epochs or not recs:
-        raise SimbenchError(field, "contains no position records", "pass an SP3 file with 'P' records")
-    k_idx = np.array([r[0] for r in recs])
-    sats, s_idx = np.unique(np.array([r[1] for r in recs]), return_inverse=True)
-    xyzc = np.array([r[2:] for r in recs], dtype=float)
-    pos = np.full((len(epochs), sats.size, 3), np.nan)
-    clock = np.full((len(epochs), sats.size), np.nan)
-    # SP3 marks a missing position with 0.0 and a missing clock with >= 999999.
-    pos_ok = np.any(xyzc[:, :3] != 0.0, axis=1)
-    clk_ok = xyzc[:, 3] < 999_999.0
-    pos[k_idx[pos_ok], s_idx[pos_ok]] = xyzc[pos_ok, :3] * 1e3
-    clock[k_idx[clk_ok], s_idx[clk_ok]] = xyzc[clk_ok, 3] * 1e-6
-    return Sp3Orbits(t_gps=np.array(epochs), sats=sats, pos=pos, clock=clock)

@@ -25,13 +25,13 @@ from __future__ import annotations
 import cmath
 import math
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.special import fresnel
 
 from simbench.config import FlightConfig, NlosConfig, ReplayConfig, TrajectoryConfig, UrbanDriveConfig
+from simbench.data.trajectory_file import REPLAY_PATH_FIELD, read_xyz_trajectory
 from simbench.errors import SimbenchError
 from simbench.sim.constants import DEG, G0_STD, WGS84_A, WGS84_E2
 from simbench.sim.frames import (
@@ -614,62 +614,6 @@ def flight(cfg: TrajectoryConfig, duration_s: float, rate_hz: float, rng: np.ran
 
 # =========================================================================== replay
 
-_REPLAY_FIELD = "scenario.trajectory.replay.path"
-
-
-def read_xyz(path: str | Path) -> np.ndarray:
-    """Read a ``SOW X Y Z`` trajectory file (GPS seconds of week, ECEF metres).
-
-    Blank lines and lines starting with ``#`` are ignored.
-
-    Parameters
-    ----------
-    path : str or Path
-
-    Returns
-    -------
-    ndarray, shape (n, 4)
-        Seconds of week [s] (strictly increasing) and ECEF position [m].
-
-    Raises
-    ------
-    SimbenchError
-        Missing file, a malformed line (its number is given), non-increasing
-        time or fewer than 2 epochs.
-    """
-    p = Path(path)
-    if not p.is_file():
-        raise SimbenchError(_REPLAY_FIELD, f"file '{path}' not found",
-                            "give an existing 'SOW X Y Z' file, e.g. ../shared/data/wvu_drives/drive_1.xyz")
-    try:
-        lines = p.read_text().splitlines()
-    except UnicodeDecodeError:
-        raise SimbenchError(_REPLAY_FIELD, f"'{path}' is not a text file",
-                            "give a text file with 'SOW X Y Z' per line") from None
-    numbered = [(n, ln) for n, ln in enumerate(lines, 1) if ln.strip() and not ln.lstrip().startswith("#")]
-    try:
-        data = np.array([[float(x) for x in ln.split()] for _, ln in numbered], dtype=float)
-        ok = data.ndim == 2 and (len(data) == 0 or data.shape[1] == 4) and np.isfinite(data).all()
-    except ValueError:
-        ok = False
-    if not ok:
-        for n, ln in numbered:  # slow path only to name the offending line
-            fields = ln.split()
-            try:
-                good = len(fields) == 4 and all(math.isfinite(float(x)) for x in fields)
-            except ValueError:
-                good = False
-            if not good:
-                raise SimbenchError(_REPLAY_FIELD, f"line {n} of '{path}' is not 'SOW X Y Z': {ln.strip()[:60]!r}",
-                                    "fix or remove that line")
-    if len(numbered) < 2:
-        raise SimbenchError(_REPLAY_FIELD, f"'{path}' has {len(numbered)} epoch(s)", "need at least 2 epochs")
-    bad = np.nonzero(np.diff(data[:, 0]) <= 0.0)[0]
-    if bad.size:
-        raise SimbenchError(_REPLAY_FIELD, f"time does not increase at line {numbered[bad[0] + 1][0]} of '{path}'",
-                            "sort the epochs and remove duplicates (week rollovers are not supported)")
-    return data
-
 
 def replay(cfg: ReplayConfig, rate_hz: float, duration_s: float | None = None) -> tuple[Trajectory, float]:
     """Recorded trajectory, interpolated to ``rate_hz`` with a cubic spline per continuous segment.
@@ -709,7 +653,7 @@ def replay(cfg: ReplayConfig, rate_hz: float, duration_s: float | None = None) -
     if not cfg.max_gap_s > 0.0:
         raise SimbenchError("scenario.trajectory.replay.max_gap_s", f"must be positive, got {cfg.max_gap_s}",
                             "set e.g. max_gap_s=2")
-    data = read_xyz(cfg.path)
+    data = read_xyz_trajectory(cfg.path)
     sow, xyz = data[:, 0], data[:, 1:]
     t0_sow = math.ceil(sow[0] * rate_hz - 1e-6) / rate_hz
     t_ep = sow - t0_sow
@@ -717,7 +661,7 @@ def replay(cfg: ReplayConfig, rate_hz: float, duration_s: float | None = None) -
     if duration_s is not None:
         k = min(k, int(round(duration_s * rate_hz)))
     if k < 2:
-        raise SimbenchError(_REPLAY_FIELD, f"'{cfg.path}' spans less than two samples at {rate_hz} Hz",
+        raise SimbenchError(REPLAY_PATH_FIELD, f"'{cfg.path}' spans less than two samples at {rate_hz} Hz",
                             "use a longer record or a higher rate")
     t = np.arange(k) / rate_hz
     tol = 1e-6 / rate_hz
@@ -736,7 +680,7 @@ def replay(cfg: ReplayConfig, rate_hz: float, duration_s: float | None = None) -
         pos[sel], vel[sel], acc[sel] = spline(ts), spline(ts, 1), spline(ts, 2)
         valid[sel] = True
     if not valid.any():
-        raise SimbenchError(_REPLAY_FIELD, f"'{cfg.path}' has no two epochs closer than max_gap_s",
+        raise SimbenchError(REPLAY_PATH_FIELD, f"'{cfg.path}' has no two epochs closer than max_gap_s",
                             "raise scenario.trajectory.replay.max_gap_s")
     _bridge_gaps(t, pos, vel, acc, valid)
     att, omega = _attitude_from_velocity(pos, vel, acc, int(math.ceil(MIN_MOVING_S * rate_hz)))

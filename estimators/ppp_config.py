@@ -1,0 +1,81 @@
+"""The PPP stochastic model every PPP estimator shares (dissertation Table 4.4.2).
+
+EKF-PPP (:class:`~estimators.ekf_ppp.EkfPppConfig`) and the GTSAM graph
+estimators (:class:`~estimators.ppp_graph.PppGraphConfig` and its children)
+carry the same model fields with the same defaults; they live here once,
+with their one validation entry point.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from simbench.config import Choice, check_choices
+from simbench.contract import Need
+from simbench.errors import SimbenchError, require_at_least, require_positive
+
+__all__ = ["ClockModel", "StochasticModelConfig"]
+
+
+class ClockModel(Choice):
+    """Process model of the receiver clock between epochs (member names are the YAML words)."""
+
+    white = "white"  #: re-initialised each epoch (correlation time 0, Table 4.4.2)
+    random_walk = "random_walk"  #: random walk with ``clock_noise_m_rts``
+
+
+@dataclass
+class StochasticModelConfig:
+    """Stochastic model and observation selection of PPP; defaults are Table 4.4.2 and Sec. 4.4."""
+
+    pos_sigma_m: float = 1.0  #: a priori position sigma per axis at the first epoch [m]
+    pos_rw_m_rts: float = 5.0  #: position random walk [m/sqrt(s)]
+    zwd_sigma_m: float = 0.3  #: a priori zenith wet delay sigma [m] (about the Saastamoinen value)
+    zwd_rw_m_rts: float = 3e-5  #: zenith wet delay random walk [m/sqrt(s)]
+    clock_sigma_m: float = 3e6  #: a priori receiver clock sigma [m]
+    clock_noise_m_rts: float = 2000.0  #: receiver clock process noise [m/sqrt(s)] (random_walk only)
+    clock_model: ClockModel = ClockModel.white  #: white (each epoch free, Table 4.4.2) | random_walk
+    ambiguity_sigma_m: float = 100.0  #: a priori phase bias sigma [m]; biases are constant within an arc
+    code_sigma_m: float = 2.5  #: zenith code sigma [m], scaled by 1/sin(el)
+    phase_sigma_m: float = 0.025  #: zenith phase sigma [m], scaled by 1/sin(el)
+    elevation_mask_deg: float = 7.0
+    min_satellites: int = 4  #: epochs with fewer usable satellites are skipped
+    max_gap_epochs: int = 1  #: a larger epoch step within a satellite's rows starts a new phase arc
+    ionosphere_free: bool = False  #: L1/L2 ionosphere-free combination (needs dual-frequency data)
+    #: L1 only (not in Table 4.4.2): a slant ionosphere residual per satellite arc (code +I, phase -I)
+    #: so that code-phase divergence after Klobuchar does not drag the position
+    estimate_iono: bool = True
+    iono_sigma_m: float = 2.0  #: a priori sigma of the slant residual after Klobuchar [m]
+    iono_rw_m_rts: float = 0.03  #: random walk of the slant residual [m/sqrt(s)]
+
+    def validate(self, where: str) -> None:
+        """Raise a one-line :class:`SimbenchError` for the first out-of-range field.
+
+        Parameters
+        ----------
+        where : str
+            Config node name, e.g. ``estimator.l2``; prefixed to the field in the message.
+        """
+        check_choices(self, where)
+        for name in ("pos_sigma_m", "zwd_sigma_m", "clock_sigma_m", "ambiguity_sigma_m", "code_sigma_m",
+                     "phase_sigma_m", "iono_sigma_m"):
+            require_positive(f"{where}.{name}", getattr(self, name), "give a standard deviation in metres")
+        for name in ("pos_rw_m_rts", "zwd_rw_m_rts", "clock_noise_m_rts", "iono_rw_m_rts"):
+            require_at_least(f"{where}.{name}", getattr(self, name), 0, "give a noise density in m/sqrt(s)")
+        if not 0.0 <= self.elevation_mask_deg < 90.0:
+            raise SimbenchError(f"{where}.elevation_mask_deg", f"must be within [0, 90) deg, got "
+                                f"{self.elevation_mask_deg}", "give an elevation mask in degrees, e.g. 7")
+        require_at_least(f"{where}.min_satellites", self.min_satellites, 4,
+                         "4 unknowns (position, clock) need 4 satellites")
+        require_at_least(f"{where}.max_gap_epochs", self.max_gap_epochs, 1,
+                         "1 means every epoch must be present within one arc")
+
+    def needs(self) -> frozenset[Need]:
+        """What the data must offer for this model beyond the estimator's ``requires``: L2 for IF."""
+        return frozenset({Need.dual_frequency}) if self.ionosphere_free else frozenset()
+
+    def prepare_kwargs(self) -> dict[str, Any]:
+        """Keyword arguments of :func:`~estimators.measurement.prepare_ppp` for this config."""
+        return {"ionosphere_free": self.ionosphere_free, "code_sigma_m": self.code_sigma_m,
+                "phase_sigma_m": self.phase_sigma_m, "elevation_mask_deg": self.elevation_mask_deg,
+                "min_satellites": self.min_satellites, "max_gap_epochs": self.max_gap_epochs}

@@ -1,0 +1,224 @@
+"""Weighted single-point solutions of many epochs at once.
+
+One Gauss-Newton iteration updates every epoch in parallel: the rows
+(satellite-epochs) contribute to per-epoch normal equations that are summed
+with :func:`numpy.add.reduceat` and solved as a stack. The unknowns of an
+epoch are the receiver position and one clock offset per GNSS system present
+(the first system's clock is the receiver clock, the others absorb the
+inter-system biases). The hydrostatic troposphere (Saastamoinen + Niell) joins
+as soon as an epoch's iterate lies near the Earth's surface; the wet delay is
+left in the clock.
+
+This is the project's only single-point solver: the log readers use it for
+elevation and azimuth, the estimators for initial values.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from simbench.errors import SimbenchError
+from simbench.gnss.geometry import sagnac_range_gradient
+from simbench.gnss.troposphere import troposphere_terms
+from simbench.sim.frames import geodetic_from_ecef
+
+__all__ = ["SppSolution", "solve_epochs", "ROUGH_FIX_MAX_RMS_M"]
+
+#: Trust limit of the post-fit RMS for rough positions from raw logs (elevation, azimuth) [m]:
+#: generous, since street-canyon NLOS leaves tens of metres, but a wrong ephemeris leaves kilometres.
+ROUGH_FIX_MAX_RMS_M = 300.0
+
+#: Heights outside this range are not a receiver near the Earth [m].
+_MIN_HEIGHT_M, _MAX_HEIGHT_M = -1_000.0, 50_000.0
+#: A position step above this in the last iteration means the epoch has not converged [m].
+_CONVERGED_STEP_M = 1.0
+
+
+@dataclass(frozen=True)
+class SppSolution:
+    """Single-point solutions, one per epoch index 0..n_epochs-1.
+
+    Attributes
+    ----------
+    pos : np.ndarray, shape (n_epochs, 3)
+        Receiver ECEF position [m]. With ``fill_untrusted`` the nearest trusted
+        epoch's position where the epoch's own fit is not trusted; else NaN there.
+    clock_m : np.ndarray, shape (n_epochs, n_systems)
+        Receiver clock offset times c per system [m] (column 0: the reference
+        system, ``system_index`` 0). Wet troposphere and, for the further
+        systems, the inter-system bias are in it. 0 for a system absent from
+        the epoch; refitted to ``pos`` where that was filled.
+    trusted : np.ndarray of bool, shape (n_epochs,)
+        The epoch's own fit passed the trust check: enough rows for the
+        unknowns, converged, finite, a height within -1 km..50 km, and a
+        post-fit RMS below ``max_rms_m``.
+    rms_m : np.ndarray, shape (n_epochs,)
+        Post-fit RMS of the unweighted residuals of the epoch's own fit [m]
+        (NaN where there was nothing to fit).
+    n_rows : np.ndarray of int, shape (n_epochs,)
+        Rows (satellites) used by each epoch.
+    """
+
+    pos: np.ndarray
+    clock_m: np.ndarray
+    trusted: np.ndarray
+    rms_m: np.ndarray
+    n_rows: np.ndarray
+
+
+def solve_epochs(epoch: np.ndarray, sat_pos: np.ndarray, code: np.ndarray, *, n_epochs: int | None = None,
+                 sigma: np.ndarray | None = None, system_index: np.ndarray | None = None,
+                 el: np.ndarray | None = None, doy: float | None = None, x0: np.ndarray | None = None,
+                 iterations: int = 12, tol_m: float = 1e-4, max_rms_m: float = np.inf,
+                 fill_untrusted: bool = False) -> SppSolution:
+    """Code-only iterative weighted least squares position and clocks of every epoch.
+
+    Parameters
+    ----------
+    epoch : np.ndarray of int, shape (N,)
+        Epoch index 0..n_epochs-1 of each row (any order).
+    sat_pos : np.ndarray, shape (N, 3)
+        Satellite ECEF positions at transmit time [m].
+    code : np.ndarray, shape (N,)
+        Corrected pseudoranges [m]: satellite clock applied, ionosphere removed
+        or combined away. Rows with a non-finite code or position are ignored.
+    n_epochs : int, optional
+        Number of epochs (default ``epoch.max() + 1``).
+    sigma : np.ndarray, shape (N,), optional
+        Code standard deviations [m] (weights 1/sigma^2); unit weights when omitted.
+    system_index : np.ndarray of int, shape (N,), optional
+        GNSS system of each row, 0..n_systems-1; each system gets its own clock.
+    el : np.ndarray, shape (N,), optional
+        Elevations [rad]; with ``doy`` the hydrostatic troposphere is modelled.
+    doy : float, optional
+        Day of year (Niell mapping).
+    x0 : np.ndarray, shape (3,) or (n_epochs, 3), optional
+        Start of the iteration [m] (default the Earth's centre).
+    iterations : int
+        Gauss-Newton iterations at most.
+    tol_m : float
+        Stop once every epoch's position step is below this [m].
+    max_rms_m : float
+        Trust check: epochs whose post-fit RMS exceeds this are not trusted [m].
+    fill_untrusted : bool
+        Give every untrusted epoch the position of the nearest trusted epoch
+        (the later one on a tie) and clocks refitted there, so callers get a
+        usable rough position everywhere.
+
+    Returns
+    -------
+    SppSolution
+
+    Raises
+    ------
+    SimbenchError
+        On arrays of mismatched shapes, or (with ``fill_untrusted``) when no
+        epoch gives a trusted solution.
+    """
+    epoch = np.asarray(epoch, dtype=np.int64).reshape(-1)
+    sat_pos = np.asarray(sat_pos, dtype=float).reshape(-1, 3)
+    code = np.asarray(code, dtype=float).reshape(-1)
+    n = len(code)
+    if len(epoch) != n or len(sat_pos) != n:
+        raise SimbenchError("observations", f"{len(epoch)} epoch indices, {len(sat_pos)} satellite positions "
+                            f"and {n} codes", "pass one epoch index and one satellite position per code")
+    nk = int(n_epochs if n_epochs is not None else (epoch.max() + 1 if n else 0))
+    sys_idx = np.zeros(n, np.int64) if system_index is None else np.asarray(system_index, np.int64).reshape(-1)
+    n_sys = int(sys_idx.max(initial=0)) + 1
+    w = np.ones(n) if sigma is None else 1.0 / np.asarray(sigma, dtype=float).reshape(-1) ** 2
+    with_tropo = el is not None and doy is not None
+    el_rows = np.asarray(el, dtype=float).reshape(-1) if with_tropo else None
+
+    ok = np.isfinite(code) & np.isfinite(sat_pos).all(axis=1) & np.isfinite(w) & (epoch >= 0) & (epoch < nk)
+    rows = np.flatnonzero(ok)
+    rows = rows[np.argsort(epoch[rows], kind="stable")]
+    e, s, c, wr, sy = epoch[rows], sat_pos[rows], code[rows], w[rows], sys_idx[rows]
+    el_r = el_rows[rows] if with_tropo else None
+    present, starts, n_rows_present = np.unique(e, return_index=True, return_counts=True)
+    n_rows = np.zeros(nk, np.int64)
+    n_rows[present] = n_rows_present
+    # systems present per epoch decide how many unknowns the epoch has
+    has_sys = np.zeros((nk, n_sys), bool)
+    has_sys[e, sy] = True
+    solvable = n_rows >= 3 + has_sys.sum(axis=1)
+
+    pos = np.zeros((nk, 3))
+    if x0 is not None:
+        pos[:] = np.broadcast_to(np.asarray(x0, dtype=float), (nk, 3))
+    clock = np.zeros((nk, n_sys))
+    p = 3 + n_sys
+    A = np.zeros((len(rows), p))
+    A[np.arange(len(rows)), 3 + sy] = 1.0
+    step = np.full(nk, np.inf)
+    hydro = np.zeros(len(rows))
+    for _ in range(iterations):
+        rx = pos[e]
+        rho, grad = sagnac_range_gradient(s, rx)
+        hydro = _hydrostatic(pos, e, el_r, doy) if with_tropo else hydro
+        res = c - rho - clock[e, sy] - hydro
+        A[:, :3] = grad
+        N = np.add.reduceat((A[:, :, None] * A[:, None, :]) * wr[:, None, None], starts, axis=0)
+        b = np.add.reduceat(A * (wr * res)[:, None], starts, axis=0)
+        # pinv: an absent system's clock column is zero and stays 0; a degenerate geometry
+        # must not stop the other epochs
+        dx = np.einsum("kij,kj->ki", np.linalg.pinv(N), b)
+        dx[~solvable[present]] = 0.0
+        pos[present] += dx[:, :3]
+        clock[present] += dx[:, 3:]
+        step[present] = np.linalg.norm(dx[:, :3], axis=1)
+        if not np.any(step[present] >= tol_m):
+            break
+    rms = np.full(nk, np.nan)
+    hydro = _hydrostatic(pos, e, el_r, doy) if with_tropo else hydro
+    res = c - sagnac_range_gradient(s, pos[e])[0] - clock[e, sy] - hydro
+    rms[present] = np.sqrt(np.add.reduceat(res * res, starts) / n_rows_present)
+    height = _lat_height(pos)[1]
+    trusted = (solvable & (step < _CONVERGED_STEP_M) & np.isfinite(pos).all(axis=1)
+               & (height > _MIN_HEIGHT_M) & (height < _MAX_HEIGHT_M) & (rms < max_rms_m))
+    if not fill_untrusted:
+        pos[~trusted] = np.nan
+        clock[~trusted] = np.nan
+        return SppSolution(pos=pos, clock_m=clock, trusted=trusted, rms_m=rms, n_rows=n_rows)
+
+    good = np.flatnonzero(trusted)
+    if good.size == 0:
+        raise SimbenchError("observations", "no epoch gives a trusted single-point solution",
+                            "check that the navigation data belong to the observations and the code is in metres")
+    bad = ~trusted
+    if bad.any():
+        k = np.arange(nk)
+        after = good[np.clip(np.searchsorted(good, k), 0, good.size - 1)]
+        before = good[np.clip(np.searchsorted(good, k) - 1, 0, good.size - 1)]
+        nearest = np.where(np.abs(before - k) < np.abs(after - k), before, after)
+        pos[bad] = pos[nearest[bad]]
+        # the clocks that fit the borrowed position: mean residual per epoch and system
+        hydro = _hydrostatic(pos, e, el_r, doy) if with_tropo else np.zeros(len(rows))
+        res = c - sagnac_range_gradient(s, pos[e])[0] - hydro
+        flat = e * n_sys + sy
+        total = np.bincount(flat, res, nk * n_sys).reshape(nk, n_sys)
+        count = np.bincount(flat, minlength=nk * n_sys).reshape(nk, n_sys)
+        refit = np.divide(total, count, out=np.zeros_like(total), where=count > 0)
+        clock[bad] = refit[bad]
+    return SppSolution(pos=pos, clock_m=clock, trusted=trusted, rms_m=rms, n_rows=n_rows)
+
+
+def _hydrostatic(pos: np.ndarray, e: np.ndarray, el: np.ndarray, doy: float) -> np.ndarray:
+    """Slant hydrostatic delay per row at each epoch's iterate; 0 while the iterate is far from the surface."""
+    lat, h = _lat_height(pos)
+    near = (h > _MIN_HEIGHT_M) & (h < _MAX_HEIGHT_M)
+    out = np.zeros(len(e))
+    rows = near[e]
+    if rows.any():
+        out[rows] = troposphere_terms(el[rows], lat[e][rows], h[e][rows], doy)[0]
+    return out
+
+
+def _lat_height(pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Geodetic latitude [rad] and height [m]; NaN height for positions near the Earth's centre (the start)."""
+    lat = np.full(len(pos), np.nan)
+    h = np.full(len(pos), np.nan)
+    away = np.isfinite(pos).all(axis=1) & (np.einsum("ij,ij->i", pos, pos) > 1.0e6**2)
+    if away.any():
+        lat[away], _, h[away] = geodetic_from_ecef(pos[away])
+    return lat, h

@@ -1,0 +1,58 @@
+"""Fixtures shared by the test files: the real data in ``shared/`` beside the repository.
+
+A test that needs ``shared/`` takes the ``shared_dir`` or ``shared_data``
+fixture. When the directory is missing such a test fails with one line (CI must
+not pass by skipping it), unless ``SIMBENCH_ALLOW_MISSING_SHARED`` is set, for
+machines that knowingly run without the data; then it is skipped.
+"""
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from pathlib import Path
+
+import pytest
+from threadpoolctl import threadpool_limits
+
+# One BLAS thread per test process, here and in the CLI runs the tests start: with
+# ``pytest -n 2`` on 2 cores, OpenBLAS's spinning threads made the suite several times slower.
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+threadpool_limits(limits=1)
+
+#: Environment switch that turns a missing ``shared/`` from a failure into a skip.
+ALLOW_MISSING_SHARED = "SIMBENCH_ALLOW_MISSING_SHARED"
+
+#: The repository root (the parent of ``tests/``).
+REPO_ROOT = Path(__file__).resolve().parent.parent
+
+
+def shared_path(repo_root: Path = REPO_ROOT) -> Path:
+    """Where the shared reference material lives: ``shared/`` next to the repository root."""
+    return repo_root.parent / "shared"
+
+
+def require_shared(path: Path, environ: Mapping[str, str] = os.environ) -> Path:
+    """Return ``path`` if it is a directory; otherwise fail the test, or skip it when the switch is set.
+
+    The switch counts as set for any value but empty and ``0``.
+    """
+    if path.is_dir():
+        return path
+    message = (f"shared data directory {path} not found -- put shared/ beside the repository, "
+               f"or set {ALLOW_MISSING_SHARED}=1 to skip the tests that need it")
+    if environ.get(ALLOW_MISSING_SHARED, "") not in ("", "0"):
+        pytest.skip(message)
+    pytest.fail(message, pytrace=False)
+
+
+@pytest.fixture(scope="session")
+def shared_dir() -> Path:
+    """``<repository root>/../shared`` (REFERENCE.md, data/, seeds/)."""
+    return require_shared(shared_path())
+
+
+@pytest.fixture(scope="session")
+def shared_data(shared_dir: Path) -> Path:
+    """``shared/data``: the WVU drives and the Hong Kong log."""
+    return require_shared(shared_dir / "data")

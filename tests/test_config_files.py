@@ -1,0 +1,179 @@
+"""``conf/`` against the typed schemas: minimal estimator YAML, documented overrides, choice fields.
+
+An estimator file ``conf/estimator/<name>.yaml`` starts from its ``Config``
+dataclass (``defaults: [<name>_schema, _self_]``) and holds under ``<name>:``
+only values that differ from the dataclass defaults, each documented by a
+trailing ``# override: <reason>`` comment. Restating a default is an error
+too: the dataclass is the one place a default lives. Scenario, receiver and
+IMU presets are overrides by nature (a preset *is* its values), so they need
+no comment; for them every key must be a schema field and every value must
+type-check, which composing them checks.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import re
+from typing import Any
+
+import pytest
+import yaml
+from omegaconf import OmegaConf
+
+import estimators
+from simbench.compose import CONF_DIR, available, compose_config
+from simbench.config import ScenarioSource, SimConfig, TrajectoryKind, check_choices, to_typed, validate_sim
+from simbench.errors import SimbenchError
+from simbench.store import config_key
+
+NAMES = sorted(estimators.registered())
+OVERRIDE_COMMENT = re.compile(r"#\s*override:\s*\S")
+
+
+def estimator_yaml_problems(text: str, name: str, config: type) -> list[str]:
+    """Every way an estimator YAML text breaks the minimal-file rule (empty when it follows it).
+
+    Parameters
+    ----------
+    text : str
+        Contents of ``conf/estimator/<name>.yaml``.
+    name : str
+        Estimator name: the one node besides ``defaults``.
+    config : type
+        The estimator's ``Config`` dataclass.
+    """
+    problems = []
+    top = yaml.safe_load(text) or {}
+    if set(top) != {"defaults", name}:
+        problems.append(f"top-level keys {sorted(top)}, expected ['defaults', '{name}']")
+    if top.get("defaults") != [f"{name}_schema", "_self_"]:
+        problems.append(f"defaults {top.get('defaults')}, expected ['{name}_schema', '_self_']")
+    root = yaml.compose(text)
+    node = next((v for k, v in (root.value if root else []) if k.value == name), None)
+    if node is None:
+        return problems
+    if not isinstance(node, yaml.MappingNode):
+        return problems + [f"{name}: must be a mapping (possibly {{}})"]
+    fields = {f.name for f in dataclasses.fields(config)}
+    defaults = config()
+    lines = text.splitlines()
+    for key_node, value_node in node.value:
+        key = key_node.value
+        if key not in fields:
+            problems.append(f"{key}: not a field of {config.__name__}")
+            continue
+        try:
+            value = getattr(to_typed({key: yaml.safe_load(yaml.serialize(value_node))}, config, name), key)
+        except SimbenchError as exc:
+            problems.append(f"{key}: {exc}")
+            continue
+        documented = bool(OVERRIDE_COMMENT.search(lines[key_node.start_mark.line]))
+        if value == getattr(defaults, key):
+            problems.append(f"{key}: restates the dataclass default {getattr(defaults, key)!r}; delete it")
+        elif not documented:
+            problems.append(f"{key}: {value!r} differs from the default {getattr(defaults, key)!r} without a "
+                            "'# override: <reason>' comment")
+    return problems
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_estimator_yaml_holds_only_documented_overrides(name: str) -> None:
+    text = (CONF_DIR / "estimator" / f"{name}.yaml").read_text()
+    assert estimator_yaml_problems(text, name, estimators.get(name).Config) == []
+
+
+def test_every_estimator_has_one_yaml_and_every_yaml_an_estimator() -> None:
+    assert sorted(p.stem for p in (CONF_DIR / "estimator").glob("*.yaml")) == NAMES
+
+
+def test_the_yaml_rule_catches_each_kind_of_violation() -> None:
+    config = estimators.get("l2").Config
+    head = "defaults:\n  - l2_schema\n  - _self_\n\n"
+    assert config().prior_scale == 1.0 and config().max_iterations == 100  # the cases below rely on these
+    assert estimator_yaml_problems(head + "l2: {}\n", "l2", config) == []
+    assert estimator_yaml_problems(head + "l2:\n  prior_scale: 3.0  # override: Fig. 5.3.7 point\n", "l2",
+                                   config) == []
+    undocumented = estimator_yaml_problems(head + "l2:\n  prior_scale: 3.0  # larger\n", "l2", config)
+    assert len(undocumented) == 1 and "prior_scale: 3.0 differs" in undocumented[0]
+    restated = estimator_yaml_problems(head + "l2:\n  max_iterations: 100  # override: same\n", "l2", config)
+    assert len(restated) == 1 and "restates the dataclass default 100" in restated[0]
+    # an int written for a float field is the same value, not an override
+    assert "restates" in estimator_yaml_problems(head + "l2:\n  prior_scale: 1\n", "l2", config)[0]
+    unknown = estimator_yaml_problems(head + "l2:\n  window: 5  # override: no such field\n", "l2", config)
+    assert unknown == ["window: not a field of L2Config"]
+    wrong_type = estimator_yaml_problems(head + "l2:\n  clock_model: pink  # override: bad\n", "l2", config)
+    assert len(wrong_type) == 1 and "clock_model" in wrong_type[0] and "random_walk" in wrong_type[0]
+    no_schema = estimator_yaml_problems("l2: {}\n", "l2", config)
+    assert len(no_schema) == 2 and "defaults" in no_schema[1]
+
+
+def test_composed_estimator_configs_are_the_dataclass_defaults() -> None:
+    cfg = compose_config([])
+    for name in NAMES:
+        cls = estimators.get(name).Config
+        node = OmegaConf.to_container(cfg.estimator[name], resolve=True)
+        assert to_typed(node, cls, name) == cls(), name
+
+
+@pytest.mark.parametrize("sweep", available("sweep"))
+def test_sweeps_compose_and_their_estimator_overrides_apply(sweep: str) -> None:
+    cfg = compose_config([f"+sweep={sweep}"])
+    for name in cfg.estimator:
+        to_typed(OmegaConf.to_container(cfg.estimator[name], resolve=True), estimators.get(name).Config, name)
+    params = ((yaml.safe_load((CONF_DIR / "sweep" / f"{sweep}.yaml").read_text()).get("hydra") or {})
+              .get("sweeper", {}).get("params", {}))
+    for key, values in params.items():
+        if not key.startswith("estimator."):
+            continue
+        _, name, field = key.split(".")
+        for value in str(values).split(","):
+            node = compose_config([f"+sweep={sweep}", f"{key}={value}"]).estimator[name]
+            typed = to_typed(OmegaConf.to_container(node, resolve=True), estimators.get(name).Config, name)
+            assert getattr(typed, field) == yaml.safe_load(value), (key, value)
+
+
+@pytest.mark.parametrize("group", ["scenario", "receiver", "imu"])
+def test_presets_compose_into_the_typed_schema(group: str) -> None:
+    for preset in available(group):
+        cfg = compose_config([f"{group}={preset}"])
+        sim = to_typed({k: cfg[k] for k in ("scenario", "receiver", "imu", "seed")}, SimConfig, "config")
+        check_choices(sim)
+
+
+def test_a_bad_choice_on_the_command_line_is_one_line_with_the_allowed_values() -> None:
+    for override, key, allowed in (("scenario.trajectory.kind=boat", "scenario.trajectory.kind", "urban_drive"),
+                                   ("scenario.source=sp3", "scenario.source", "librsf"),
+                                   ("estimator.l2.clock_model=pink", "estimator.l2.clock_model", "random_walk")):
+        with pytest.raises(SimbenchError) as info:
+            compose_config([override])
+        message = str(info.value)
+        assert message.startswith(f"{key}:") and allowed in message and "\n" not in message
+
+
+def test_a_bad_choice_set_in_python_is_one_line_with_the_allowed_values() -> None:
+    cfg = SimConfig()
+    cfg.scenario.trajectory.kind = "boat"  # type: ignore[assignment]
+    with pytest.raises(SimbenchError, match=r"^scenario.trajectory.kind: unknown value 'boat' -- use one of "
+                                            r"urban_drive, flight, replay$"):
+        validate_sim(cfg)
+    cfg = SimConfig()
+    cfg.scenario.source = "rinex"  # a plain string equal to a member is fine
+    with pytest.raises(SimbenchError, match="^scenario.obs"):
+        validate_sim(cfg)
+
+
+def test_choice_fields_serialise_as_their_yaml_words() -> None:
+    # scenario keys hash dataclasses.asdict(sim): an Enum member must encode as the old string did
+    sim = SimConfig()
+    text = json.dumps(dataclasses.asdict(sim))
+    assert '"kind": "urban_drive"' in text and '"source": "simulated"' in text and '"kind": "nominal"' in text
+    as_strings: dict[str, Any] = json.loads(text)
+    assert config_key(dataclasses.asdict(sim)) == config_key(as_strings)
+    assert sim.scenario.trajectory.kind is TrajectoryKind.urban_drive and sim.scenario.source == "simulated"
+    assert f"{ScenarioSource.rinex}" == "rinex"
+
+
+def test_estimator_yaml_keeps_its_file_header() -> None:
+    for name in NAMES:
+        first = (CONF_DIR / "estimator" / f"{name}.yaml").read_text().splitlines()[0]
+        assert first.startswith("# ") and len(first) > 20, f"{name}.yaml lost its description"
