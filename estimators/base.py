@@ -83,6 +83,12 @@ class Estimator(ABC):
             validate(f"estimator.{self.name}")
         self._labels: pd.DataFrame | None = None
 
+    @classmethod
+    def unavailable_reason(cls) -> str:
+        """Why this estimator cannot run in this environment (e.g. an external program is not
+        installed), as one line for a skipped row; ``""`` when it can run."""
+        return ""
+
     def needs(self) -> frozenset[Need]:
         """What this configured estimator needs from the data.
 

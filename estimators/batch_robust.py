@@ -36,7 +36,7 @@ from estimators import register
 from estimators.base import Estimator, solution_frame
 from estimators.measurement import PppObservations, prepare_ppp
 from estimators.ppp_graph import PppGraph, PppGraphConfig, solve
-from simbench.contract import Need, ReceiverData
+from simbench.contract import ReceiverData
 from simbench.errors import SimbenchError, require_at_least, require_positive
 
 __all__ = [
@@ -72,8 +72,6 @@ class BatchGraphEstimator(Estimator):
     """Shared plumbing: prepare observations, build the graph, time the run, output the solution."""
 
     Config = BatchConfig
-    #: prepare_ppp drops rows without carrier phase, so a code-only log leaves nothing to solve
-    requires = frozenset({Need.phase})
 
     def _prepare(self, data: ReceiverData) -> tuple[PppObservations, PppGraph]:
         cfg = self.config
@@ -105,8 +103,9 @@ class BatchGraphEstimator(Estimator):
         pos = g.positions(values)
         per_epoch = (time.perf_counter() - tic) / obs.n_epochs
         frame = solution_frame(obs.epoch_ids, obs.epoch_t, pos, np.full(obs.n_epochs, per_epoch))
+        isb = {name: float(np.median(v)) for name, v in g.inter_system_biases(values).items()}
         diag = {"n_epochs": int(obs.n_epochs), "n_observations": int(obs.n_obs), "n_arcs": int(obs.n_arcs),
-                **diag, "config": asdict(self.config)}
+                "inter_system_bias_m": isb, **diag, "config": asdict(self.config)}
         return frame, diag
 
     def _run(self, data: ReceiverData, obs: PppObservations, g: PppGraph,

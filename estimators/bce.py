@@ -33,6 +33,16 @@ on every seed. The late BCE iterations are a slow mode of the alternation itself
 down-weighted, whatever the variational tolerance), which the stopping rule is left
 to decide.
 
+Measurement modes (``measurements``, :mod:`estimators.ppp_config`): the mixture is
+over the residual vector that exists. When every row has carrier phase it is the
+2-D ``(code, phase)`` mixture above. When no row has phase (a code-only log, or
+``measurements = code``) it is a 1-D mixture over the code residual and each row
+takes its component's code variance and mean. With sparse phase (``auto`` on a
+real log) the 2-D mixture is fitted on the rows with phase and a row without phase
+joins the component most likely under the components' code marginals. BCE-AD
+gives a row without phase the mean phase residual as its phase feature (0 once
+standardised) and computes each cluster's code statistics over all its members.
+
 BCE-AD augments the residuals with elevation, azimuth and C/N0, selects
 ``n_features`` of the five by MCFS every iteration
 (:func:`estimators.clustering.select_features`), clusters in the selected
@@ -172,11 +182,23 @@ class Bce(_IterativeCovariance):
 
     def _noise(self, data, obs, r, it):
         cfg: BceConfig = self.config
-        mix = fit_dpgmm(r, truncation=cfg.truncation, max_iter=cfg.dpgmm_max_iter, tol=cfg.dpgmm_tol,
-                        seed=cfg.seed,
-                        fit_rows=self._fit_idx, warm_start=self._previous(it))
+        has = np.isfinite(r[:, 1])
+        # the residual vector that exists: (code, phase) where any row has phase, code alone otherwise
+        x = r if has.any() else r[:, :1]
+        # with sparse phase the mixture is fitted on the rows with phase in the fixed sub-sample
+        mix = fit_dpgmm(x[has] if has.any() else x, truncation=cfg.truncation, max_iter=cfg.dpgmm_max_iter,
+                        tol=cfg.dpgmm_tol, seed=cfg.seed, fit_rows=_within(self._fit_idx, has),
+                        warm_start=self._previous(it))
         self._model = mix.model
-        return _component_noise(mix.means, mix.covariances, mix.labels), {"mixture": mix.to_json()}
+        means, covs = mix.means, mix.covariances
+        if not has.any():  # code-only: 1-D components; the phase slots are unused
+            means = np.c_[means, np.zeros(len(means))]
+            covs = np.stack([np.diag([c[0, 0], 1.0]) for c in covs])
+        labels = np.empty(len(r), np.int64)
+        labels[has if has.any() else slice(None)] = mix.labels
+        if has.any() and not has.all():  # rows without phase: most likely component of the code marginal
+            labels[~has] = _code_marginal_labels(r[~has, 0], mix.weights, means, covs)
+        return _component_noise(means, covs, labels), {"mixture": mix.to_json()}
 
 
 @register
@@ -188,7 +210,11 @@ class BceAd(_IterativeCovariance):
 
     def _noise(self, data, obs, r, it):
         cfg: BceAdConfig = self.config
-        feats = np.c_[r, obs.el, obs.az, _cn0(data, obs)]
+        # a row without phase takes the mean phase residual as its feature (0 once standardised),
+        # so it clusters by what it has
+        phase = r[:, 1]
+        fill = float(np.nanmean(phase)) if np.isfinite(phase).any() else 0.0
+        feats = np.c_[r[:, 0], np.where(np.isfinite(phase), phase, fill), obs.el, obs.az, _cn0(data, obs)]
         mu, sd = feats.mean(axis=0), feats.std(axis=0)
         z = (feats - mu) / np.where(sd > 0, sd, 1.0)
         chosen, scores = select_features(z[self._sample_idx], cfg.n_features, n_clusters=cfg.mcfs_clusters,
@@ -218,18 +244,45 @@ class BceAd(_IterativeCovariance):
         return np.diag([np.median(sc) ** 2, np.median(sp) ** 2])
 
 
+def _within(rows: np.ndarray | slice, has: np.ndarray) -> np.ndarray | None:
+    """``rows`` (indices into all rows) as indices into the rows where ``has``; None for all of them."""
+    if not isinstance(rows, np.ndarray) or has.all() or not has.any():
+        return rows if isinstance(rows, np.ndarray) else None
+    position = np.cumsum(has) - 1
+    return position[rows[has[rows]]]
+
+
+def _code_marginal_labels(code: np.ndarray, weights: np.ndarray, means: np.ndarray, covs: np.ndarray) -> np.ndarray:
+    """Most likely component of each code residual under each component's code marginal."""
+    var = covs[:, 0, 0]
+    log_p = np.log(weights) - 0.5 * (np.log(var) + (code[:, None] - means[None, :, 0]) ** 2 / var)
+    return np.argmax(log_p, axis=1)
+
+
 def _residual_statistics(r: np.ndarray, mix: Mixture, fallback: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Mean and covariance of each cluster's (code, phase) residuals; ``fallback`` for clusters < 3 points."""
+    """Mean and covariance of each cluster's (code, phase) residuals; ``fallback`` for clusters < 3 points.
+
+    Rows without phase (NaN) count for the code statistics only.
+    """
     k = mix.n_components
     means = np.zeros((k, 2))
     covs = np.repeat(fallback[None], k, axis=0)
     for c in range(k):
         member = r[mix.labels == c]
-        if len(member) >= _MIN_CLUSTER:
-            means[c] = member.mean(axis=0)
-            cov = np.cov(member, rowvar=False)
+        complete = member[np.isfinite(member[:, 1])]
+        if len(complete) >= _MIN_CLUSTER:
+            means[c] = complete.mean(axis=0)
             # a cluster of identical residuals would have a singular covariance
-            covs[c] = cov + 1e-8 * np.eye(2)
+            covs[c] = np.cov(complete, rowvar=False) + 1e-8 * np.eye(2)
+        if len(member) >= _MIN_CLUSTER and len(complete) < len(member):
+            # code statistics from every member, rows without phase included
+            means[c, 0] = member[:, 0].mean()
+            covs[c, 0, 0] = member[:, 0].var(ddof=1) + 1e-8
+            if len(complete) < _MIN_CLUSTER:
+                covs[c, 0, 1] = covs[c, 1, 0] = 0.0
+            else:  # keep the 2x2 positive definite after replacing the code variance
+                limit = 0.99 * np.sqrt(covs[c, 0, 0] * covs[c, 1, 1])
+                covs[c, 0, 1] = covs[c, 1, 0] = np.clip(covs[c, 0, 1], -limit, limit)
     return means, covs
 
 

@@ -55,7 +55,7 @@ from estimators.measurement import (
     prepare_ppp,
 )
 from estimators.ppp_config import ClockModel, StochasticModelConfig
-from simbench.contract import Need, ReceiverData
+from simbench.contract import ReceiverData
 from simbench.gnss.spp import solve_epochs
 from simbench.gnss.troposphere import troposphere_terms
 from simbench.sim import atmosphere
@@ -69,9 +69,10 @@ _POS, _CLK, _ZWD = slice(0, 3), 3, 4
 
 @dataclass
 class EkfPppConfig(StochasticModelConfig):
-    """EKF-PPP parameters: the shared Table 4.4.2 model of :class:`StochasticModelConfig`, plus:"""
+    """EKF-PPP parameters: the shared Table 4.4.2 model of :class:`StochasticModelConfig`.
 
-    use_phase: bool = True  #: False: code-only filter (no bias states)
+    ``measurements = code`` makes it a code-only filter (no bias states).
+    """
 
 
 @register
@@ -80,17 +81,10 @@ class EkfPpp(Estimator):
 
     name = "ekf_ppp"
     Config = EkfPppConfig
-    requires = frozenset({Need.phase})
-
-    def needs(self) -> frozenset[Need]:
-        """Carrier phase only with ``use_phase``; L2 with ``ionosphere_free``."""
-        needs = super().needs()
-        return needs if self.config.use_phase else needs - {Need.phase}
-
     def _estimate(self, data: ReceiverData) -> tuple[pd.DataFrame, dict[str, Any]]:
         cfg: EkfPppConfig = self.config
-        obs = prepare_ppp(data, **cfg.prepare_kwargs(), require_phase=cfg.use_phase)
-        n_slots = len(obs.sat_names) if cfg.use_phase else 0
+        obs = prepare_ppp(data, **cfg.prepare_kwargs())
+        n_slots = len(obs.sat_names) if obs.n_arcs else 0
         # slant-ionosphere slots follow the bias slots, one per satellite, reset with the arc
         n_iono = n_slots if cfg.estimate_iono and not cfg.ionosphere_free else 0
         iono0 = N_BASE_STATES + n_slots
@@ -133,7 +127,7 @@ class EkfPpp(Estimator):
         n_resets = 0
         arc_bias = np.full(obs.n_arcs, np.nan)  # final bias estimate of each arc [m]
         arc_sat = np.empty(obs.n_arcs, dtype=object)
-        arc_sat[obs.arc] = obs.sat
+        arc_sat[obs.arc[obs.has_phase]] = obs.sat[obs.has_phase]
         t_prev = obs.epoch_t[0]
         for k, rows in obs.iter_epochs():
             tic = time.perf_counter()
@@ -167,7 +161,8 @@ class EkfPpp(Estimator):
                 # ---- new arcs get a fresh bias: mean phase - predicted range, no correlations
                 slots = obs.sat_index[rows]
                 arcs = obs.arc[rows]
-                fresh = slot_arc[slots] != arcs
+                has_phase = arcs >= 0
+                fresh = has_phase & (slot_arc[slots] != arcs)
                 if fresh.any():
                     idx = N_BASE_STATES + slots[fresh]
                     ended = slot_arc[slots[fresh]]
@@ -184,14 +179,15 @@ class EkfPpp(Estimator):
             pred, H5 = predict_given_troposphere(sat_pos, kf.x[_POS], kf.x[_CLK], kf.x[_ZWD], hydro, m_w)
             H[:, :N_BASE_STATES] = H5
             if n_iono:
-                H[rng_m, iono0 + slots] = 1.0
-                pred = pred + kf.x[iono0 + slots]
+                # the slant ionosphere of a row without phase is not separable from its code
+                H[rng_m[has_phase], iono0 + slots[has_phase]] = 1.0
+                pred = pred + np.where(has_phase, kf.x[iono0 + slots], 0.0)
             if obs.n_isb:
                 pred[other] += kf.x[isb0 + sys_k[other] - 1]
             kf.update(obs.code[rows], _const(H), _const(pred), R=np.diag(obs.sigma_code[rows] ** 2))
 
-            if n_slots:
-                # ---- phase update, relinearised at the code-updated state
+            if n_slots and has_phase.any():
+                # ---- phase update of the rows with phase, relinearised at the code-updated state
                 pred, H5 = predict_given_troposphere(sat_pos, kf.x[_POS], kf.x[_CLK], kf.x[_ZWD], hydro, m_w)
                 H[:, :N_BASE_STATES] = H5
                 H[rng_m, N_BASE_STATES + slots] = 1.0
@@ -201,7 +197,8 @@ class EkfPpp(Estimator):
                     pred = pred - kf.x[iono0 + slots]
                 if obs.n_isb:
                     pred[other] += kf.x[isb0 + sys_k[other] - 1]
-                kf.update(obs.phase[rows], _const(H), _const(pred), R=np.diag(obs.sigma_phase[rows] ** 2))
+                kf.update(obs.phase[rows][has_phase], _const(H[has_phase]), _const(pred[has_phase]),
+                          R=np.diag(obs.sigma_phase[rows][has_phase] ** 2))
 
             pos_out[k] = kf.x[_POS]
             update_s[k] = time.perf_counter() - tic
@@ -213,7 +210,7 @@ class EkfPpp(Estimator):
             "n_epochs": int(n),
             "n_observations": int(obs.n_obs),
             "n_satellites": len(obs.sat_names),
-            "n_arcs": int(obs.n_arcs) if cfg.use_phase else 0,
+            "n_arcs": int(obs.n_arcs),
             "n_ambiguity_resets": n_resets,
             "ionosphere_free": bool(cfg.ionosphere_free),
             "iono_states": bool(n_iono),

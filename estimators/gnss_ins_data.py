@@ -17,6 +17,7 @@ import pandas as pd
 
 from estimators.gnss_ins_config import GnssInsConfig
 from estimators.measurement import prepare_ppp
+from estimators.ppp_config import MeasurementMode
 from simbench.contract import ReceiverData
 from simbench.gnss.spp import solve_epochs
 from simbench.gnss.troposphere import troposphere_terms
@@ -77,7 +78,7 @@ def prepare_gnss_ins(data: ReceiverData, cfg: GnssInsConfig) -> GnssInsData:
     """
     obs = prepare_ppp(data, ionosphere_free=False, code_sigma_m=cfg.code_sigma_m, phase_sigma_m=1.0,
                       elevation_mask_deg=cfg.elevation_mask_deg, min_satellites=4, max_gap_epochs=1,
-                      require_phase=False)  # code and Doppler only: code-only logs run
+                      measurements=MeasurementMode.code)  # code and Doppler only: code-only logs run
     extra = (data.observations.set_index(["epoch", "sat"])
              [["doppler_l1", "sat_vx", "sat_vy", "sat_vz", "sat_clock_drift", "cn0_l1"]]
              .reindex(pd.MultiIndex.from_arrays([obs.epoch, obs.sat])).to_numpy(float))

@@ -22,9 +22,14 @@ model of the raw residuals, so ICE does not scale it with elevation.
 
 Choices where the text is silent:
 
-* A satellite that starts a phase arc has no phase residual; it is tested on its
-  code channel alone (marginal of the most likely component) and, if rejected,
-  not buffered (the buffer holds complete 2-D residuals).
+* A satellite that starts a phase arc, or a row without carrier phase
+  (``measurements = auto`` on a log with sparse phase), has no phase residual; it
+  is tested on its code channel alone (marginal of the most likely component) and,
+  if rejected, not buffered (the buffer holds complete 2-D residuals).
+* Measurement modes: when the data carry no carrier phase at all (a code-only log,
+  or ``measurements = code``) the model, the z-test, the buffer and the merge tests
+  are 1-D over the code residual (a-priori component ``N(0, 2.5^2)``); otherwise
+  they are 2-D over ``(code, phase)`` as above.
 * ``N`` of eqs. 7.8-7.12 (points characterised by ``GMM_g``) counts the a-priori
   component as one point at the start and then every inlier residual under its
   most likely component.
@@ -103,6 +108,8 @@ class AdaptiveNoiseModel:
 
     cfg: IceConfig
     cluster: Callable[[np.ndarray], np.ndarray] | None = None
+    #: the data carry no carrier phase at all: the model is 1-D over the code residual
+    code_only: bool = False
     model: MixtureModel = field(init=False)
     buffer: list[np.ndarray] = field(init=False, default_factory=list)
     n_buffered: int = field(init=False, default=0)
@@ -111,8 +118,9 @@ class AdaptiveNoiseModel:
     adaptations: list[dict] = field(init=False, default_factory=list)
 
     def __post_init__(self) -> None:
-        prior = np.diag([self.cfg.prior_code_sigma_m**2, self.cfg.prior_phase_sigma_m**2])
-        self.model = MixtureModel.single(np.zeros(2), prior)
+        sigmas = [self.cfg.prior_code_sigma_m] + ([] if self.code_only else [self.cfg.prior_phase_sigma_m])
+        prior = np.diag(np.square(sigmas))
+        self.model = MixtureModel.single(np.zeros(len(sigmas)), prior)
         self.model.history.append(self.model.snapshot())
         if self.cluster is None:
             truncation = self.cfg.dpgmm_truncation
@@ -123,7 +131,7 @@ class AdaptiveNoiseModel:
 
         Parameters
         ----------
-        res : ndarray, shape (m, 2)
+        res : ndarray, shape (m, 2), or (m, 1) with ``code_only``
             ``(code, phase)`` residuals [m]; a NaN phase tests the code alone.
 
         Returns
@@ -132,7 +140,7 @@ class AdaptiveNoiseModel:
         component : ndarray of int, shape (m,)
         """
         mdl = self.model
-        full = np.isfinite(res[:, 1])
+        full = np.isfinite(res[:, -1])
         comp = np.empty(len(res), np.int64)
         if full.any():
             comp[full] = mdl.most_likely(res[full])
@@ -142,14 +150,14 @@ class AdaptiveNoiseModel:
             comp[~full] = np.argmax(ll, axis=1)
         sig = np.sqrt(np.diagonal(mdl.covs, axis1=1, axis2=2))[comp]
         z = np.abs(res - mdl.means[comp]) / sig
-        inlier = (z[:, 0] < self.cfg.z_threshold) & ((z[:, 1] < self.cfg.z_threshold) | ~full)
+        inlier = (z[:, 0] < self.cfg.z_threshold) & ((z[:, -1] < self.cfg.z_threshold) | ~full)
         return inlier, comp
 
     def observe(self, res: np.ndarray, inlier: np.ndarray, comp: np.ndarray) -> bool:
         """Count the inliers, buffer the full outlier residuals, adapt past ``T_c``; True if adapted."""
         self.n_residuals += len(res)
         np.add.at(self.model.counts, comp[inlier], 1.0)
-        out = res[~inlier & np.isfinite(res[:, 1])]
+        out = res[~inlier & np.isfinite(res[:, -1])]
         self.n_outliers += int((~inlier).sum())
         if len(out):
             self.buffer.append(out)
@@ -182,11 +190,14 @@ class Ice(IncrementalGraphEstimator):
     Config = IceConfig
 
     def _start_run(self) -> None:
-        self._noise = AdaptiveNoiseModel(self.config)
+        self._noise: AdaptiveNoiseModel | None = None
         self._records: list[dict] = []
 
     def _measurements(self, k: int, rows: slice, g: PppGraph, pred: EpochPrediction) -> dict[str, Any] | None:
-        res = np.column_stack([pred.res_code, pred.res_phase])
+        if self._noise is None:  # the model's dimension follows the data: code-only logs get a 1-D model
+            self._noise = AdaptiveNoiseModel(self.config, code_only=g.obs.n_arcs == 0)
+        code_only = self._noise.code_only
+        res = pred.res_code[:, None] if code_only else np.column_stack([pred.res_code, pred.res_phase])
         inlier, comp = self._noise.classify(res)
         # the model used for this epoch's inliers is the one they were tested against
         means, covs = self._noise.model.means[comp], self._noise.model.covs[comp]
@@ -197,12 +208,16 @@ class Ice(IncrementalGraphEstimator):
         self._noise.observe(res, inlier, comp)
         if inlier.sum() < self.config.min_inliers:
             return None
+        if code_only:  # the data have no phase rows, so there are no phase factors to weight
+            return {"code_sigma": np.sqrt(covs[:, 0, 0]), "code_offset": means[:, 0], "use_code": inlier}
         return {"code_sigma": np.sqrt(covs[:, 0, 0]), "phase_sigma": np.sqrt(covs[:, 1, 1]),
                 "code_phase_cov": np.where(pred.new_arc, 0.0, covs[:, 0, 1]),
                 "code_offset": means[:, 0], "phase_offset": np.where(pred.new_arc, 0.0, means[:, 1]),
                 "use_code": inlier, "use_phase": inlier}
 
     def _diagnostics(self) -> dict[str, Any]:
+        if self._noise is None:
+            self._noise = AdaptiveNoiseModel(self.config)
         out = self._noise.diagnostics()
         if self.config.record_residuals:
             out["residuals"] = self._records

@@ -61,12 +61,14 @@ from estimators.ppp_graph import (
     PppGraph,
     PppGraphConfig,
     amb_key,
+    isb_key,
+    sysclock_key,
     clock_key,
     iono_key,
     pos_key,
     zwd_key,
 )
-from simbench.contract import Need, ReceiverData
+from simbench.contract import ReceiverData
 from simbench.errors import require_at_least, require_positive
 from simbench.sim.constants import C_LIGHT
 
@@ -134,8 +136,6 @@ class IncrementalGraphEstimator(Estimator):
     """The shared iSAM2 loop; subclasses choose the measurement noise of each epoch."""
 
     Config = IncrementalConfig
-    #: prepare_ppp drops rows without carrier phase, so a code-only log leaves nothing to solve
-    requires = frozenset({Need.phase})
 
     # ------------------------------------------------------------------ hooks
 
@@ -178,7 +178,10 @@ class IncrementalGraphEstimator(Estimator):
             update_s[k] = time.perf_counter() - tic
 
         frame = solution_frame(obs.epoch_ids, obs.epoch_t, pos_out, update_s)
+        isb = {name: isam.calculateEstimateDouble(isb_key(s, n - 1))
+               for s, name in enumerate(obs.systems[1:], start=1)}
         diagnostics = {"n_epochs": int(n), "n_observations": int(obs.n_obs), "n_arcs": int(obs.n_arcs),
+                       "inter_system_bias_m": isb,
                        "epochs_without_gnss_update": int(skipped), "ionosphere_free": bool(cfg.ionosphere_free),
                        "config": asdict(cfg), **self._diagnostics()}
         return frame, diagnostics
@@ -186,9 +189,15 @@ class IncrementalGraphEstimator(Estimator):
     def _predict(self, k: int, rows: slice, g: PppGraph, isam: _Smoother) -> EpochPrediction:
         obs = g.obs
         prev = g.prev_row[rows]
-        new_arc = prev < 0
+        has_phase = g.has_phase[rows]
+        new_arc = has_phase & (prev < 0)
+        cont = has_phase & (prev >= 0)
         arcs = obs.arc[rows]
         m = len(prev)
+        # further systems' rows carry their inter-system bias (the latest estimate)
+        isb = np.r_[0.0, [isam.calculateEstimateDouble(isb_key(s, k - 1)) if k else g.isb0_m[s - 1]
+                          for s in range(1, obs.n_isb + 1)]]
+        offset = isb[g.row_system[rows]]
         if k == 0:
             pos, clock, zwd = g.spp_pos[0].copy(), float(g.spp_clock_m[0]), g.zwd0
         else:
@@ -197,18 +206,18 @@ class IncrementalGraphEstimator(Estimator):
             clock = float(g.spp_clock_m[k])
         amb = np.full(m, np.nan)
         iono = np.zeros(m)
-        for j in np.flatnonzero(~new_arc):
+        for j in np.flatnonzero(cont):
             amb[j] = isam.calculateEstimateDouble(amb_key(int(arcs[j])))
             if g.with_iono:
                 iono[j] = isam.calculateEstimateDouble(iono_key(int(prev[j])))
         sat, mw = obs.sat_pos[rows], g.wet_mapping[rows]
         zc, zp = g.code_z[rows], g.phase_z[rows]
         sc, sp = obs.sigma_code[rows], obs.sigma_phase[rows]
-        cont = ~new_arc
         zeros = np.zeros(m)
         # stacked code rows then continuing phase rows; unknowns dx, dy, dz, clock
         for _ in range(_SNAPSHOT_ITERATIONS):
             p, H = predict_given_troposphere(sat, pos, clock, zwd, zeros, mw)
+            p = p + offset
             res = np.r_[zc - (p + iono), (zp - (p - iono + amb))[cont]]
             sig = np.r_[sc, sp[cont]]
             A = np.vstack([H[:, :4], H[cont, :4]])
@@ -219,7 +228,7 @@ class IncrementalGraphEstimator(Estimator):
             clock += dx[3]
             if np.linalg.norm(dx[:3]) < 1e-4:
                 break
-        p, _ = predict_given_troposphere(sat, pos, clock, zwd, zeros, mw)
+        p = predict_given_troposphere(sat, pos, clock, zwd, zeros, mw)[0] + offset
         res_code = zc - (p + iono)
         res_phase = zp - (p - iono + amb)
         amb_new = np.where(new_arc, zp - (p - iono), np.nan)
@@ -230,6 +239,8 @@ class IncrementalGraphEstimator(Estimator):
         v = g.new_values(k, self._previous(k, rows, g, isam))
         v.update(pos_key(k), gtsam.Point3(*pred.pos))
         v.update(clock_key(k), pred.clock_m / C_LIGHT)
+        for s in range(1, g.obs.n_isb + 1):
+            v.update(sysclock_key(s, k), (pred.clock_m + v.atDouble(isb_key(s, k))) / C_LIGHT)
         arcs = g.obs.arc[rows]
         for j in np.flatnonzero(pred.new_arc):
             v.update(amb_key(int(arcs[j])), float(pred.amb_new[j]))
@@ -243,6 +254,8 @@ class IncrementalGraphEstimator(Estimator):
         v = gtsam.Values()
         v.insert(pos_key(k - 1), isam.calculateEstimatePoint3(pos_key(k - 1)))
         v.insert(zwd_key(k - 1), isam.calculateEstimateDouble(zwd_key(k - 1)))
+        for s in range(1, g.obs.n_isb + 1):
+            v.insert(isb_key(s, k - 1), isam.calculateEstimateDouble(isb_key(s, k - 1)))
         if g.with_iono:
             for p in g.prev_row[rows]:
                 if p >= 0:
@@ -274,7 +287,7 @@ class _Smoother:
         obs = self._g.obs
         t = float(obs.epoch_t[k])
         stamps = dict.fromkeys(values.keys(), t)
-        stamps.update(dict.fromkeys((amb_key(int(a)) for a in obs.arc[obs.epoch_slice(k)]), t))
+        stamps.update(dict.fromkeys((amb_key(int(a)) for a in obs.arc[obs.epoch_slice(k)] if a >= 0), t))
         stamps[ZERO_KEY] = t
         self._impl.update(graph, values, stamps)
 
@@ -303,7 +316,7 @@ def isam2_params(cfg: IncrementalConfig) -> gtsam.ISAM2Params:
     params = gtsam.ISAM2Params()
     thresholds = gtsam.ISAM2ThresholdMap()
     thresholds.insert(("x", np.full(3, cfg.relinearize_threshold)))
-    for linear in "cwibz":
+    for linear in "cwibzsj":
         thresholds.insert((linear, np.array([np.inf])))
     params.setRelinearizeThreshold(thresholds)
     params.relinearizeSkip = cfg.relinearize_skip

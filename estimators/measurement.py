@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from estimators.ppp_config import MeasurementMode
 from simbench.contract import ReceiverData
 from simbench.errors import SimbenchError
 from simbench.sim import atmosphere
@@ -168,7 +169,7 @@ class PppObservations:
     phase: np.ndarray  #: m, corrected phase (same corrections; contains the arc bias)
     el: np.ndarray  #: rad, elevation
     az: np.ndarray  #: rad, azimuth
-    arc: np.ndarray  #: int, phase arc id 0..n_arcs-1, numbered in order of arc start
+    arc: np.ndarray  #: int, phase arc id 0..n_arcs-1, numbered in order of arc start; -1 on rows without phase
     sigma_code: np.ndarray  #: m, code sigma / sin(el)
     sigma_phase: np.ndarray  #: m, phase sigma / sin(el)
     epoch_ids: np.ndarray  #: int, (n_epochs,) GNSS epoch index of each solved epoch
@@ -176,7 +177,7 @@ class PppObservations:
     epoch_start: np.ndarray  #: int, (n_epochs,) first row of each solved epoch
     epoch_stop: np.ndarray  #: int, (n_epochs,) one past the last row
     sat_names: tuple[str, ...]  #: satellites appearing in the rows, sorted
-    n_arcs: int  #: number of distinct arcs among the rows
+    n_arcs: int  #: number of distinct phase arcs among the rows
     ionosphere_free: bool  #: IF combination (True) or L1 with Klobuchar (False)
     doy: float  #: day of year of the scenario start (Niell)
     #: GNSS systems among the rows (RINEX letters), GPS first when present: with more than one,
@@ -184,6 +185,11 @@ class PppObservations:
     systems: tuple[str, ...] = ("G",)
     #: int, per row: index into ``systems`` (0 = the reference clock); None means all 0
     system_index: np.ndarray | None = None
+
+    @property
+    def has_phase(self) -> np.ndarray:
+        """bool, (N,): rows that carry a usable carrier phase (``phase`` finite, ``arc >= 0``)."""
+        return self.arc >= 0
 
     @property
     def n_isb(self) -> int:
@@ -210,14 +216,15 @@ class PppObservations:
 
 def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: float, phase_sigma_m: float,
                 elevation_mask_deg: float, min_satellites: int = 4, max_gap_epochs: int = 1,
-                require_phase: bool = True) -> PppObservations:
+                measurements: MeasurementMode = MeasurementMode.code_phase) -> PppObservations:
     """Select, correct and weight the observations for PPP.
 
     Rows with missing values in the columns used, or below the elevation mask,
     are dropped; then epochs with fewer than ``min_satellites`` rows. Phase
-    arcs are identified on all rows with valid observables (before the mask and
+    arcs are identified on all rows with a valid phase (before the mask and
     the epoch selection: a satellite that dips under the mask while the
-    receiver keeps lock keeps its arc).
+    receiver keeps lock keeps its arc); a row without phase ends its
+    satellite's arc.
 
     Parameters
     ----------
@@ -233,10 +240,11 @@ def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: floa
         Epochs with fewer usable satellites are dropped.
     max_gap_epochs : int
         See :func:`arc_ids`.
-    require_phase : bool
-        Drop rows without carrier phase (default). Code-only estimators pass
-        False to keep them; their ``phase`` is then NaN (real receivers often
-        report code without phase).
+    measurements : MeasurementMode
+        ``code_phase`` (default) drops rows without carrier phase; ``auto`` keeps
+        them as code-only rows (real receivers often report code without phase);
+        ``code`` ignores the phase everywhere. A code-only row has ``phase`` NaN
+        and ``arc`` -1.
 
     Raises
     ------
@@ -260,17 +268,22 @@ def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: floa
         raise SimbenchError("min_satellites", f"must be at least 4, got {min_satellites}",
                             "4 unknowns (position, clock) need 4 satellites")
 
+    require_phase = measurements == MeasurementMode.code_phase
     if require_phase and len(obs) and not np.isfinite(obs["phase_l1"].to_numpy(float)).any():
         raise SimbenchError("observations", "carry no carrier phase (e.g. a libRSF pseudorange log)",
-                            "use a code-only estimator, e.g. estimator.ekf_ppp.use_phase=false")
-    cols = ["code_l1", "phase_l1", "sat_x", "sat_y", "sat_z", "sat_clock", "el", "az", "t"]
+                            "set the estimator's measurements=auto or measurements=code")
+    phase_cols = ["phase_l1"] + (["phase_l2"] if ionosphere_free else [])
+    code_cols = ["code_l1", "sat_x", "sat_y", "sat_z", "sat_clock", "el", "az", "t"]
     if ionosphere_free:
-        cols += ["code_l2", "phase_l2"]
-    if not require_phase:
-        cols = [c for c in cols if not c.startswith("phase")]
-    valid = np.isfinite(obs[cols].to_numpy(float)).all(axis=1)
+        code_cols += ["code_l2"]
+    valid = np.isfinite(obs[code_cols].to_numpy(float)).all(axis=1)
+    with_phase = np.isfinite(obs[phase_cols].to_numpy(float)).all(axis=1) & (measurements != MeasurementMode.code)
+    if require_phase:
+        valid &= with_phase
     obs = obs.loc[valid]
-    arc = arc_ids(obs, max_gap_epochs, use_l2=ionosphere_free)
+    with_phase = with_phase[valid]
+    arc = np.full(len(obs), -1, np.int64)
+    arc[with_phase] = arc_ids(obs.loc[with_phase], max_gap_epochs, use_l2=ionosphere_free)
 
     el = obs["el"].to_numpy(float) * DEG
     keep = el > elevation_mask_deg * DEG
@@ -301,6 +314,7 @@ def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: floa
     else:
         code = sub["code_l1"].to_numpy(float) + sat_clock
         phase = sub["phase_l1"].to_numpy(float) + sat_clock
+    phase = np.where(arc >= 0, phase, np.nan)
 
     epoch_ids, epoch_start, n_per = np.unique(epoch, return_index=True, return_counts=True)
     epoch_stop = epoch_start + n_per
@@ -317,13 +331,14 @@ def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: floa
                                                np.asarray(data.nav.iono_alpha), np.asarray(data.nav.iono_beta))
         code = code - iono
         phase = phase + iono
-    _, arc = np.unique(arc, return_inverse=True)  # monotone: keeps the start order
+    _, renumbered = np.unique(arc[arc >= 0], return_inverse=True)  # monotone: keeps the start order
+    arc[arc >= 0] = renumbered
     return PppObservations(
         epoch=epoch, t=t, sat=sat, sat_index=sat_index.astype(np.int64), sat_pos=sat_pos, code=code,
         phase=phase, el=el, az=az, arc=arc.astype(np.int64), sigma_code=code_sigma_m * sigma_scale,
         sigma_phase=phase_sigma_m * sigma_scale, epoch_ids=epoch_ids, epoch_t=t[epoch_start],
         epoch_start=epoch_start, epoch_stop=epoch_stop, sat_names=tuple(str(s) for s in sat_names),
-        n_arcs=int(arc.max()) + 1, ionosphere_free=ionosphere_free, doy=doy, systems=systems,
+        n_arcs=int(arc.max(initial=-1)) + 1, ionosphere_free=ionosphere_free, doy=doy, systems=systems,
         system_index=system_index)
 
 

@@ -20,7 +20,7 @@ One Levenberg-Marquardt solve, as ``l2``.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
@@ -50,7 +50,7 @@ class Oracle(BatchGraphEstimator):
 
     name = "oracle"
     Config = OracleConfig
-    requires = frozenset({Need.phase, Need.labels})
+    requires = frozenset({Need.labels})
 
     def _prepare(self, data: ReceiverData):
         if self._labels is None:
@@ -62,7 +62,7 @@ class Oracle(BatchGraphEstimator):
             raise SimbenchError("labels", "not row-aligned with the observations",
                                 "pass the labels of the same scenario")
         los = ~lab["nlos"].to_numpy(bool)
-        clean = ReceiverData(obs_tab.loc[los].reset_index(drop=True), data.imu, data.nav)
+        clean = replace(data, observations=obs_tab.loc[los].reset_index(drop=True))
         obs = prepare_ppp(clean, **self.config.prepare_kwargs())
         return obs, PppGraph(obs, self.config)
 

@@ -14,7 +14,7 @@ from simbench.config import Choice, check_choices
 from simbench.contract import Need
 from simbench.errors import SimbenchError, require_at_least, require_positive
 
-__all__ = ["ClockModel", "StochasticModelConfig"]
+__all__ = ["ClockModel", "MeasurementMode", "StochasticModelConfig"]
 
 
 class ClockModel(Choice):
@@ -22,6 +22,15 @@ class ClockModel(Choice):
 
     white = "white"  #: re-initialised each epoch (correlation time 0, Table 4.4.2)
     random_walk = "random_walk"  #: random walk with ``clock_noise_m_rts``
+
+
+class MeasurementMode(Choice):
+    """Which observables enter the estimator (member names are the YAML words)."""
+
+    #: code on every row, carrier phase on the rows that have it (real logs with sparse phase)
+    auto = "auto"
+    code = "code"  #: code only; phase is ignored even where present
+    code_phase = "code_phase"  #: rows without carrier phase are dropped (needs phase)
 
 
 @dataclass
@@ -47,6 +56,13 @@ class StochasticModelConfig:
     estimate_iono: bool = True
     iono_sigma_m: float = 2.0  #: a priori sigma of the slant residual after Klobuchar [m]
     iono_rw_m_rts: float = 0.03  #: random walk of the slant residual [m/sqrt(s)]
+    #: observables used: auto (phase where present, code everywhere) | code | code_phase
+    measurements: MeasurementMode = MeasurementMode.auto
+    #: a priori sigma of each further system's inter-system bias (receiver clock offset relative
+    #: to the first system's clock) [m]; its start value comes from the single-point solution
+    isb_sigma_m: float = 100.0
+    #: random walk of the inter-system biases [m/sqrt(s)] (hardware delays drift slowly)
+    isb_rw_m_rts: float = 0.001
 
     def validate(self, where: str) -> None:
         """Raise a one-line :class:`SimbenchError` for the first out-of-range field.
@@ -58,9 +74,9 @@ class StochasticModelConfig:
         """
         check_choices(self, where)
         for name in ("pos_sigma_m", "zwd_sigma_m", "clock_sigma_m", "ambiguity_sigma_m", "code_sigma_m",
-                     "phase_sigma_m", "iono_sigma_m"):
+                     "phase_sigma_m", "iono_sigma_m", "isb_sigma_m"):
             require_positive(f"{where}.{name}", getattr(self, name), "give a standard deviation in metres")
-        for name in ("pos_rw_m_rts", "zwd_rw_m_rts", "clock_noise_m_rts", "iono_rw_m_rts"):
+        for name in ("pos_rw_m_rts", "zwd_rw_m_rts", "clock_noise_m_rts", "iono_rw_m_rts", "isb_rw_m_rts"):
             require_at_least(f"{where}.{name}", getattr(self, name), 0, "give a noise density in m/sqrt(s)")
         if not 0.0 <= self.elevation_mask_deg < 90.0:
             raise SimbenchError(f"{where}.elevation_mask_deg", f"must be within [0, 90) deg, got "
@@ -71,11 +87,15 @@ class StochasticModelConfig:
                          "1 means every epoch must be present within one arc")
 
     def needs(self) -> frozenset[Need]:
-        """What the data must offer for this model beyond the estimator's ``requires``: L2 for IF."""
-        return frozenset({Need.dual_frequency}) if self.ionosphere_free else frozenset()
+        """What the data must offer for this model: L2 for IF, carrier phase for ``code_phase``."""
+        needs = {Need.dual_frequency} if self.ionosphere_free else set()
+        if self.measurements == MeasurementMode.code_phase:
+            needs.add(Need.phase)
+        return frozenset(needs)
 
     def prepare_kwargs(self) -> dict[str, Any]:
         """Keyword arguments of :func:`~estimators.measurement.prepare_ppp` for this config."""
         return {"ionosphere_free": self.ionosphere_free, "code_sigma_m": self.code_sigma_m,
                 "phase_sigma_m": self.phase_sigma_m, "elevation_mask_deg": self.elevation_mask_deg,
-                "min_satellites": self.min_satellites, "max_gap_epochs": self.max_gap_epochs}
+                "min_satellites": self.min_satellites, "max_gap_epochs": self.max_gap_epochs,
+                "measurements": self.measurements}

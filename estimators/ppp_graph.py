@@ -20,6 +20,9 @@ key                type        meaning
                                ``estimate_iono`` only; code ``+I``, phase ``-I``)
 ``amb_key(a)``     double      float carrier-phase bias of arc ``a`` [m]; one key per
                                continuous arc, i.e. a "landmark" seen over the arc
+``sysclock_key(s, k)`` double  receiver clock of further GNSS system ``s`` (1..) in seconds;
+                               rows of system ``s`` use it in place of ``clock_key(k)``
+``isb_key(s, k)``  double      inter-system bias of system ``s`` [m]: ``c sysclock - c clock``
 ``ZERO_KEY``       double      held at 0 by a tight prior; fills the ionosphere slot
                                of the native factors when no ionosphere is estimated
                                (ionosphere coefficient 0)
@@ -41,6 +44,14 @@ Factors
   (ZWD random walk; clock random walk when ``clock_model = "random_walk"``; ionosphere
   random walk between consecutive rows of an arc). With ``clock_model = "white"``
   (Table 4.4.2, correlation time 0) each epoch's clock is free apart from a loose prior.
+* measurement modes: a row without carrier phase (``obs.has_phase`` False: code-only
+  logs, sparse phase, ``measurements = code``) has a code factor only, no arc and no
+  ionosphere key (its slant ionosphere is not separable from its code).
+* several GNSS systems: the rows of each further system ``s`` use their own clock key,
+  tied to the first system's clock by an inter-system bias,
+  ``c sysclock_s(k) - c clock(k) - isb_s(k) = 0`` (a linear factor, native
+  ``JacobianFactor`` in a ``LinearContainerFactor``, sigma 1 mm), with a random walk
+  (``isb_rw_m_rts``) between epochs and a loose prior (``isb_sigma_m``) at the first.
 * priors: ``PriorFactorPoint3`` / ``PriorFactorDouble`` on the first position and ZWD,
   every clock (loose), each new arc's bias (``phase - code``, very loose) and each arc's
   first ionosphere residual.
@@ -111,6 +122,8 @@ __all__ = [
     "PppGraph",
     "PppGraphConfig",
     "amb_key",
+    "isb_key",
+    "sysclock_key",
     "clock_key",
     "gauss_newton_step",
     "iono_key",
@@ -145,6 +158,16 @@ def amb_key(arc: int) -> int:
     return gtsam.symbol("b", arc)
 
 
+def sysclock_key(system: int, k: int) -> int:
+    """Receiver clock key (seconds) of further GNSS system ``system`` (1..) at solved epoch ``k``."""
+    return gtsam.symbol("s", (system << 32) | k)
+
+
+def isb_key(system: int, k: int) -> int:
+    """Inter-system bias key (metres) of further GNSS system ``system`` (1..) at solved epoch ``k``."""
+    return gtsam.symbol("j", (system << 32) | k)
+
+
 #: Key held at zero; the ionosphere slot of the native factors when no ionosphere is estimated.
 ZERO_KEY = gtsam.symbol("z", 0)
 
@@ -160,6 +183,8 @@ class PppGraphConfig(StochasticModelConfig):
 
 #: Random-walk sigmas never go below this (two epochs with the same time) [m or s].
 _MIN_RW_SIGMA = 1e-9
+#: Sigma of the factor tying a further system's clock to the first clock plus its bias [m].
+_ISB_TIE_SIGMA_M = 1e-3
 #: Sigma of the prior holding ZERO_KEY at zero [m].
 _ZERO_SIGMA = 1e-6
 
@@ -195,9 +220,6 @@ class PppGraph:
     """
 
     def __init__(self, obs: PppObservations, cfg: PppGraphConfig) -> None:
-        if getattr(obs, "n_isb", 0):
-            raise SimbenchError("observations", f"{len(obs.systems)} GNSS systems; the PPP graph models one clock",
-                                "select one system (GPS) for the graph estimators")
         self.obs = obs
         self.cfg = cfg
         self.with_iono = bool(cfg.estimate_iono and not obs.ionosphere_free)
@@ -205,23 +227,40 @@ class PppGraph:
         self.row_epoch = np.repeat(np.arange(nk), obs.epoch_stop - obs.epoch_start)
         # epochs without a trusted fit (four satellites in a bad geometry, NLOS) start from the
         # nearest trusted epoch's position; the graph does the rest
+        self.row_system = (np.zeros(n, np.int64) if obs.system_index is None
+                           else np.asarray(obs.system_index, np.int64))
         spp = solve_epochs(self.row_epoch, obs.sat_pos, obs.code, n_epochs=nk, sigma=obs.sigma_code, el=obs.el,
-                           doy=obs.doy, fill_untrusted=True)
+                           doy=obs.doy, system_index=self.row_system, fill_untrusted=True)
         self.spp_pos, self.spp_clock_m = spp.pos, spp.clock_m[:, 0]
+        # start of each further system's bias: the median single-point clock difference over the
+        # epochs that see that system (an epoch without it has 0 there)
+        self.isb0_m = np.zeros(obs.n_isb)
+        for s in range(1, obs.n_isb + 1):
+            seen = np.zeros(nk, bool)
+            seen[self.row_epoch[self.row_system == s]] = True
+            diff = spp.clock_m[seen, s] - spp.clock_m[seen, 0]
+            self.isb0_m[s - 1] = float(np.median(diff)) if diff.size else 0.0
         lat, _, h = geodetic_from_ecef(self.spp_pos)
         hydro, self.wet_mapping = troposphere_terms(obs.el, lat[self.row_epoch], h[self.row_epoch], obs.doy)
         self.code_z = obs.code - hydro
         self.phase_z = obs.phase - hydro
-        # rows of an arc in epoch order: the previous row of the same arc, or -1
-        order = np.lexsort((obs.epoch, obs.arc))
+        self.has_phase = obs.arc >= 0
+        # rows of an arc in epoch order: the previous row of the same arc, or -1 (also -1 on rows
+        # without phase, which belong to no arc)
+        phase_rows = np.flatnonzero(self.has_phase)
+        order = phase_rows[np.lexsort((obs.epoch[phase_rows], obs.arc[phase_rows]))]
         prev = np.full(n, -1, np.int64)
         same = obs.arc[order][1:] == obs.arc[order][:-1]
         prev[order[1:][same]] = order[:-1][same]
         self.prev_row = prev
         first = np.full(obs.n_arcs, -1, np.int64)
-        starts = order[np.r_[True, ~same]]
+        starts = order[np.r_[True, ~same]] if order.size else order
         first[obs.arc[starts]] = starts
         self.arc_first_row = first
+        #: rows that start an arc (need a bias prior and value)
+        self.arc_start = self.has_phase & (prev < 0)
+        #: rows with an ionosphere key: phase rows when the slant ionosphere is estimated
+        self.iono_rows = self.has_phase & self.with_iono
         lat0, _, h0 = geodetic_from_ecef(self.spp_pos[:1])
         self.zwd0 = float(atmosphere.saastamoinen_zenith_m(lat0, h0)[1][0])
         self._unit = gtsam.noiseModel.Unit.Create(1)
@@ -249,14 +288,30 @@ class PppGraph:
         if k == 0 or cfg.clock_model == ClockModel.white:
             g.add(gtsam.PriorFactorDouble(clock_key(k), self.spp_clock_m[k] / C_LIGHT,
                                           self._sigma1(cfg.clock_sigma_m / C_LIGHT)))
+        for s in range(1, obs.n_isb + 1):
+            if k == 0:
+                g.add(gtsam.PriorFactorDouble(isb_key(s, 0), float(self.isb0_m[s - 1]),
+                                              self._sigma1(cfg.isb_sigma_m)))
+            g.add(self._isb_tie(s, k))
         rows = obs.epoch_slice(k)
         amb_noise = self._sigma1(cfg.ambiguity_sigma_m)
         iono_noise = self._sigma1(cfg.iono_sigma_m)
-        for r in np.flatnonzero(self.prev_row[rows] < 0) + rows.start:
+        for r in np.flatnonzero(self.arc_start[rows]) + rows.start:
             g.add(gtsam.PriorFactorDouble(amb_key(int(obs.arc[r])), self._amb0(r), amb_noise))
             if self.with_iono:
                 g.add(gtsam.PriorFactorDouble(iono_key(int(r)), 0.0, iono_noise))
         return g
+
+    def _isb_tie(self, s: int, k: int) -> gtsam.NonlinearFactor:
+        """``c sysclock_s(k) - c clock(k) - isb_s(k) = 0``: a linear factor in GTSAM's native containers."""
+        keys = (sysclock_key(s, k), clock_key(k), isb_key(s, k))
+        linear = gtsam.JacobianFactor(keys[0], np.array([[C_LIGHT]]), keys[1], np.array([[-C_LIGHT]]),
+                                      keys[2], np.array([[-1.0]]), np.zeros(1),
+                                      gtsam.noiseModel.Isotropic.Sigma(1, _ISB_TIE_SIGMA_M))
+        at = gtsam.Values()
+        for key in keys:  # linear: linearising at zero makes the factor exact everywhere
+            at.insert(key, 0.0)
+        return gtsam.LinearContainerFactor(linear, at)
 
     def motion_factors(self, k: int) -> gtsam.NonlinearFactorGraph:
         """Random-walk factors linking epoch ``k`` to ``k - 1`` (empty for k = 0)."""
@@ -272,6 +327,9 @@ class PppGraph:
         if cfg.clock_model == ClockModel.random_walk:
             g.add(gtsam.BetweenFactorDouble(clock_key(k - 1), clock_key(k), 0.0,
                                             self._sigma1(self._rw(cfg.clock_noise_m_rts, dt) / C_LIGHT)))
+        for s in range(1, obs.n_isb + 1):
+            g.add(gtsam.BetweenFactorDouble(isb_key(s, k - 1), isb_key(s, k), 0.0,
+                                            self._sigma1(self._rw(cfg.isb_rw_m_rts, dt))))
         if self.with_iono:
             rows = obs.epoch_slice(k)
             for r in np.flatnonzero(self.prev_row[rows] >= 0) + rows.start:
@@ -341,12 +399,15 @@ class PppGraph:
         ones = np.ones(m, bool)
         uc = ones if use_code is None else np.asarray(use_code, bool)
         up = ones if use_phase is None else np.asarray(use_phase, bool)
+        up = up & self.has_phase[idx]  # a row without carrier phase has a code factor only
         if np.any(~(sc[uc] > 0)) or np.any(~(sp[up] > 0)):
             raise SimbenchError("measurement sigma", "non-positive or NaN standard deviation",
                                 "give positive per-row sigmas")
-        iono_c = 1.0 if self.with_iono else 0.0
-        ikeys = [iono_key(int(r)) if self.with_iono else ZERO_KEY for r in idx]
+        with_iono = self.iono_rows[idx]
+        iono_c = with_iono.astype(float)
+        ikeys = [iono_key(r) if w else ZERO_KEY for r, w in zip(idx.tolist(), with_iono.tolist())]
         ek = self.row_epoch[idx].tolist()
+        sysk = self.row_system[idx].tolist()
         arcs = obs.arc[idx].tolist()
         sat = obs.sat_pos[idx]
         mw = self.wet_mapping[idx].tolist()
@@ -385,6 +446,7 @@ class PppGraph:
         code_meas = np.where(rho_c == 0.0, zc, (zc - rho_c * zp) / code_fac).tolist()
         code_sig = (sc / np.abs(code_fac)).tolist()
         code_iono = np.where(rho_c == 0.0, iono_c, -iono_c * (1.0 + rho_c) / code_fac).tolist()
+        iono_c = iono_c.tolist()
         code_bias = (-rho_c / code_fac).tolist()
         phase_meas = ((zp - rho_p * zc) / phase_fac).tolist()
         phase_sig = (sp / np.abs(phase_fac)).tolist()
@@ -392,9 +454,9 @@ class PppGraph:
         phase_bias = (1.0 / phase_fac).tolist()
         coupled = (rho_c != 0.0).tolist()
         pk = [pos_key(k) for k in ek]
-        ck = [clock_key(k) for k in ek]
+        ck = [clock_key(k) if s == 0 else sysclock_key(s, k) for k, s in zip(ek, sysk)]
         wk = [zwd_key(k) for k in ek]
-        bk = [amb_key(a) for a in arcs]
+        bk = [amb_key(a) if a >= 0 else ZERO_KEY for a in arcs]  # code-only rows have no arc
         g = gtsam.NonlinearFactorGraph()
         for j in np.flatnonzero(uc).tolist():
             if coupled[j]:
@@ -403,7 +465,7 @@ class PppGraph:
                     0.0, noise(code_sig[j])))
             else:
                 g.add(gtsam.UndifferencedPseudorangeFactor(
-                    pk[j], ck[j], wk[j], ikeys[j], code_meas[j], sat[j], mw[j], iono_c, 0.0, noise(code_sig[j])))
+                    pk[j], ck[j], wk[j], ikeys[j], code_meas[j], sat[j], mw[j], iono_c[j], 0.0, noise(code_sig[j])))
         for j in np.flatnonzero(up).tolist():
             g.add(gtsam.UndifferencedCarrierPhaseFactor(
                 pk[j], ck[j], wk[j], ikeys[j], bk[j], phase_meas[j], sat[j], mw[j], phase_iono[j], phase_bias[j],
@@ -432,14 +494,20 @@ class PppGraph:
         v.insert(pos_key(k), gtsam.Point3(*np.asarray(pos, float)))
         v.insert(clock_key(k), float(self.spp_clock_m[k] / C_LIGHT))
         v.insert(zwd_key(k), float(zwd))
+        for s in range(1, obs.n_isb + 1):
+            isb = self.isb0_m[s - 1]
+            if previous is not None and k > 0 and previous.exists(isb_key(s, k - 1)):
+                isb = previous.atDouble(isb_key(s, k - 1))
+            v.insert(isb_key(s, k), float(isb))
+            v.insert(sysclock_key(s, k), float((self.spp_clock_m[k] + isb) / C_LIGHT))
         if k == 0:
             v.insert(ZERO_KEY, 0.0)
         rows = obs.epoch_slice(k)
         for r in range(rows.start, rows.stop):
             p = int(self.prev_row[r])
-            if p < 0:
+            if self.arc_start[r]:
                 v.insert(amb_key(int(obs.arc[r])), self._amb0(r))
-            if self.with_iono:
+            if self.iono_rows[r]:
                 iono = previous.atDouble(iono_key(p)) if (previous is not None and p >= 0
                                                           and previous.exists(iono_key(p))) else 0.0
                 v.insert(iono_key(r), float(iono))
@@ -471,7 +539,9 @@ class PppGraph:
         clocks first, sequential Cholesky (:func:`gauss_newton_step`) eliminates their
         ``c``-sized columns before anything else and was slightly faster than plain COLAMD.
         """
-        clocks = gtsam.KeyVector([clock_key(k) for k in range(self.obs.n_epochs)])
+        clocks = gtsam.KeyVector([clock_key(k) for k in range(self.obs.n_epochs)]
+                                 + [sysclock_key(s, k) for s in range(1, self.obs.n_isb + 1)
+                                    for k in range(self.obs.n_epochs)])
         return gtsam.Ordering.ColamdConstrainedFirstNonlinearFactorGraph(graph, clocks)
 
     # ------------------------------------------------------------------ read-out
@@ -479,6 +549,15 @@ class PppGraph:
     def positions(self, values: gtsam.Values) -> np.ndarray:
         """Estimated position of every solved epoch, shape (n_epochs, 3) [m]."""
         return np.array([values.atPoint3(pos_key(k)) for k in range(self.obs.n_epochs)])
+
+    def inter_system_biases(self, values: gtsam.Values, epochs: range | None = None) -> dict[str, list[float]]:
+        """Estimated inter-system bias of each further system [m], per epoch of ``epochs`` (default all).
+
+        Keyed by system letter (``obs.systems[1:]``); empty for single-system data.
+        """
+        ks = range(self.obs.n_epochs) if epochs is None else epochs
+        return {name: [values.atDouble(isb_key(s, k)) for k in ks]
+                for s, name in enumerate(self.obs.systems[1:], start=1)}
 
     def residuals(self, values: gtsam.Values) -> tuple[np.ndarray, np.ndarray]:
         """Code and phase residuals ``measured - predicted`` per row [m] (a-priori measurements).
@@ -492,11 +571,15 @@ class PppGraph:
         clock = np.array([values.atDouble(clock_key(k)) for k in range(nk)]) * C_LIGHT
         zwd = np.array([values.atDouble(zwd_key(k)) for k in range(nk)])
         amb = np.array([values.atDouble(amb_key(a)) for a in range(obs.n_arcs)])
-        iono = (np.array([values.atDouble(iono_key(r)) for r in range(obs.n_obs)]) if self.with_iono
-                else np.zeros(obs.n_obs))
+        iono = np.zeros(obs.n_obs)
+        for r in np.flatnonzero(self.iono_rows).tolist():
+            iono[r] = values.atDouble(iono_key(r))
         e = self.row_epoch
-        geo = sagnac_range(obs.sat_pos, pos[e]) + clock[e] + zwd[e] * self.wet_mapping
-        return self.code_z - (geo + iono), self.phase_z - (geo - iono + amb[obs.arc])
+        clocks = np.column_stack([clock] + [clock + np.array([values.atDouble(isb_key(s, k)) for k in range(nk)])
+                                            for s in range(1, obs.n_isb + 1)])
+        geo = sagnac_range(obs.sat_pos, pos[e]) + clocks[e, self.row_system] + zwd[e] * self.wet_mapping
+        bias = np.where(self.has_phase, amb[np.maximum(obs.arc, 0)] if amb.size else 0.0, np.nan)
+        return self.code_z - (geo + iono), self.phase_z - (geo - iono + bias)
 
 
 #: Smallest |1 - rho| of a conditional code/phase factor (see measurement_factors).

@@ -48,6 +48,8 @@ class Claim:
     published: str
     #: (summary, epochs, diagnostics by estimator) -> outcome, or None when not measured
     evaluate: Callable[[pd.DataFrame, pd.DataFrame, dict], Outcome | None]
+    #: the sweep (conf/sweep/<name>.yaml) whose rows measure it
+    sweep: str
 
 
 # --------------------------------------------------------------------------- statistics helpers
@@ -177,49 +179,52 @@ CLAIMS: list[Claim] = [
     Claim("ch4_convergence", "Watson 2019, Ch.4 Table 4.4.5",
           "iSAM2-PPP converges faster than EKF-PPP with identical stochastic models: far lower mean error "
           "in the first 15 minutes", "mean 3-D error t<15 min, iSAM2/EKF", "188.79/665.35 cm = 0.28",
-          _ch4_convergence),
+          _ch4_convergence, sweep="ch4_convergence"),
     Claim("ch4_overall_median", "Watson 2019, Ch.4 Table 4.4.4",
           "over all epochs the medians of iSAM2-PPP and EKF-PPP are similar", "median 3-D error, iSAM2/EKF",
-          "40.01/39.7 cm = 1.01", _ch4_medians),
+          "40.01/39.7 cm = 1.01", _ch4_medians, sweep="ch4_convergence"),
     Claim("ch5_bce_low", "Watson 2019, Ch.5 Table 5.3.3",
           "on low-quality data BCE has a lower median horizontal error than L2, DCS and MM",
           "median horizontal error, BCE / best of L2, DCS, MM", "< 1 on all three collects",
           lambda s, e, d: _below(per_seed(s, "ch5_bce", ["bce", "l2", "dcs", "mm"], "horizontal_median", "low"),
-                              "bce", ["l2", "dcs", "mm"])),
+                              "bce", ["l2", "dcs", "mm"]), sweep="ch5_bce"),
     Claim("ch5_high_comparable", "Watson 2019, Ch.5 Table 5.3.4",
           "on high-quality data L2, DCS, MM and BCE perform comparably (within about 15 %)",
           "relative spread of median horizontal error", "<= 0.15",
           lambda s, e, d: _spread_within(per_seed(s, "ch5_bce", ["bce", "l2", "dcs", "mm"], "horizontal_median",
-                                               "high"), 0.15)),
+                                               "high"), 0.15), sweep="ch5_bce"),
     Claim("ch5_sensitivity", "Watson 2019, Ch.5 Fig. 5.3.7",
           "BCE is the least sensitive to the a priori covariance scale s in {0.1, 0.3, 1, 3, 10, 100}",
-          "spread of median over s: BCE / least-sensitive other", "< 1", _ch5_sensitivity),
+          "spread of median over s: BCE / least-sensitive other", "< 1", _ch5_sensitivity, sweep="ch5_sensitivity"),
     Claim("ch5_runtime", "Watson 2019, Ch.5 Fig. 5.3.8",
           "BCE has the largest run time of the batch estimators", "run time per observation, BCE / slowest other",
-          "> 1", _ch5_runtime),
+          "> 1", _ch5_runtime, sweep="ch5_bce"),
     Claim("ch6_bce_ad", "Watson 2019, Ch.6 Tables 6.3.1",
           "BCE-AD is at or below BCE when errors correlate with C/N0 or elevation",
           "median horizontal error, BCE-AD / BCE", "<= 1",
           lambda s, e, d: _below(per_seed(s, "ch6_bce_ad", ["bce_ad", "bce"], "horizontal_median"), "bce_ad",
-                              ["bce"])),
+                              ["bce"]), sweep="ch6_bce_ad"),
     Claim("ch7_ice_low", "Watson 2019, Ch.7 Table 7.3.1",
           "on low-quality data ICE has the lowest median among incremental L2, DCS and MM",
           "median horizontal error, ICE / best of iSAM2 L2, DCS, MM", "< 1",
           lambda s, e, d: _below(per_seed(s, "ch7_ice", ["ice", "isam2_ppp", "isam2_dcs", "isam2_mm"],
-                                       "horizontal_median", "low"), "ice", ["isam2_ppp", "isam2_dcs", "isam2_mm"])),
+                                       "horizontal_median", "low"), "ice", ["isam2_ppp", "isam2_dcs", "isam2_mm"]),
+          sweep="ch7_ice"),
     Claim("ch7_high_comparable", "Watson 2019, Ch.7 Table 7.3.2",
           "on high-quality data the incremental estimators are comparable (within about 15 %)",
           "relative spread of median horizontal error", "<= 0.15",
           lambda s, e, d: _spread_within(per_seed(s, "ch7_ice", ["ice", "isam2_ppp", "isam2_dcs", "isam2_mm"],
-                                               "horizontal_median", "high"), 0.15)),
+                                               "horizontal_median", "high"), 0.15), sweep="ch7_ice"),
     Claim("ch7_adaptations", "Watson 2019, Ch.7 Sec. 7.3",
           "merging by statistical tests needs fewer model adaptations than adapting every T_c outliers",
-          "ICE adaptations / naive adaptations", "< 1", lambda s, e, d: adaptation_outcome(d)),
+          "ICE adaptations / naive adaptations", "< 1", lambda s, e, d: adaptation_outcome(d), sweep="ch7_ice"),
     Claim("crt_accuracy_order", "Roysdon & Farrell 2019, Fig. 2",
           "accuracy improves from EKF to IEKF to CRT-LSS", "p95 3-D error, CRT-LSS / EKF (IEKF between)", "< 1",
-          lambda s, e, d: _ordered(per_seed(s, "crt_window", ["crt_lss", "iekf_ins", "ekf_ins"], "error_3d_p95"))),
+          lambda s, e, d: _ordered(per_seed(s, "crt_window", ["crt_lss", "iekf_ins", "ekf_ins"], "error_3d_p95")),
+          sweep="crt_window"),
     Claim("crt_window", "Roysdon & Farrell 2019, Fig. 2",
-          "CRT-LSS accuracy improves with the window length L", "Spearman(L, p95 3-D error)", "< 0", _crt_window),
+          "CRT-LSS accuracy improves with the window length L", "Spearman(L, p95 3-D error)", "< 0", _crt_window,
+          sweep="crt_window"),
 ]
 
 
@@ -258,7 +263,8 @@ def claims_table(summary: pd.DataFrame, epochs: pd.DataFrame,
                 "metric": claim.metric, "published": claim.published}
         if outcome is None:
             rows.append({**base, "measured": np.nan, "holds": "not measured", "ci_low": np.nan,
-                         "ci_high": np.nan, "n_seeds": 0, "note": "its sweep was not run (or had no ok rows)"})
+                         "ci_high": np.nan, "n_seeds": 0,
+                         "note": f"its sweep {claim.sweep} was not run (or had no ok rows)"})
         else:
             rows.append({**base, "measured": outcome.measured, "holds": "holds" if outcome.holds else
                          "does not hold", "ci_low": outcome.ci_low, "ci_high": outcome.ci_high,

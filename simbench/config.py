@@ -227,6 +227,27 @@ class ErrorsConfig:
     tracking_noise: bool = True  #: DLL/PLL thermal jitter
 
 
+@dataclass
+class OdometryConfig:
+    """Wheel odometry of a car (:mod:`simbench.sim.odometry`): speed along body x and yaw rate.
+
+    Noise defaults are what the smartLoc test vehicle reports in its libRSF
+    ``odom3`` lines (variances 0.0025 m^2/s^2 and 4e-6 rad^2/s^2); the table's
+    variance columns carry these configured values, as a vehicle would report
+    them. The scale factor is the effective wheel radius error (tyre wear,
+    pressure, load: a few tenths of a percent to about 1 %, Groves 2013 sec. 6.3);
+    the yaw-rate bias is that of a consumer MEMS gyro after turn-on, as
+    ``conf/imu/consumer.yaml`` (100 deg/h).
+    """
+
+    enabled: bool = False  #: on for the car scenarios (conf/scenario/urban, open_sky, replay)
+    rate_hz: float = 10.0  #: sample rate; imu.rate_hz must be a multiple of it
+    speed_sigma_mps: float = 0.05  #: white noise per sample
+    scale_factor_sigma: float = 0.005  #: measured = (1 + s) true, s ~ N(0, sigma) per seed [-]
+    yaw_rate_sigma_rps: float = 0.002  #: white noise per sample [rad/s]
+    yaw_rate_bias_sigma_rps: float = 4.8e-4  #: constant bias ~ N(0, sigma) per seed [rad/s] (100 deg/h)
+
+
 # --------------------------------------------------------------------------- scenario
 
 
@@ -236,12 +257,18 @@ class ScenarioConfig:
     #: simulated (the generator) | rinex | librsf (real logs, read by simbench.data)
     source: ScenarioSource = ScenarioSource.simulated
     obs: str = ""  #: rinex: RINEX 3 observation file; librsf: libRSF GNSS text file
-    nav: str = ""  #: rinex: RINEX GPS navigation file covering the observations
+    #: rinex: RINEX GPS navigation file covering the observations, or a mixed RINEX 3
+    #: file (type M) that also serves the systems below without a file of their own
+    nav: str = ""
     nav_bds: str = ""  #: rinex: RINEX 3 BeiDou navigation file (when ``systems`` has C)
+    nav_glo: str = ""  #: rinex: RINEX 3 GLONASS navigation file (when ``systems`` has R)
+    nav_gal: str = ""  #: rinex: RINEX 3 Galileo navigation file (when ``systems`` has E)
     #: reference trajectory: 'week,TOW,lat,lon,h' CSV or 'SOW X Y Z' (GPS time); for librsf
     #: also a point3 file, default the point3 lines of ``obs``
     truth: str = ""
-    systems: str = "G"  #: rinex: systems to ingest, G (GPS L1 C/A) and/or C (BeiDou B1I)
+    #: rinex: systems to ingest, letters of GREC: G (GPS L1 C/A), R (GLONASS L1 C/A),
+    #: E (Galileo E1), C (BeiDou B1I)
+    systems: str = "G"
     truth_max_gap_s: float = 2.0  #: reference samples further apart are not interpolated
     duration_s: float = 600.0
     rate_hz: float = 1.0  #: GNSS epoch rate
@@ -251,6 +278,7 @@ class ScenarioConfig:
     trajectory: TrajectoryConfig = field(default_factory=TrajectoryConfig)
     constellation: ConstellationConfig = field(default_factory=ConstellationConfig)
     errors: ErrorsConfig = field(default_factory=ErrorsConfig)
+    odometry: OdometryConfig = field(default_factory=OdometryConfig)
 
 
 @dataclass
@@ -345,6 +373,41 @@ def check_choices(cfg: Any, where: str = "") -> None:
             check_choices(value, key)
 
 
+#: RINEX system letter -> (name, the setting of its own navigation file).
+_RINEX_SYSTEMS = {"G": ("GPS", "nav"), "R": ("GLONASS", "nav_glo"), "E": ("Galileo", "nav_gal"),
+                  "C": ("BeiDou", "nav_bds")}
+
+
+def _nav_header_system(path: str) -> str:
+    """System letter of a RINEX navigation file's header ('M' mixed, 'G', 'R', ...), '' if unreadable."""
+    try:
+        with open(path, errors="replace") as fh:
+            first = fh.readline()
+    except OSError:
+        return ""
+    if first[:9].strip().startswith("3") and first[20:21] == "N":
+        return first[40:41]
+    return {"N": "G", "G": "R"}.get(first[20:21], "")  # RINEX 2: N is GPS, G is GLONASS
+
+
+def _check_rinex_systems(s: ScenarioConfig) -> None:
+    """Known system letters, and navigation data named for each: its own file or a mixed ``nav``."""
+    letters = "".join(_RINEX_SYSTEMS)
+    unknown = sorted(set(s.systems) - set(letters))
+    if unknown or not s.systems:
+        raise SimbenchError("scenario.systems", f"'{s.systems}' has " + (
+            f"unknown letters {''.join(unknown)}" if unknown else "no letters"),
+            f"use letters of {letters} (GPS, GLONASS, Galileo, BeiDou), e.g. scenario.systems=GE")
+    nav_kind = _nav_header_system(s.nav) if s.nav else ""
+    for letter in dict.fromkeys(s.systems):
+        name, key = _RINEX_SYSTEMS[letter]
+        if getattr(s, key) or (letter != "G" and nav_kind in ("M", letter)):
+            continue
+        raise SimbenchError(f"scenario.{key}", f"no {name} navigation file for scenario.systems='{s.systems}'",
+                            f"set scenario.{key}=path/to/file" + ("" if letter == "G" else
+                                                                  ", or scenario.nav to a mixed RINEX 3 file"))
+
+
 def validate_sim(cfg: SimConfig) -> SimConfig:
     """Check what the types cannot: value ranges, and the files a source or kind needs."""
     check_choices(cfg)
@@ -358,12 +421,13 @@ def validate_sim(cfg: SimConfig) -> SimConfig:
     if not 100.0 <= cfg.imu.rate_hz <= 1000.0:
         raise SimbenchError("imu.rate_hz", f"must be within 100..1000 Hz, got {cfg.imu.rate_hz}",
                             "set e.g. imu.rate_hz=100")
-    needed = {ScenarioSource.rinex: ("obs", "nav", "truth") + (("nav_bds",) if "C" in s.systems else ()),
-              ScenarioSource.librsf: ("obs",)}.get(s.source, ())
+    needed = {ScenarioSource.rinex: ("obs", "truth"), ScenarioSource.librsf: ("obs",)}.get(s.source, ())
     for key in needed:
         if not getattr(s, key):
             raise SimbenchError(f"scenario.{key}", f"no file given for a {s.source} scenario",
                                 f"set it on the command line, e.g. scenario.{key}=path/to/file")
+    if s.source == ScenarioSource.rinex:
+        _check_rinex_systems(s)
     if s.trajectory.kind == TrajectoryKind.replay and not s.trajectory.replay.path:
         raise SimbenchError("scenario.trajectory.replay.path", "no trajectory file given",
                             "set it to a 'SOW X Y Z' file, e.g. ../shared/data/wvu_drives/drive_1.xyz")

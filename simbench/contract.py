@@ -1,14 +1,15 @@
 """The data contract between generator, estimators and metrics.
 
-A :class:`Scenario` holds four tables. Two of them are what a receiver gives an
-estimator (:class:`ReceiverData`): the observation table and the IMU table.
+A :class:`Scenario` holds five tables. Three of them are what a receiver gives an
+estimator (:class:`ReceiverData`): the observation, IMU and odometry tables
+(the last with zero rows when the vehicle has no odometry).
 The other two are truth: the trajectory and the per-observation error labels.
 Estimators only ever receive :class:`ReceiverData`; the runner hands labels
 only to estimators that require :attr:`Need.labels` (the oracle), and skips an
 estimator whose :class:`Need` a scenario does not offer (:func:`available_needs`).
 
 Every column, its unit and its meaning is listed in the ``*_COLUMNS`` dicts
-below; README's column table is generated from the same dicts.
+below; README's data-contract tables restate them (tests/test_readme.py checks every column is there).
 """
 from __future__ import annotations
 
@@ -59,6 +60,17 @@ IMU_COLUMNS: dict[str, str] = {
     "gy": "rad/s, angular rate about body y", "gz": "rad/s, angular rate about body z",
 }
 
+#: Odometry table, one row per odometry sample (wheel speed and yaw rate, e.g. libRSF ``odom3``);
+#: zero rows when the vehicle gives none. Body axes as the IMU table: x forward, y right, z down.
+ODOMETRY_COLUMNS: dict[str, str] = {
+    "t": "s, sample time since scenario start (GPS time scale; may precede the first epoch)",
+    "speed": "m/s, speed over ground along body x (forward; negative when reversing)",
+    "yaw_rate": "rad/s, turn rate about body z (down) w.r.t. the Earth: positive turning right "
+                "(clockwise seen from above)",
+    "var_speed": "m^2/s^2, variance of speed as the vehicle reports it (not the true error)",
+    "var_yaw_rate": "rad^2/s^2, variance of yaw_rate as the vehicle reports it",
+}
+
 #: Truth trajectory, one row per GNSS epoch.
 TRUTH_COLUMNS: dict[str, str] = {
     "epoch": "int, GNSS epoch index", "t": "s, time since scenario start",
@@ -90,8 +102,13 @@ LABEL_COLUMNS: dict[str, str] = {
     "noise_phase_l1": "m, the thermal noise sample added to the phase",
 }
 
-RECEIVER_COLUMNS = frozenset(OBSERVATION_COLUMNS) | frozenset(IMU_COLUMNS)
+RECEIVER_COLUMNS = frozenset(OBSERVATION_COLUMNS) | frozenset(IMU_COLUMNS) | frozenset(ODOMETRY_COLUMNS)
 TRUTH_ONLY_COLUMNS = (frozenset(TRUTH_COLUMNS) | frozenset(LABEL_COLUMNS)) - frozenset(OBSERVATION_COLUMNS)
+
+
+def empty_odometry() -> pd.DataFrame:
+    """The odometry table of a vehicle without odometry: zero rows, :data:`ODOMETRY_COLUMNS`."""
+    return pd.DataFrame({c: np.zeros(0) for c in ODOMETRY_COLUMNS})
 
 
 @dataclass(frozen=True)
@@ -122,15 +139,40 @@ class NavInfo:
 
 
 @dataclass(frozen=True)
+class RinexFiles:
+    """The raw RINEX files a real-log scenario was read from, for estimators that run external
+    tools on them (``rtklib_spp``); absolute paths, so a cached scenario still finds them.
+
+    Attributes
+    ----------
+    obs : str
+        RINEX observation file.
+    nav : tuple of str
+        Navigation files of the ingested systems (GPS first).
+    systems : str
+        System letters the scenario ingested, e.g. ``'GC'``.
+    """
+
+    obs: str
+    nav: tuple[str, ...]
+    systems: str
+
+
+@dataclass(frozen=True)
 class ReceiverData:
-    """Everything an estimator may see: observations, IMU and navigation info."""
+    """Everything an estimator may see: observations, IMU, navigation info and, for a log read
+    from RINEX, the raw files (``rinex``; None otherwise); ``odometry`` (:data:`ODOMETRY_COLUMNS`)
+    has zero rows when the vehicle gives none, so ``if len(data.odometry):`` tells."""
 
     observations: pd.DataFrame
     imu: pd.DataFrame
     nav: NavInfo
+    rinex: RinexFiles | None = None
+    odometry: pd.DataFrame = field(default_factory=empty_odometry)
 
     def __post_init__(self) -> None:
-        leaked = (set(self.observations.columns) | set(self.imu.columns)) - RECEIVER_COLUMNS
+        leaked = (set(self.observations.columns) | set(self.imu.columns)
+                  | set(self.odometry.columns)) - RECEIVER_COLUMNS
         if leaked:
             raise ValueError(f"receiver data carries non-receiver columns {sorted(leaked)}")
 
@@ -161,6 +203,10 @@ class Scenario:
     meta : dict
         ``name``, ``seed``, ``config`` (the resolved simulation config as a
         plain dict) and anything else worth keeping with the data.
+    rinex : RinexFiles or None
+        The raw RINEX files of a log read from RINEX (:func:`simbench.data.rinex.load_rinex`).
+    odometry : pandas.DataFrame
+        Receiver view, :data:`ODOMETRY_COLUMNS`; zero rows when there is no odometry.
     """
 
     observations: pd.DataFrame
@@ -169,10 +215,12 @@ class Scenario:
     labels: pd.DataFrame | None
     nav: NavInfo
     meta: dict[str, Any] = field(default_factory=dict)
+    rinex: RinexFiles | None = None
+    odometry: pd.DataFrame = field(default_factory=empty_odometry)
 
     def receiver_view(self) -> ReceiverData:
         """What an estimator receives: no truth and no labels."""
-        return ReceiverData(self.observations, self.imu, self.nav)
+        return ReceiverData(self.observations, self.imu, self.nav, rinex=self.rinex, odometry=self.odometry)
 
     @property
     def n_epochs(self) -> int:
@@ -181,15 +229,16 @@ class Scenario:
     # ------------------------------------------------------------------ Parquet I/O
 
     def save(self, directory: str | Path) -> Path:
-        """Write the four tables as Parquet files into ``directory`` (atomic per file).
+        """Write the five tables as Parquet files into ``directory`` (atomic per file).
 
         The nav info and ``meta`` go into each file's key-value metadata under
         ``simbench.scenario``.
         """
         out = Path(directory)
         out.mkdir(parents=True, exist_ok=True)
-        meta = {"nav": self.nav.__dict__, "meta": self.meta}
-        for name in ("observations", "imu", "truth", "labels"):
+        meta = {"nav": self.nav.__dict__, "meta": self.meta,
+                "rinex": None if self.rinex is None else self.rinex.__dict__}
+        for name in ("observations", "imu", "truth", "labels", "odometry"):
             table = getattr(self, name)
             if table is not None:
                 write_parquet(table, out / f"{name}.parquet", {"simbench.scenario": meta})
@@ -203,11 +252,15 @@ class Scenario:
             raise SimbenchError("scenario", f"no observations.parquet in {src}",
                                 "point to a directory written by Scenario.save")
         tables = {n: pd.read_parquet(src / f"{n}.parquet") if (src / f"{n}.parquet").is_file() else None
-                  for n in ("observations", "imu", "truth", "labels")}
+                  for n in ("observations", "imu", "truth", "labels", "odometry")}
         meta = read_parquet_metadata(src / "observations.parquet")["simbench.scenario"]
         nav = meta["nav"]
         nav = NavInfo(**{**nav, "iono_alpha": tuple(nav["iono_alpha"]), "iono_beta": tuple(nav["iono_beta"])})
-        return cls(tables["observations"], tables["imu"], tables["truth"], tables["labels"], nav, meta["meta"])
+        rinex = meta.get("rinex")
+        rinex = None if rinex is None else RinexFiles(**{**rinex, "nav": tuple(rinex["nav"])})
+        odometry = tables["odometry"] if tables["odometry"] is not None else empty_odometry()
+        return cls(tables["observations"], tables["imu"], tables["truth"], tables["labels"], nav, meta["meta"],
+                   rinex=rinex, odometry=odometry)
 
 
 class Need(str, Enum):
@@ -227,6 +280,8 @@ class Need(str, Enum):
     labels = "labels"
     #: L2 code and phase (``nav.dual_frequency`` and any finite ``code_l2``).
     dual_frequency = "dual_frequency"
+    #: The raw RINEX files the scenario was read from (``Scenario.rinex``), for external tools.
+    rinex_files = "rinex_files"
 
 
 #: Why a scenario lacks each need, phrased for the ``message`` column of a skipped row.
@@ -235,6 +290,7 @@ MISSING_NEED_REASONS: dict[Need, str] = {
     Need.imu: "needs an IMU table; the scenario has fewer than 2 IMU samples (a GNSS-only log)",
     Need.labels: "needs error labels; the scenario (real data) has none",
     Need.dual_frequency: "needs L2 code and phase; the observations are single-frequency",
+    Need.rinex_files: "needs the raw RINEX files; the scenario was not read from RINEX (simulated or libRSF)",
 }
 
 
@@ -260,6 +316,8 @@ def available_needs(scenario: Scenario) -> frozenset[Need]:
     if (scenario.nav.dual_frequency and "code_l2" in obs
             and np.isfinite(obs["code_l2"].to_numpy(dtype=float)).any()):
         offered.add(Need.dual_frequency)
+    if scenario.rinex is not None:
+        offered.add(Need.rinex_files)
     return frozenset(offered)
 
 

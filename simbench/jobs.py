@@ -86,7 +86,8 @@ def _run_job(cfg: DictConfig, opts: RunOptions, *, fail_fast: bool) -> pd.DataFr
         for name, est_cfg in pending.items():
             overrides = estimator_overrides(name, est_cfg)
             if scenario is None:
-                summary = pd.DataFrame([{"scenario": sim.scenario.name, "receiver": sim.receiver.name,
+                summary = pd.DataFrame([{"scenario": sim.scenario.name, "source": sim.scenario.source.value,
+                                         "receiver": sim.receiver.name,
                                          "seed": sim.seed, "estimator": name, "status": "failed",
                                          "message": failure}]).reindex(columns=list(SUMMARY_COLUMNS))
                 epochs, diag = pd.DataFrame(columns=list(EPOCH_COLUMNS)), {}

@@ -3,6 +3,12 @@
 Errors are taken relative to the true antenna position in the local
 east-north-up frame at that position, without any alignment (dissertation
 scoring); horizontal error is sqrt(dE^2 + dN^2) ("RSOS").
+
+Statistics "over reference epochs" count every epoch that has truth, solved
+or not: an unsolved epoch is a missed epoch with an infinite error. So an
+estimator that skips hard epochs is never rewarded for it: its ECDF ends at
+its availability instead of 1, and a percentile above its availability does
+not exist (``inf``).
 """
 from __future__ import annotations
 
@@ -10,6 +16,8 @@ import numpy as np
 import pandas as pd
 import pymap3d
 from scipy import stats
+
+from simbench.errors import SimbenchError
 
 
 def enu_errors(solution: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
@@ -58,3 +66,59 @@ def ecdf(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     v = np.asarray(values, float)
     res = stats.ecdf(v[np.isfinite(v)])
     return res.cdf.quantiles, res.cdf.probabilities
+
+
+def reference_ecdf(values: np.ndarray, n_reference: int) -> tuple[np.ndarray, np.ndarray]:
+    """ECDF over all reference epochs: sorted errors and the fraction of reference epochs at or below each.
+
+    Parameters
+    ----------
+    values : numpy.ndarray
+        Errors of the solved epochs [m]; non-finite values count as unsolved.
+    n_reference : int
+        Reference epochs (epochs with truth) the errors were taken from, solved or not.
+
+    Returns
+    -------
+    x, p : numpy.ndarray
+        Sorted unique errors [m] and fractions; ``p[-1]`` is the availability
+        (solved / reference epochs), below 1 when epochs were missed.
+    """
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    _check_reference(v.size, n_reference)
+    if v.size == 0:
+        return np.empty(0), np.empty(0)
+    x, p = ecdf(v)
+    return x, p * (v.size / n_reference)
+
+
+def reference_percentile(values: np.ndarray, n_reference: int, q: float) -> float:
+    """The ``q``-th percentile over all reference epochs, an unsolved epoch counting as an infinite error [m].
+
+    The smallest error ``x`` whose ECDF over reference epochs (:func:`reference_ecdf`)
+    reaches ``q`` % (NumPy's ``inverted_cdf``): ``inf`` when the availability is
+    below ``q`` %, NaN when there are no reference epochs.
+    """
+    v = np.asarray(values, float)
+    v = np.sort(v[np.isfinite(v)])
+    _check_reference(v.size, n_reference)
+    if n_reference == 0:
+        return np.nan
+    rank = max(int(np.ceil(q / 100.0 * n_reference - 1e-9)), 1)  # 1-based; tolerance for q * n in floats
+    return float(v[rank - 1]) if rank <= v.size else np.inf
+
+
+def reference_stats(values: np.ndarray, n_reference: int, prefix: str) -> dict[str, float]:
+    """Median and p95 over all reference epochs (:func:`reference_percentile`) [m].
+
+    Keys ``{prefix}_median_ref`` and ``{prefix}_p95_ref``.
+    """
+    return {f"{prefix}_median_ref": reference_percentile(values, n_reference, 50.0),
+            f"{prefix}_p95_ref": reference_percentile(values, n_reference, 95.0)}
+
+
+def _check_reference(n_solved: int, n_reference: int) -> None:
+    if n_reference < n_solved:
+        raise SimbenchError("n_reference", f"is {n_reference}, fewer than the {n_solved} solved epochs",
+                            "pass the number of epochs with truth the errors were taken from")

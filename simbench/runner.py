@@ -2,7 +2,9 @@
 
 An estimator whose declared needs (``Estimator.needs``) the scenario cannot
 meet -- carrier phase on a code-only log, an IMU table, error labels on real
-data -- is not run: its row has ``status = "skipped"`` and a one-line reason.
+data -- or that cannot run here (``Estimator.unavailable_reason``, e.g. a
+missing external program) is not run: its row has ``status = "skipped"`` and
+a one-line reason.
 A failing estimator does not stop the others: its exception becomes a status
 row (``status = "failed"`` and the one-line message) and the run goes on.
 """
@@ -17,10 +19,10 @@ import pandas as pd
 from tqdm.auto import tqdm
 
 import estimators
-from simbench.config import to_typed
+from simbench.config import ScenarioSource, to_typed
 from simbench.contract import Need, Scenario, available_needs, unmet_needs_reason
 from simbench.errors import SimbenchError
-from simbench.metrics import enu_errors, summary_stats
+from simbench.metrics import enu_errors, reference_stats, summary_stats
 
 #: A 3-D error beyond this marks a run as diverged (no receiver is that wrong while working) [m].
 DIVERGENCE_M = 10_000.0
@@ -28,7 +30,10 @@ DIVERGENCE_M = 10_000.0
 #: Columns of ``summary.parquet`` (one row per scenario x receiver x seed x estimator).
 SUMMARY_COLUMNS: dict[str, str] = {
     "sweep": "str, sweep name ('' for a single run)",
-    "scenario": "str, scenario name", "receiver": "str, receiver preset", "seed": "int, scenario seed",
+    "scenario": "str, scenario name",
+    "source": "str, where the data come from: simulated, rinex or librsf (a real log; scenario.source)",
+    "receiver": "str, receiver preset (describes the data only when source is simulated)",
+    "seed": "int, scenario seed",
     "scenario_key": "str, hash of the resolved scenario config (same key = byte-identical data)",
     "estimator": "str, estimator name",
     "variant": "str, display label of the overrides, k=v,... ('' for the defaults); never parsed",
@@ -36,21 +41,32 @@ SUMMARY_COLUMNS: dict[str, str] = {
                  "(sorted keys; '{}' for the defaults); read with simbench.variants",
     "uses_labels": "bool, the estimator read error labels (oracle)",
     "status": "str, ok | diverged | failed | skipped (the scenario lacks data the estimator needs: "
-              "carrier phase, IMU, labels, L2)",
+              "carrier phase, IMU, labels, L2, RINEX files; or a program it runs is not installed)",
     "message": "str, why, when not ok",
-    "n_epochs": "int, epochs in the scenario", "n_solved": "int, epochs with a solution",
+    "n_epochs": "int, reference epochs: epochs with truth (every epoch when simulated; on a real log those "
+                "with a reference position)",
+    "n_solved": "int, reference epochs with a solution",
     "availability": "-, n_solved / n_epochs", "n_obs": "int, observation rows",
-    "horizontal_median": "m", "horizontal_mean": "m", "horizontal_var": "m^2", "horizontal_std": "m",
+    "horizontal_median": "m, median over the solved epochs (so are the columns down to error_3d_max: read them "
+                         "with availability)",
+    "horizontal_mean": "m", "horizontal_var": "m^2", "horizontal_std": "m",
     "horizontal_p95": "m", "horizontal_max": "m",
     "error_3d_median": "m", "error_3d_mean": "m", "error_3d_var": "m^2", "error_3d_std": "m",
     "error_3d_p95": "m", "error_3d_max": "m",
+    "horizontal_median_ref": "m, median over all n_epochs reference epochs, an unsolved epoch counting as an "
+                             "infinite error (simbench.metrics.reference_percentile); inf when availability < 0.5",
+    "horizontal_p95_ref": "m, 95th percentile over the reference epochs (as horizontal_median_ref); "
+                          "inf when availability < 0.95",
+    "error_3d_median_ref": "m, 3-D median over the reference epochs (as horizontal_median_ref)",
+    "error_3d_p95_ref": "m, 3-D 95th percentile over the reference epochs (as horizontal_p95_ref)",
     "total_s": "s, wall time of the estimator run", "time_per_obs_s": "s, total_s / n_obs",
     "update_median_s": "s, median per-epoch update time", "update_p95_s": "s, 95th percentile update time",
 }
 
 #: Columns of ``epochs.parquet`` (one row per solved epoch).
 EPOCH_COLUMNS: dict[str, str] = {
-    "sweep": "str", "scenario": "str", "receiver": "str", "seed": "int", "scenario_key": "str",
+    "sweep": "str", "scenario": "str", "source": "str, simulated, rinex or librsf (as in summary.parquet)",
+    "receiver": "str", "seed": "int", "scenario_key": "str",
     "estimator": "str", "variant": "str", "overrides": "str, JSON (as in summary.parquet)",
     "epoch": "int, epoch index", "t": "s, since scenario start",
     "e": "m, east error", "n": "m, north error", "u": "m, up error",
@@ -85,7 +101,8 @@ def run_estimators(scenario: Scenario, estimator_configs: Mapping[str, Any], *, 
         and each estimator's diagnostics.
     """
     classes = {name: estimators.get(name) for name in estimator_configs}  # unknown names fail first
-    key = {"scenario": scenario.meta.get("name", ""), "receiver": receiver, "seed": int(scenario.meta.get("seed", -1))}
+    key = {"scenario": scenario.meta.get("name", ""), "source": scenario_source(scenario), "receiver": receiver,
+           "seed": int(scenario.meta.get("seed", -1))}
     rows, frames, diagnostics = [], [], {}
     data = scenario.receiver_view()
     offered = available_needs(scenario)  # once: every estimator is checked against the same data
@@ -97,7 +114,7 @@ def run_estimators(scenario: Scenario, estimator_configs: Mapping[str, Any], *, 
         try:
             est = cls(to_typed(estimator_configs[name] or {}, cls.Config, f"estimator.{name}"))
             needs = est.needs()
-            unmet = unmet_needs_reason(needs, offered)
+            unmet = "; ".join(filter(None, (unmet_needs_reason(needs, offered), cls.unavailable_reason())))
             if unmet:
                 row.update(status="skipped", message=unmet, n_solved=0, availability=0.0)
                 rows.append(row)
@@ -120,6 +137,8 @@ def run_estimators(scenario: Scenario, estimator_configs: Mapping[str, Any], *, 
         row.update(status=status, message=message,
                    n_solved=int(finite.sum()), availability=float(finite.sum()) / max(scenario.n_epochs, 1),
                    **summary_stats(err["horizontal"], "horizontal"), **summary_stats(err["error_3d"], "error_3d"),
+                   **reference_stats(horizontal, scenario.n_epochs, "horizontal"),
+                   **reference_stats(err["error_3d"], scenario.n_epochs, "error_3d"),
                    total_s=sol.total_s, time_per_obs_s=sol.total_s / max(len(scenario.observations), 1),
                    update_median_s=float(np.nanmedian(sol.epochs["update_s"])) if len(sol.epochs) else np.nan,
                    update_p95_s=float(np.nanpercentile(sol.epochs["update_s"], 95)) if len(sol.epochs) else np.nan)
@@ -130,6 +149,14 @@ def run_estimators(scenario: Scenario, estimator_configs: Mapping[str, Any], *, 
     summary = pd.DataFrame(rows).reindex(columns=list(SUMMARY_COLUMNS))
     epochs = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
     return RunResult(summary=summary, epochs=epochs.reindex(columns=list(EPOCH_COLUMNS)), diagnostics=diagnostics)
+
+
+def scenario_source(scenario: Scenario) -> str:
+    """Where ``scenario``'s data come from (a :class:`~simbench.config.ScenarioSource` value).
+
+    The readers of real logs record it in ``meta['source']``; the generator does not.
+    """
+    return ScenarioSource(scenario.meta.get("source", ScenarioSource.simulated.value)).value
 
 
 def one_line(exc: BaseException) -> str:

@@ -21,7 +21,8 @@ def build_scenario(cfg: SimConfig) -> Scenario:
     if sc.source == ScenarioSource.rinex:
         from simbench.data.rinex import load_rinex
 
-        return load_rinex(sc.obs, sc.nav, sc.truth, systems=sc.systems, nav_bds_path=sc.nav_bds, name=sc.name,
+        return load_rinex(sc.obs, sc.nav, sc.truth, systems=sc.systems, nav_bds_path=sc.nav_bds,
+                          nav_glo_path=sc.nav_glo, nav_gal_path=sc.nav_gal, name=sc.name,
                           truth_max_gap_s=sc.truth_max_gap_s)
     if sc.source == ScenarioSource.librsf:
         from simbench.data.librsf import load_librsf

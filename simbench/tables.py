@@ -3,6 +3,9 @@
 A group is one (sweep, scenario, receiver); within it every estimator saw the
 same seeds' data, so comparisons are paired by seed. Variants are told apart
 by the structured ``overrides`` column; ``variant`` is carried along as their label.
+Every table carries the availability (solved / reference epochs) beside its
+errors; the percentiles ``*_ref`` are over all reference epochs
+(:func:`simbench.metrics.reference_percentile`), so skipping hard epochs is not rewarded.
 """
 from __future__ import annotations
 
@@ -11,12 +14,34 @@ import pandas as pd
 from scipy import stats
 
 from simbench.claims import BOOTSTRAP_RESAMPLES, CONFIDENCE, CONVERGENCE_S, ratio_of_means
+from simbench.config import ScenarioSource
 from simbench.variants import NO_OVERRIDES, is_default
 
 #: Columns that identify a variant of an estimator: the structured overrides and their label.
 VARIANT = ["overrides", "variant"]
 
 GROUP = ["sweep", "scenario", "receiver"]
+
+#: How a real log's format is named in labels.
+SOURCE_NAMES = {ScenarioSource.rinex: "RINEX", ScenarioSource.librsf: "libRSF"}
+
+
+def data_source(source: str | None) -> ScenarioSource:
+    """The ``source`` column's value as a choice; a missing one (results from before the column) is simulated."""
+    return ScenarioSource(source if isinstance(source, str) and source else ScenarioSource.simulated.value)
+
+
+def data_label(scenario: str, receiver: str, source: str | None) -> str:
+    """What a group's data are, for titles and tables.
+
+    A simulated scenario is named with its receiver preset (``urban, low
+    receiver``); a real log by its source (``hk_tst_2019 (real log, RINEX)``),
+    since the receiver preset of the config says nothing about it.
+    """
+    kind = data_source(source)
+    if kind == ScenarioSource.simulated:
+        return f"{scenario}, {receiver} receiver"
+    return f"{scenario} (real log, {SOURCE_NAMES[kind]})"
 
 
 def _mean_ci(values: np.ndarray) -> tuple[float, float, float]:
@@ -30,36 +55,55 @@ def _mean_ci(values: np.ndarray) -> tuple[float, float, float]:
     return float(values.mean()), float(res.confidence_interval.low), float(res.confidence_interval.high)
 
 
+def _mean_ci_ref(values: np.ndarray) -> tuple[float, float, float]:
+    """:func:`_mean_ci` of percentiles over reference epochs: one undefined (inf) seed makes the mean inf."""
+    values = values[~np.isnan(values)]
+    if np.isinf(values).any():
+        return np.inf, np.nan, np.nan
+    return _mean_ci(values)
+
+
 def seed_statistics(summary: pd.DataFrame) -> pd.DataFrame:
     """Per group, estimator and variant: mean over seeds of each statistic, CI of the median's mean.
 
-    Columns: group keys, estimator, overrides, variant, n_seeds, n_failed, horizontal_median (mean
-    over seeds) with ci_low/ci_high, horizontal_mean, horizontal_p95, horizontal_max, error_3d_median,
-    availability, time_per_obs_s, update_median_s.
+    Columns: group keys, estimator, overrides, variant, n_seeds, n_failed, availability;
+    horizontal_median_ref (mean over seeds of the median over reference epochs) with its
+    bootstrap ci_low/ci_high, horizontal_p95_ref, error_3d_median_ref -- inf when a seed's
+    availability is below the percentile; horizontal_median_solved and horizontal_max
+    (over the solved epochs only), time_per_obs_s, update_median_s.
     """
     out = []
     summary = summary.fillna({"overrides": NO_OVERRIDES, "variant": ""})
     for keys, rows in summary.groupby(GROUP + ["estimator"] + VARIANT, dropna=False):
         ok = rows[rows["status"] == "ok"]
-        med, lo, hi = _mean_ci(ok["horizontal_median"].to_numpy(float))
+        med, lo, hi = _mean_ci_ref(ok["horizontal_median_ref"].to_numpy(float))
+
+        def mean(column: str) -> float:
+            return float(ok[column].mean()) if len(ok) else np.nan
+
         out.append({**dict(zip(GROUP + ["estimator"] + VARIANT, keys)), "n_seeds": len(ok),
-                    "n_failed": int((rows["status"] != "ok").sum()), "horizontal_median": med, "ci_low": lo,
-                    "ci_high": hi, **{c: float(ok[c].mean()) if len(ok) else np.nan for c in
-                                      ("horizontal_mean", "horizontal_p95", "horizontal_max", "error_3d_median",
-                                       "availability", "time_per_obs_s", "update_median_s")}})
+                    "n_failed": int((rows["status"] != "ok").sum()), "availability": mean("availability"),
+                    "horizontal_median_ref": med, "ci_low": lo, "ci_high": hi,
+                    "horizontal_p95_ref": _mean_ci_ref(ok["horizontal_p95_ref"].to_numpy(float))[0],
+                    "error_3d_median_ref": _mean_ci_ref(ok["error_3d_median_ref"].to_numpy(float))[0],
+                    "horizontal_median_solved": mean("horizontal_median"), "horizontal_max": mean("horizontal_max"),
+                    "time_per_obs_s": mean("time_per_obs_s"), "update_median_s": mean("update_median_s")})
     return pd.DataFrame(out)
 
 
 def paired_comparisons(summary: pd.DataFrame, baseline: str) -> pd.DataFrame:
     """Each estimator against ``baseline`` on the same seeds (default variants only).
 
-    Columns: group keys, estimator, n_seeds, ratio (mean per-seed median / baseline's), its
-    bootstrap CI, wins (fraction of seeds with a lower median) and the Wilcoxon signed-rank p-value.
+    Columns: group keys, estimator, n_seeds, ratio (mean per-seed median over the solved
+    epochs / baseline's), its bootstrap CI, wins (fraction of seeds with a lower median), the
+    Wilcoxon signed-rank p-value, and the mean availability of the estimator and the baseline
+    on those seeds (a ratio below 1 bought with a lower availability is no win).
     """
     out = []
     ok = summary[(summary["status"] == "ok") & is_default(summary["overrides"])]
     for keys, rows in ok.groupby(GROUP, dropna=False):
         table = rows.pivot_table(index=["seed"], columns="estimator", values="horizontal_median", aggfunc="first")
+        availability = rows.pivot_table(index=["seed"], columns="estimator", values="availability", aggfunc="first")
         if baseline not in table:
             continue
         for name in table.columns.drop(baseline):
@@ -71,16 +115,21 @@ def paired_comparisons(summary: pd.DataFrame, baseline: str) -> pd.DataFrame:
             p = float(stats.wilcoxon(diff).pvalue) if len(pair) >= 6 and diff.abs().sum() > 0 else np.nan
             out.append({**dict(zip(GROUP, keys)), "estimator": name, "baseline": baseline, "n_seeds": len(pair),
                         "ratio": ratio, "ci_low": lo, "ci_high": hi, "wins": float((diff < 0).mean()),
-                        "wilcoxon_p": p})
+                        "wilcoxon_p": p, "availability": float(availability.loc[pair.index, name].mean()),
+                        "baseline_availability": float(availability.loc[pair.index, baseline].mean())})
     return pd.DataFrame(out)
 
 
 def oracle_gap(summary: pd.DataFrame, oracle: str = "oracle") -> pd.DataFrame:
-    """Each estimator's mean per-seed median minus the oracle's, per group [m]."""
+    """Each estimator's mean per-seed median (solved epochs) minus the oracle's, per group [m].
+
+    With the mean availability of the estimator and of the oracle on the same seeds.
+    """
     ok = summary[(summary["status"] == "ok") & is_default(summary["overrides"])]
     out = []
     for keys, rows in ok.groupby(GROUP, dropna=False):
         table = rows.pivot_table(index="seed", columns="estimator", values="horizontal_median", aggfunc="first")
+        availability = rows.pivot_table(index="seed", columns="estimator", values="availability", aggfunc="first")
         if oracle not in table:
             continue
         for name in table.columns.drop(oracle):
@@ -88,7 +137,9 @@ def oracle_gap(summary: pd.DataFrame, oracle: str = "oracle") -> pd.DataFrame:
             gap = (pair[name] - pair[oracle]).to_numpy()
             mean, lo, hi = _mean_ci(gap)
             out.append({**dict(zip(GROUP, keys)), "estimator": name, "n_seeds": len(pair), "gap_m": mean,
-                        "ci_low": lo, "ci_high": hi})
+                        "ci_low": lo, "ci_high": hi,
+                        "availability": float(availability.loc[pair.index, name].mean()),
+                        "oracle_availability": float(availability.loc[pair.index, oracle].mean())})
     return pd.DataFrame(out)
 
 

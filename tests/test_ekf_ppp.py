@@ -58,7 +58,7 @@ def test_loss_of_lock_starts_a_fresh_bias() -> None:
 
 def test_code_only_filter() -> None:
     data, truth = synthetic_data(300, dual=False, seed=3)
-    sol = EkfPpp(EkfPppConfig(use_phase=False)).estimate(data)
+    sol = EkfPpp(EkfPppConfig(measurements="code")).estimate(data)
     assert sol.diagnostics["n_arcs"] == 0
     assert np.median(horizontal_error(sol.epochs, truth)) < 2.0
 

@@ -7,16 +7,22 @@ import numpy as np
 import pytest
 
 from estimators.measurement import prepare_ppp
-from simbench.gnss.spp import solve_epochs
+from estimators.ppp_config import MeasurementMode
 from simbench.compose import compose_config
 from simbench.config import SimConfig, to_typed
-from simbench.contract import OBSERVATION_COLUMNS, Scenario
+from simbench.contract import OBSERVATION_COLUMNS, ODOMETRY_COLUMNS, Scenario
 from simbench.data.librsf import load_librsf, read_librsf, write_synthetic_librsf
 from simbench.errors import SimbenchError
+from simbench.gnss.geometry import elevation_azimuth
+from simbench.gnss.spp import solve_epochs
 from simbench.runner import run_estimators
 from simbench.scenarios import build_scenario
 
 FIXTURE = Path(__file__).resolve().parent / "data" / "librsf_small.txt"
+#: 6 s at 5 Hz, GPS + GLONASS (RTKLIB IDs, 40 m inter-system clock offset), 10 Hz odometry:
+#: write_synthetic_librsf(path, 6.0, rate_hz=5.0, odometry_rate_hz=10.0, systems="GR",
+#: glonass_bias_m=40.0, seed=7)
+GLONASS_FIXTURE = FIXTURE.with_name("librsf_glonass.txt")
 WEEK, SOW = 2032, 475_200.0
 
 
@@ -29,7 +35,7 @@ def test_fixture_is_read_completely() -> None:
     log = read_librsf(FIXTURE)
     assert log.t0 == 0.0
     assert len(log.ranges) == 60 and log.ranges["sat"].str.match(r"^G\d\d$").all()
-    assert len(log.odometry) == 10 and log.odometry["vx"].between(9.5, 10.5).all()
+    assert len(log.odometry) == 10 and log.odometry["speed"].between(9.5, 10.5).all()
     assert len(log.reference) == 10
     assert log.ranges["var_rho"].eq(0.25).all()
 
@@ -51,7 +57,7 @@ def test_mapping_into_the_observation_table(scenario: Scenario) -> None:
 def test_shared_model_recovers_the_synthetic_truth(scenario: Scenario) -> None:
     """No Klobuchar applied, hydrostatic delay cancelled: the fit matches the 0.5 m code noise."""
     obs = prepare_ppp(scenario.receiver_view(), ionosphere_free=False, code_sigma_m=0.5, phase_sigma_m=0.01,
-                      elevation_mask_deg=7.0, require_phase=False)
+                      elevation_mask_deg=7.0, measurements=MeasurementMode.auto)
     truth = scenario.truth[["x", "y", "z"]].to_numpy()
     row_k = np.repeat(np.arange(obs.n_epochs), obs.epoch_stop - obs.epoch_start)
     fixes = solve_epochs(row_k, obs.sat_pos, obs.code, sigma=obs.sigma_code, el=obs.el, doy=obs.doy)
@@ -61,15 +67,26 @@ def test_shared_model_recovers_the_synthetic_truth(scenario: Scenario) -> None:
     assert np.median(err) < 1.5
     assert abs(np.median(clock)) < 1.0
     # and an estimator run through the runner scores against the point3 lines
-    res = run_estimators(scenario, {"ekf_ppp": {"use_phase": False}}, progress=False)
+    res = run_estimators(scenario, {"ekf_ppp": {"measurements": "code"}}, progress=False)
     row = res.summary.iloc[0]
     assert row["status"] == "ok" and row["availability"] == 1.0 and row["error_3d_median"] < 10.0
 
 
 def test_phase_estimators_are_skipped_with_a_reason(scenario: Scenario) -> None:
-    res = run_estimators(scenario, {"ekf_ppp": {"use_phase": True}, "l2": {}}, progress=False)
+    res = run_estimators(scenario, {"ekf_ppp": {"measurements": "code_phase"}, "l2": {"measurements": "code_phase"}},
+                         progress=False)
     assert (res.summary["status"] == "skipped").all()
     assert res.summary["message"].str.contains("phase").all()
+
+
+def test_every_gnss_estimator_runs_code_only_by_default(scenario: Scenario) -> None:
+    """measurements=auto: a pseudorange-only log runs every GNSS estimator without flags."""
+    names = ["ekf_ppp", "l2", "dcs", "mm", "bce", "isam2_ppp", "isam2_dcs", "ice"]
+    rows = run_estimators(scenario, dict.fromkeys(names), progress=False).summary.set_index("estimator")
+    assert (rows["status"] == "ok").all(), rows["message"].to_dict()
+    assert (rows["availability"] == 1.0).all()
+    # 0.5 m code noise on a clean synthetic drive: every estimator within a few metres
+    assert (rows["error_3d_median"] < 5.0).all(), rows["error_3d_median"].to_dict()
 
 
 def test_system_flags_and_the_old_layout(tmp_path: Path) -> None:
@@ -113,3 +130,94 @@ def test_synthetic_writer_and_the_scenario_preset(tmp_path: Path) -> None:
                     if k in ("scenario", "receiver", "imu", "seed")}, SimConfig, "config")
     sc = build_scenario(cfg)
     assert sc.meta["source"] == "librsf" and len(sc.truth) == 5
+
+
+@pytest.fixture(scope="module")
+def glonass() -> Scenario:
+    return load_librsf(GLONASS_FIXTURE, gps_week=WEEK, start_sow_s=SOW)
+
+
+def test_glonass_rows_get_their_own_system_and_clock(glonass: Scenario) -> None:
+    log = read_librsf(GLONASS_FIXTURE)
+    sats = log.ranges["sat"]
+    # file IDs 33.. with system flag 4 are RTKLIB numbers: slot = ID - 32
+    raw_ids = np.array([ln.split()[7:9] for ln in GLONASS_FIXTURE.read_text().splitlines()
+                        if ln.startswith("pseudorange3")], float)
+    assert set(sats.str[0]) == {"G", "R"} and (sats.str.len() == 3).all()
+    glo_ids = raw_ids[raw_ids[:, 1] == 4, 0]
+    assert glo_ids.size == 180 and (glo_ids > 32).all()
+    assert sorted(sats[sats.str[0] == "R"].str[1:].astype(int).unique()) == sorted(set((glo_ids - 32).astype(int)))
+    assert glonass.meta["systems"] == "GR" and glonass.n_epochs == 30
+    # one clock per system absorbs the 40 m offset: the rough fixes fit to the 0.5 m noise;
+    # one clock for both would leave about 20 m
+    assert glonass.meta["rough_fix_rms_m"] < 1.0
+    rg = log.ranges
+    ep = np.unique(np.round(rg["t"].to_numpy() * 1000), return_inverse=True)[1]
+    shared = solve_epochs(ep, rg[["sat_x", "sat_y", "sat_z"]].to_numpy(), rg["rho"].to_numpy())
+    assert np.median(shared.rms_m) > 10.0
+    # elevation and azimuth as seen from the true positions
+    obs = glonass.observations
+    truth = glonass.truth.set_index("epoch").loc[obs["epoch"], ["x", "y", "z"]].to_numpy()
+    sat_pos = obs[["sat_x", "sat_y", "sat_z"]].to_numpy()[:, None]
+    el, az = (np.degrees(a[:, 0]) for a in elevation_azimuth(truth, sat_pos))
+    assert np.abs(obs["el"].to_numpy() - el).max() < 0.01
+    assert np.abs((obs["az"].to_numpy() - az + 180) % 360 - 180).max() < 0.01
+
+
+def test_odometry_lines_become_the_odometry_table(glonass: Scenario, tmp_path: Path) -> None:
+    odo = glonass.odometry
+    assert list(odo.columns) == list(ODOMETRY_COLUMNS) and len(odo) == 60
+    assert np.allclose(odo["t"], np.arange(60) * 0.1)
+    raw = np.array([ln.split()[1:] for ln in GLONASS_FIXTURE.read_text().splitlines() if ln.startswith("odom3")],
+                   float)
+    assert np.array_equal(odo["speed"], raw[:, 1]) and np.array_equal(odo["yaw_rate"], -raw[:, 6])
+    assert (odo["var_speed"] == 0.0025).all() and (odo["var_yaw_rate"] == 4e-6).all()
+    assert abs(odo["speed"].mean() - 10.0) < 4 * 0.05 / np.sqrt(60)
+    view = glonass.receiver_view()
+    assert len(view.odometry) == 60
+    glonass.save(tmp_path / "s")
+    assert Scenario.load(tmp_path / "s").odometry.equals(odo)
+    # libRSF turns about z up: a left turn (positive wz) is a negative yaw rate here; times from the
+    # first pseudorange, sorted
+    sat = "13937336.4 13497913.0 18137658.6"
+    p = tmp_path / "turn.txt"
+    p.write_text(f"odom3 2.5 4.0 0 0 0 0 0.1 0.0025 0.0009 0.0009 4e-06 4e-06 4e-06\n"
+                 f"odom3 0.5 5.0 0 0 0 0 -0.2 0.0025 0.0009 0.0009 4e-06 4e-06 4e-06\n"
+                 f"pseudorange3 2.0 2.1e7 4.0 {sat} 11 1 45.0 40.0\n")
+    got = read_librsf(p).odometry
+    assert got["t"].tolist() == [-1.5, 0.5] and got["speed"].tolist() == [5.0, 4.0]
+    assert got["yaw_rate"].tolist() == [0.2, -0.1]
+    # a file without odom3 lines gives the empty table
+    p.write_text(f"pseudorange3 2.0 2.1e7 4.0 {sat} 11 1 45.0 40.0\n")
+    none = read_librsf(p).odometry
+    assert len(none) == 0 and list(none.columns) == list(ODOMETRY_COLUMNS)
+
+
+@pytest.mark.parametrize("lines, bad_line, words", [
+    (["pseudorange3 5.0 2.1e7 4.0 {sat} 11 1 45.0 40.0", "pseudorange3 5.0 2.1e7 4.0 {sat} 12 64 45.0 40.0"],
+     2, ["field 9 (satellite system) is 64"]),
+    (["# a comment", "", "   # indented comment", "pseudorange3 5.0 2.1e7 4.0 {sat} 11.5 1 45.0 40.0"],
+     4, ["field 8 (satellite ID) is 11.5"]),
+    (["pseudorange3 5.0 2.1e7 4.0 {sat} 11 1 45.0 40.0",
+      "odom3 5.0 1 0 0 0 0 0 0.0025 0.0009 0.0009 -4e-06 4e-06 4e-06"], 2, ["odom3 variance field 12", "-4e-06"]),
+    (["pseudorange3 5.0 2.1e7 4.0 {sat} 11 1 45.0 40.0",
+      "odom3 5.0 1 0 0 0 0 0 0.0025 0.0009 0.0009 4e-06 4e-06 inf"], 2, ["field 14 ('inf') is not a finite number"]),
+    (["pseudorange3 5.0 2.1e7 4.0 {sat} 11 1 45.0 40.0",
+      "odom3 5.0 1 0 0 0 0 0 0.0025 0.0009 0.0009 4e-06 4e-06 nan"], 2, ["odom3 has 12 values"]),
+    (["pseudorange3 5.0 2.1e7 4.0 {sat} 11 1 45.0 40.0", "pseudorange3 5.0 2.1e7 4.0 {sat} 11"],
+     2, ["pseudorange3 has 7 values"]),
+    (["pseudorange3 5.0 2.1e7 4.0 {sat} 11 1 45.0 40.0", "pseudorange3 5.0 2.1e7 4.0 {sat} 11 1 45.0"],
+     2, ["pseudorange3 has 9 values", "the first pseudorange3 line 10"]),
+    (["pseudorange3 5.0 2.1e7 4.0 {sat} 11 1 45.0 40.0", "pseudorange3 5.0 2.1e7 x {sat} 11 1 45.0 40.0"],
+     2, ["field 4 ('x') is not a finite number"]),
+    (["pseudorange3 5.0 2.1e7 4.0 {sat} 11 1 45.0 40.0", "satpos 1 2 3"], 2, ["unknown line types ['satpos']"]),
+])
+def test_bad_lines_are_named_in_one_line(tmp_path: Path, lines: list[str], bad_line: int, words: list[str]) -> None:
+    sat = "13937336.4 13497913.0 18137658.6"
+    p = tmp_path / "bad.txt"
+    p.write_text("\n".join(ln.format(sat=sat) for ln in lines) + "\n")
+    with pytest.raises(SimbenchError) as info:
+        read_librsf(p)
+    msg = str(info.value)
+    assert "\n" not in msg and msg.startswith(f"scenario.obs '{p}' line {bad_line}:"), msg
+    assert all(w in msg for w in words), msg

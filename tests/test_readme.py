@@ -4,7 +4,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from simbench.contract import IMU_COLUMNS, LABEL_COLUMNS, OBSERVATION_COLUMNS, TRUTH_COLUMNS
+from simbench.contract import IMU_COLUMNS, LABEL_COLUMNS, OBSERVATION_COLUMNS, ODOMETRY_COLUMNS, TRUTH_COLUMNS
 from simbench.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -26,6 +26,7 @@ def test_readme_has_exactly_two_setup_commands() -> None:
 
 
 def test_readme_documents_every_column() -> None:
-    for table in (OBSERVATION_COLUMNS, IMU_COLUMNS, TRUTH_COLUMNS, LABEL_COLUMNS, SUMMARY_COLUMNS, EPOCH_COLUMNS):
+    for table in (OBSERVATION_COLUMNS, IMU_COLUMNS, ODOMETRY_COLUMNS, TRUTH_COLUMNS, LABEL_COLUMNS, SUMMARY_COLUMNS,
+                  EPOCH_COLUMNS):
         for column in table:
             assert f"`{column}`" in README, column

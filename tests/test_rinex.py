@@ -12,18 +12,19 @@ import pytest
 import estimators
 from estimators.base import Estimator
 from estimators.measurement import prepare_ppp
-from simbench.gnss.spp import solve_epochs
+from estimators.ppp_config import MeasurementMode
 from simbench.config import SimConfig
 from simbench.contract import MISSING_NEED_REASONS, OBSERVATION_COLUMNS, Need, Scenario
+from simbench.data.navigation import read_gps_navigation
 from simbench.data.reference import match_reference, read_reference
 from simbench.data.rinex import RinexObs, _satellite_states, load_rinex, read_rinex_obs
+from simbench.data.sp3 import read_sp3
 from simbench.errors import SimbenchError
+from simbench.gnss.geometry import sagnac_range
+from simbench.gnss.spp import solve_epochs
 from simbench.runner import run_estimators
 from simbench.scenarios import build_scenario
 from simbench.sim.constants import C_LIGHT, SECONDS_PER_WEEK
-from simbench.gnss.geometry import sagnac_range
-from simbench.data.navigation import read_gps_navigation
-from simbench.data.sp3 import read_sp3
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 HK = DATA / "hk_tst_2019"
@@ -112,7 +113,7 @@ def test_time_and_truth_matching(hk: Scenario) -> None:
 def test_single_point_solution_within_tens_of_metres(hk: Scenario) -> None:
     """The issue's acceptance check: SPP within the usual 5-30 m of the reference for most epochs."""
     obs = prepare_ppp(hk.receiver_view(), ionosphere_free=False, code_sigma_m=2.5, phase_sigma_m=0.03,
-                      elevation_mask_deg=10.0, require_phase=False)
+                      elevation_mask_deg=10.0, measurements=MeasurementMode.auto)
     truth = hk.truth.set_index("epoch")[["x", "y", "z"]]
     row_k = np.repeat(np.arange(obs.n_epochs), obs.epoch_stop - obs.epoch_start)
     fixes = solve_epochs(row_k, obs.sat_pos, obs.code, sigma=obs.sigma_code, el=obs.el, doy=obs.doy,
@@ -212,7 +213,7 @@ class _LabelUser(Estimator):
 def test_label_estimators_are_skipped_on_real_data(hk: Scenario, monkeypatch: pytest.MonkeyPatch) -> None:
     real_get = estimators.get
     monkeypatch.setattr(estimators, "get", lambda n: _LabelUser if n == _LabelUser.name else real_get(n))
-    res = run_estimators(hk, {_LabelUser.name: {}, "ekf_ppp": {"use_phase": False}}, progress=False)
+    res = run_estimators(hk, {_LabelUser.name: {}, "ekf_ppp": {"measurements": "code"}}, progress=False)
     rows = res.summary.set_index("estimator")
     assert rows.loc[_LabelUser.name, "status"] == "skipped"
     assert rows.loc[_LabelUser.name, "message"] == MISSING_NEED_REASONS[Need.labels]

@@ -8,12 +8,18 @@ Whitespace-separated lines, time in seconds::
 
 ``range3`` and ``gt3`` are read as aliases of ``pseudorange3`` and ``point3``
 (older smartLoc files). ``system`` is a bit flag (1 GPS, 2 SBAS, 4 GLONASS,
-8 Galileo, 16 QZSS, 32 BeiDou); files without it are GPS-only. Satellite
-positions are ECEF metres; the pseudoranges have the satellite clock and the
-atmospheric delays already removed.
+8 Galileo, 16 QZSS, 32 BeiDou; the smartLoc-RTKLIB readme of TUC-ProAut/libRSF);
+files without it are GPS-only. Files converted with RTKLIB (smartLoc-RTKLIB)
+give GLONASS satellites RTKLIB's satellite number, 32 + slot (GPS takes 1..32):
+a GLONASS ID above 32 is read as slot ID - 32. Satellite positions are ECEF
+metres; the pseudoranges have the satellite clock and the atmospheric delays
+already removed. ``#`` starts a comment.
 
 Mapping into the observation table (:data:`simbench.contract.OBSERVATION_COLUMNS`):
 
+* ``sat`` is the system letter and the PRN/slot ('G05', 'R12'), so every
+  system gets its own receiver clock (inter-system bias) in the shared model
+  and in the reader's own single-point fix;
 * ``sat_clock = 0`` (already applied) and :attr:`NavInfo.iono_corrected` set,
   so the shared model does not remove Klobuchar a second time;
 * the shared model always subtracts a Saastamoinen/Niell hydrostatic delay, so
@@ -25,21 +31,27 @@ Mapping into the observation table (:data:`simbench.contract.OBSERVATION_COLUMNS
 * ``var_rho`` is kept out of the table (the contract has no column for a
   receiver-reported variance).
 
-Odometry (body-frame speed and turn rate) has no place in the receiver view
-(:class:`~simbench.contract.ReceiverData` carries observations and IMU only):
-:func:`read_librsf` returns it as a table and :func:`load_librsf` records its
-size in ``meta``; no estimator uses it yet.
+Mapping ``odom3`` into the odometry table (:data:`simbench.contract.ODOMETRY_COLUMNS`):
+libRSF's vehicle frame is x forward, y left, z up (its ``OdometryModel4DOFECEF``
+turns about the local up axis; in the smartLoc Berlin log a positive ``wz``
+comes with a heading turning anticlockwise), the contract's is x forward,
+y right, z down, so ``speed = vx`` and ``yaw_rate = -wz``. Columns 9-14 are
+variances ((m/s)^2, (rad/s)^2; smartLoc writes 0.0025 and 4e-6). ``vy``, ``vz``
+(zero in smartLoc: the car's non-holonomic constraint, which an estimator can
+apply itself) and the roll and pitch rates are not carried.
 """
 from __future__ import annotations
 
+import io
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from simbench.contract import NavInfo, Scenario
+from simbench.contract import ODOMETRY_COLUMNS, NavInfo, Scenario
 from simbench.data.reference import Reference, match_reference, read_reference, truth_table
 from simbench.data.rinex import empty_imu, epoch_grid
 from simbench.errors import SimbenchError
@@ -51,20 +63,21 @@ from simbench.gnss.troposphere import troposphere_terms
 from simbench.sim.gpstime import day_of_year
 
 __all__ = ["LibrsfLog", "read_librsf", "read_librsf_points", "load_librsf", "write_synthetic_librsf",
-           "SYSTEM_LETTERS", "ODOMETRY_COLUMNS"]
+           "SYSTEM_LETTERS", "SYSTEM_FLAGS"]
 
 #: libRSF system bit flag -> RINEX system letter.
 SYSTEM_LETTERS: dict[int, str] = {1: "G", 2: "S", 4: "R", 8: "E", 16: "J", 32: "C"}
-#: Columns of :attr:`LibrsfLog.odometry`.
-ODOMETRY_COLUMNS: dict[str, str] = {
-    "t": "s, time since the first pseudorange", "vx": "m/s, body-frame velocity x (forward)",
-    "vy": "m/s, body y", "vz": "m/s, body z", "wx": "rad/s, turn rate about body x", "wy": "rad/s, about y",
-    "wz": "rad/s, about z (yaw rate)", "var_vx": "(m/s)^2", "var_vy": "(m/s)^2", "var_vz": "(m/s)^2",
-    "var_wx": "(rad/s)^2", "var_wy": "(rad/s)^2", "var_wz": "(rad/s)^2",
-}
+#: RINEX system letter -> libRSF system bit flag.
+SYSTEM_FLAGS: dict[str, int] = {v: k for k, v in SYSTEM_LETTERS.items()}
+#: RTKLIB numbers GLONASS satellites after the 32 GPS ones (module docstring).
+RTKLIB_GLONASS_OFFSET = 32
 _KEYWORDS = {"pseudorange3": "range", "range3": "range", "odom3": "odom", "point3": "point", "gt3": "point"}
+_FIX = "pass a libRSF GNSS text file (pseudorange3 / odom3 / point3 lines)"
 #: Epochs closer than this are one epoch [s].
 _EPOCH_RESOLUTION_S = 1e-3
+#: The synthetic writer's stand-in for GLONASS: the nominal GPS constellation this much later
+#: (another sky); the format carries satellite positions, not orbits [s].
+_STANDIN_SHIFT_S = 4 * 3600.0
 
 
 @dataclass(frozen=True)
@@ -78,7 +91,7 @@ class LibrsfLog:
     ranges : pandas.DataFrame
         ``t, sat, rho, var_rho, sat_x, sat_y, sat_z, el, cn0`` [s, -, m, m^2, m, m, m, deg, dB-Hz].
     odometry : pandas.DataFrame
-        :data:`ODOMETRY_COLUMNS`.
+        :data:`simbench.contract.ODOMETRY_COLUMNS` (body frame x forward, y right, z down), by time.
     reference : pandas.DataFrame
         ``t, x, y, z`` (ECEF metres).
     path : str
@@ -91,9 +104,32 @@ class LibrsfLog:
     path: str
 
 
-def _rsf_error(path: str, problem: str) -> SimbenchError:
-    return SimbenchError(f"scenario.obs '{path}'", problem,
-                         "pass a libRSF GNSS text file (pseudorange3 / odom3 / point3 lines)")
+def _rsf_error(path: str, problem: str, line: int | None = None) -> SimbenchError:
+    where = f"scenario.obs '{path}'" + (f" line {line}" if line is not None else "")
+    return SimbenchError(where, problem, _FIX)
+
+
+def _read_table(p: str) -> tuple[pd.DataFrame, np.ndarray]:
+    """The non-blank, comment-free lines as a table of up to 15 tokens, and their 1-based line numbers."""
+    try:
+        with open(p, encoding="utf-8") as fh:
+            content = [ln.split("#", 1)[0] for ln in fh.read().splitlines()]
+    except UnicodeDecodeError:
+        raise _rsf_error(p, "is not a text file") from None
+    keep = [i for i, c in enumerate(content) if c.strip()]
+    if not keep:
+        raise _rsf_error(p, "contains no pseudorange3 lines")
+    line_no = np.asarray(keep, np.int64) + 1
+    try:
+        raw = pd.read_csv(io.StringIO("\n".join(content[i] for i in keep)), sep=r"\s+", header=None,
+                          names=list(range(15)), engine="c", dtype={0: str})
+    except (pd.errors.ParserError, ValueError) as exc:
+        msg = str(exc).splitlines()[0]
+        row = re.search(r"line (\d+)", msg)
+        line = int(line_no[int(row.group(1)) - 1]) if row and int(row.group(1)) <= len(line_no) else None
+        raise _rsf_error(p, "has more than 14 values after the keyword" if "Expected" in msg
+                         else f"cannot be parsed ({msg[:60]})", line) from None
+    return raw, line_no
 
 
 def read_librsf(path: str | os.PathLike[str]) -> LibrsfLog:
@@ -110,48 +146,85 @@ def read_librsf(path: str | os.PathLike[str]) -> LibrsfLog:
     Raises
     ------
     SimbenchError
-        Missing file, unparsable lines, or no pseudorange line.
+        Missing file, no pseudorange line, or a malformed line: unknown line
+        type, wrong number of values, a value that is not a number, an unknown
+        satellite system flag, a satellite ID that is not a positive integer,
+        a negative odometry variance. The message names the first bad line.
     """
     p = os.fspath(path)
     if not os.path.isfile(p):
         raise _rsf_error(p, "file does not exist")
-    try:
-        raw = pd.read_csv(p, sep=r"\s+", header=None, names=list(range(15)), comment="#", engine="c",
-                          dtype={0: str}, skip_blank_lines=True)
-    except (pd.errors.ParserError, UnicodeDecodeError, ValueError) as exc:
-        raise _rsf_error(p, f"cannot be parsed ({str(exc).splitlines()[0][:60]})") from None
-    kind = raw[0].map(_KEYWORDS)
-    unknown = raw[0][kind.isna()].unique()
+    raw, line_no = _read_table(p)
+    kind = raw[0].map(_KEYWORDS).to_numpy()
+    unknown = np.flatnonzero(pd.isna(kind))
     if unknown.size:
-        raise _rsf_error(p, f"has unknown line types {sorted(map(str, unknown))[:3]}")
+        names = sorted(set(raw[0].iloc[unknown].astype(str)))
+        raise _rsf_error(p, f"has unknown line types {names[:3]} (known: pseudorange3, range3, odom3, point3, "
+                         "gt3)", int(line_no[unknown[0]]))
+    present = raw.iloc[:, 1:].notna().to_numpy()
     num = raw.iloc[:, 1:].apply(pd.to_numeric, errors="coerce").to_numpy(float)
+    not_number = np.argwhere(present & ~np.isfinite(num))
+    if not_number.size:
+        i, j = not_number[0]
+        raise _rsf_error(p, f"field {j + 2} ('{raw.iat[i, j + 1]}') is not a finite number", int(line_no[i]))
+    n_values = present.sum(axis=1)
 
-    r = num[(kind == "range").to_numpy()]
-    if r.shape[0] == 0:
+    def first_bad(rows: np.ndarray, bad: np.ndarray) -> int:
+        return int(line_no[rows[np.flatnonzero(bad)[0]]])
+
+    ri = np.flatnonzero(kind == "range")
+    if ri.size == 0:
         raise _rsf_error(p, "contains no pseudorange3 lines")
-    n_fields = np.isfinite(r).sum(axis=1)
-    if np.any(n_fields != n_fields[0]) or n_fields[0] not in (9, 10):
-        raise _rsf_error(p, "pseudorange3 lines must all have 9 (no system) or 10 fields after the keyword")
-    with_system = n_fields[0] == 10
-    if not np.isfinite(r[:, 1]).all():
-        raise _rsf_error(p, "has pseudorange3 lines without a pseudorange value")
+    nr = n_values[ri]
+    if not np.isin(nr, (9, 10)).all():
+        k = int(nr[~np.isin(nr, (9, 10))][0])
+        raise _rsf_error(p, f"pseudorange3 has {k} values after the keyword; expected 9 (t rho var x y z id el "
+                         "cn0) or 10 (... id system el cn0)", first_bad(ri, ~np.isin(nr, (9, 10))))
+    if (nr != nr[0]).any():
+        raise _rsf_error(p, f"pseudorange3 has {int(nr[nr != nr[0]][0])} values after the keyword, the first "
+                         f"pseudorange3 line {int(nr[0])}; one file has one layout", first_bad(ri, nr != nr[0]))
+    r = num[ri]
+    with_system = nr == 10
     t0 = float(r[:, 0].min())
-    prn = r[:, 6].astype(np.int64)
-    flags = r[:, 7].astype(np.int64) if with_system else np.ones(len(r), np.int64)
-    bad = sorted(set(flags.tolist()) - set(SYSTEM_LETTERS))
-    if bad:
-        raise _rsf_error(p, f"has unknown system flags {bad[:3]} (1 GPS, 2 SBAS, 4 GLONASS, 8 Galileo, 16 QZSS, 32 BeiDou)")
-    letters = np.array([SYSTEM_LETTERS[f] for f in flags.tolist()])
+    sat_id = r[:, 6]
+    bad_id = (sat_id != np.round(sat_id)) | (sat_id < 1)
+    if bad_id.any():
+        raise _rsf_error(p, f"field 8 (satellite ID) is {sat_id[bad_id][0]:g}; expected a positive integer",
+                         first_bad(ri, bad_id))
+    flags = np.where(with_system, r[:, 7], 1.0)
+    bad_flag = ~np.isin(flags, list(SYSTEM_LETTERS))
+    if bad_flag.any():
+        raise _rsf_error(p, f"field 9 (satellite system) is {flags[bad_flag][0]:g}; expected 1 GPS, 2 SBAS, "
+                         "4 GLONASS, 8 Galileo, 16 QZSS or 32 BeiDou", first_bad(ri, bad_flag))
+    letters = np.array([SYSTEM_LETTERS[int(f)] for f in flags.tolist()])
+    prn = sat_id.astype(np.int64)
+    prn = np.where((letters == "R") & (prn > RTKLIB_GLONASS_OFFSET), prn - RTKLIB_GLONASS_OFFSET, prn)
     sat = np.char.add(letters, np.char.zfill(prn.astype(str), 2))
-    k = 8 if with_system else 7
+    el = np.where(with_system, r[:, 8], r[:, 7])
+    cn0 = np.where(with_system, r[:, 9], r[:, 8])
     ranges = pd.DataFrame({"t": r[:, 0] - t0, "sat": sat, "rho": r[:, 1], "var_rho": r[:, 2],
-                           "sat_x": r[:, 3], "sat_y": r[:, 4], "sat_z": r[:, 5], "el": r[:, k], "cn0": r[:, k + 1]})
+                           "sat_x": r[:, 3], "sat_y": r[:, 4], "sat_z": r[:, 5], "el": el, "cn0": cn0})
 
-    o = num[(kind == "odom").to_numpy()][:, :13]
-    odometry = pd.DataFrame(o, columns=list(ODOMETRY_COLUMNS))
-    odometry["t"] -= t0
-    g = num[(kind == "point").to_numpy()][:, :4]
-    reference = pd.DataFrame(g, columns=["t", "x", "y", "z"])
+    oi = np.flatnonzero(kind == "odom")
+    if (n_values[oi] != 13).any():
+        bad = n_values[oi] != 13
+        raise _rsf_error(p, f"odom3 has {int(n_values[oi][bad][0])} values after the keyword; expected 13 "
+                         "(t, velocity xyz, turn rate xyz, their 6 variances)", first_bad(oi, bad))
+    o = num[oi][:, :13]
+    negative = (o[:, 7:13] < 0.0).any(axis=1)
+    if negative.any():
+        j = int(np.flatnonzero(o[negative][0, 7:13] < 0.0)[0])
+        raise _rsf_error(p, f"odom3 variance field {j + 9} is {o[negative][0, 7 + j]:g}; variances are >= 0",
+                         first_bad(oi, negative))
+    odometry = pd.DataFrame({"t": o[:, 0] - t0, "speed": o[:, 1], "yaw_rate": -o[:, 6],
+                             "var_speed": o[:, 7], "var_yaw_rate": o[:, 12]}, columns=list(ODOMETRY_COLUMNS))
+    odometry = odometry.sort_values("t", kind="stable").reset_index(drop=True)
+
+    gi = np.flatnonzero(kind == "point")
+    if (n_values[gi] < 4).any():
+        raise _rsf_error(p, "point3 needs at least 4 values after the keyword (t X Y Z)",
+                         first_bad(gi, n_values[gi] < 4))
+    reference = pd.DataFrame(num[gi][:, :4], columns=["t", "x", "y", "z"])
     reference["t"] -= t0
     return LibrsfLog(t0=t0, ranges=ranges, odometry=odometry, reference=reference, path=p)
 
@@ -180,7 +253,9 @@ def load_librsf(path: str | os.PathLike[str], truth_path: str | os.PathLike[str]
     Returns
     -------
     Scenario
-        ``labels=None``, empty IMU table, ``meta['odometry_rows']``.
+        ``labels=None``, empty IMU table, the ``odom3`` lines as the odometry table,
+        ``meta['odometry_rows']`` and ``meta['rough_fix_rms_m']`` (median post-fit RMS of the
+        reader's single-point fixes, one clock per system).
 
     Raises
     ------
@@ -197,8 +272,11 @@ def load_librsf(path: str | os.PathLike[str], truth_path: str | os.PathLike[str]
     n_grid = int(grid[-1]) + 1
     sat_pos = rg[["sat_x", "sat_y", "sat_z"]].to_numpy(float)
     rho = rg["rho"].to_numpy(float)
-    rx = solve_epochs(row_epoch, sat_pos, rho, n_epochs=t_epoch.size, max_rms_m=ROUGH_FIX_MAX_RMS_M,
-                      fill_untrusted=True).pos
+    # one receiver clock per system: GLONASS (and any other) pseudoranges carry an inter-system bias
+    system_index = np.unique(rg["sat"].str[0].to_numpy(), return_inverse=True)[1]
+    fix = solve_epochs(row_epoch, sat_pos, rho, n_epochs=t_epoch.size, system_index=system_index,
+                       max_rms_m=ROUGH_FIX_MAX_RMS_M, fill_untrusted=True)
+    rx = fix.pos
     el_rad, az_rad = (a[:, 0] for a in elevation_azimuth(rx[row_epoch], sat_pos[:, None, :]))
     el_file = rg["el"].to_numpy(float)
     el_deg = np.where(np.isfinite(el_file), el_file, np.degrees(el_rad))
@@ -243,10 +321,12 @@ def load_librsf(path: str | os.PathLike[str], truth_path: str | os.PathLike[str]
         "files": {"obs": str(Path(path)), "truth": str(truth_path or "")},
         "systems": "".join(sorted({s[0] for s in observations["sat"].unique().tolist()})),
         "epochs": n_grid, "epochs_with_truth": len(truth), "odometry_rows": len(log.odometry),
+        "rough_fix_rms_m": float(np.nanmedian(fix.rms_m[fix.trusted])),
         "corrections": "satellite clock, ionosphere and troposphere removed in the file; the modelled "
                        "hydrostatic delay is added back for the shared model; no carrier phase",
     }
-    return Scenario(observations=observations, imu=empty_imu(), truth=truth, labels=None, nav=nav, meta=meta)
+    return Scenario(observations=observations, imu=empty_imu(), truth=truth, labels=None, nav=nav, meta=meta,
+                    odometry=log.odometry)
 
 
 def _external_reference(p: str, gps_week: int, t_file0_gps: float) -> Reference:
@@ -271,14 +351,21 @@ def read_librsf_points(path: str) -> np.ndarray:
 
 def write_synthetic_librsf(path: str | os.PathLike[str], duration_s: float = 10.0, *, rate_hz: float = 1.0,
                            odometry_rate_hz: float = 10.0, start_gps_s: float = 2032 * SECONDS_PER_WEEK + 475_200.0,
-                           code_sigma_m: float = 0.5, seed: int = 0) -> Path:
+                           code_sigma_m: float = 0.5, systems: str = "G", glonass_bias_m: float = 0.0,
+                           speed_sigma_mps: float = 0.05, yaw_rate_sigma_rps: float = 0.002,
+                           seed: int = 0) -> Path:
     """Write a synthetic libRSF GNSS file (test fixtures and the ingest benchmark).
 
-    A car drives east at 10 m/s from Chemnitz (50.83 N, 12.92 E) under the
-    nominal GPS constellation; pseudoranges are the Sagnac range plus a
-    receiver clock (100 m + 1 m/s drift) plus white noise, i.e. already free
-    of satellite clock and atmosphere as the format specifies. Satellites below
-    10 deg are left out.
+    A car drives east at 10 m/s from Chemnitz (50.83 N, 12.92 E); pseudoranges
+    are the Sagnac range plus a receiver clock (100 m + 1 m/s drift) plus white
+    noise, i.e. already free of satellite clock and atmosphere as the format
+    specifies. GPS is the nominal constellation; GLONASS (``'R'`` in
+    ``systems``) is a stand-in with another sky (the nominal constellation 4 h
+    later), written as smartLoc-RTKLIB does (system flag 4, ID 32 + slot) and
+    with ``glonass_bias_m`` added (an inter-system clock offset). Satellites
+    below 10 deg are left out. Odometry lines carry the true speed and yaw rate
+    (0) plus white noise, with the noise variances, in libRSF's x-forward,
+    y-left, z-up frame.
 
     Parameters
     ----------
@@ -291,34 +378,55 @@ def write_synthetic_librsf(path: str | os.PathLike[str], duration_s: float = 10.
         GPS time of file time 0, continuous seconds [s].
     code_sigma_m : float
         Pseudorange noise [m] (written as the variance column).
+    systems : str
+        ``'G'`` or ``'GR'``.
+    glonass_bias_m : float
+        Added to every GLONASS pseudorange [m].
+    speed_sigma_mps, yaw_rate_sigma_rps : float
+        Odometry noise [m/s], [rad/s] (their squares are written as the variances).
     seed : int
 
     Returns
     -------
     Path
+
+    Raises
+    ------
+    SimbenchError
+        For a system other than G and R.
     """
     from simbench.sim.frames import dcm_ned_to_ecef, ecef_from_geodetic
     from simbench.gnss.geometry import sagnac_range
     from simbench.sim.orbits import NominalConstellation
 
+    if not systems or set(systems) - {"G", "R"}:
+        raise SimbenchError("systems", f"'{systems}' is not supported by the synthetic writer", "use 'G' or 'GR'")
     rng = np.random.default_rng(seed)
     t = np.arange(0.0, duration_s, 1.0 / rate_hz)
     lat, lon = 50.83 * DEG, 12.92 * DEG
     east = dcm_ned_to_ecef(lat, lon)[:, 1]
     rx = ecef_from_geodetic(lat, lon, 300.0)[None, :] + 10.0 * t[:, None] * east[None, :]
-    st = NominalConstellation().states(start_gps_s + t)
-    el, _ = elevation_azimuth(rx, st.pos)
-    e_idx, s_idx = np.nonzero(el > 10.0 * DEG)
-    sp = st.pos[e_idx, s_idx]
-    rho = sagnac_range(sp, rx[e_idx]) + 100.0 + 1.0 * t[e_idx] + code_sigma_m * rng.standard_normal(e_idx.size)
-    cn0 = 35.0 + 15.0 * np.sin(el[e_idx, s_idx])
-    lines = [f"pseudorange3 {t[e]:.3f} {r:.3f} {code_sigma_m**2:.4f} {p[0]:.3f} {p[1]:.3f} {p[2]:.3f} {s + 1} 1 "
-             f"{np.degrees(el[e, s]):.2f} {c:.1f}"
-             for e, s, r, p, c in zip(e_idx.tolist(), s_idx.tolist(), rho, sp, cn0)]
+    constellation = NominalConstellation()
+    lines = []
+    for letter in systems:
+        shift, bias, id0 = (0.0, 0.0, 0) if letter == "G" else (_STANDIN_SHIFT_S, glonass_bias_m,
+                                                                RTKLIB_GLONASS_OFFSET)
+        st = constellation.states(start_gps_s + shift + t)
+        el, _ = elevation_azimuth(rx, st.pos)
+        e_idx, s_idx = np.nonzero(el > 10.0 * DEG)
+        sp = st.pos[e_idx, s_idx]
+        rho = (sagnac_range(sp, rx[e_idx]) + 100.0 + 1.0 * t[e_idx] + bias
+               + code_sigma_m * rng.standard_normal(e_idx.size))
+        cn0 = 35.0 + 15.0 * np.sin(el[e_idx, s_idx])
+        lines += [f"pseudorange3 {t[e]:.3f} {r:.3f} {code_sigma_m**2:.4f} {q[0]:.3f} {q[1]:.3f} {q[2]:.3f} "
+                  f"{id0 + s + 1} {SYSTEM_FLAGS[letter]} {np.degrees(el[e, s]):.2f} {c:.1f}"
+                  for e, s, r, q, c in zip(e_idx.tolist(), s_idx.tolist(), rho, sp, cn0)]
     t_odo = np.arange(0.0, duration_s, 1.0 / odometry_rate_hz)
-    v = 10.0 + 0.05 * rng.standard_normal(t_odo.size)
-    lines += [f"odom3 {to:.3f} {vx:.4f} 0 0 0 0 {0.001 * rng.standard_normal():.6f} 0.01 0.01 0.01 1e-4 1e-4 1e-4"
-              for to, vx in zip(t_odo, v)]
+    v = 10.0 + speed_sigma_mps * rng.standard_normal(t_odo.size)
+    wz = yaw_rate_sigma_rps * rng.standard_normal(t_odo.size)
+    var_v, var_w = speed_sigma_mps**2, yaw_rate_sigma_rps**2
+    lines += [f"odom3 {to:.3f} {vx:.4f} 0 0 0 0 {w:.6f} {var_v:.6g} {var_v:.6g} {var_v:.6g} {var_w:.6g} "
+              f"{var_w:.6g} {var_w:.6g}" for to, vx, w in zip(t_odo, v, wz)]
     lines += [f"point3 {ti:.3f} {x[0]:.4f} {x[1]:.4f} {x[2]:.4f} 0 0 0 0 0 0 0 0 0" for ti, x in zip(t, rx)]
     out = Path(path)
     out.write_text("\n".join(lines) + "\n")

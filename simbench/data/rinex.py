@@ -22,9 +22,16 @@ raw observables as the simulator's does, the header's Klobuchar coefficients
 go into :class:`~simbench.contract.NavInfo`, and the shared measurement model
 (:func:`estimators.measurement.prepare_ppp`) applies both.
 
-GPS (``G``, L1 C/A) and BeiDou (``C``, B1I; :mod:`simbench.data.beidou`)
-are supported; with both, the shared model gives every non-GPS system its own
-receiver clock offset (``PppObservations.system_index``).
+GPS (``G``, L1 C/A), GLONASS (``R``, L1 C/A FDMA: the wavelength of each
+satellite from the frequency channel of its navigation record; orbits by
+numerical integration, :mod:`simbench.sim.glonass_orbits`), Galileo (``E``,
+E1; clock minus BGD(E1,E5b), :mod:`simbench.sim.galileo_orbits`) and BeiDou
+(``C``, B1I; :mod:`simbench.data.beidou`) are supported. Navigation data of a
+system come from its own file (``nav_glo``, ``nav_gal``, ``nav_bds``) when
+given, else from ``nav``, which may be a mixed RINEX 3 file. With several
+systems the single-point solution and the shared model give every non-GPS
+system its own receiver clock offset (``PppObservations.system_index``),
+which absorbs the system time offsets and inter-system biases.
 
 The RINEX observation parser is our own fixed-column reader: georinex needs
 ~30 s for the Hong Kong log (7 s for GPS alone) and rounds epochs to
@@ -39,22 +46,29 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from simbench.contract import IMU_COLUMNS, NavInfo, Scenario
+from simbench.contract import IMU_COLUMNS, NavInfo, RinexFiles, Scenario
 from simbench.data.beidou import read_beidou_navigation
-from simbench.data.navigation import read_gps_navigation
+from simbench.data.galileo import read_galileo_navigation
+from simbench.data.glonass import read_glonass_navigation
+from simbench.data.navigation import SYSTEM_NAMES, read_gps_navigation
 from simbench.data.reference import Reference, match_reference, read_reference, truth_table
 from simbench.errors import SimbenchError
 from simbench.sim.constants import C_LIGHT, F_L1, SECONDS_PER_WEEK
 from simbench.gnss.geometry import elevation_azimuth
 from simbench.gnss.spp import ROUGH_FIX_MAX_RMS_M, solve_epochs
 from simbench.sim.gpstime import datetime64_to_gps, format_gps_time
+from simbench.sim.glonass_orbits import GLO_F1_BASE_HZ, GlonassEphemeris, glonass_l1_frequency
 from simbench.sim.orbits import BroadcastEphemeris
 
-__all__ = ["RinexObs", "read_rinex_obs", "load_rinex", "SIGNALS"]
+__all__ = ["RinexObs", "read_rinex_obs", "load_rinex", "SIGNALS", "NAV_SETTINGS"]
 
 #: Observation code (band + attribute) used per system and the carrier frequency [Hz]:
-#: GPS L1 C/A and BeiDou B1I (RINEX 3 band 2).
-SIGNALS: dict[str, tuple[str, float]] = {"G": ("1C", F_L1), "C": ("2I", 1_561.098e6)}
+#: GPS L1 C/A, GLONASS L1 C/A (channel 0; each satellite's channel k adds k * 0.5625 MHz),
+#: Galileo E1 (RINEX 3 code 1C: E1-C pilot) and BeiDou B1I (RINEX 3 band 2).
+SIGNALS: dict[str, tuple[str, float]] = {"G": ("1C", F_L1), "R": ("1C", GLO_F1_BASE_HZ), "E": ("1C", F_L1),
+                                         "C": ("2I", 1_561.098e6)}
+#: Config setting of each system's own navigation file (``nav`` serves GPS and, mixed, the others).
+NAV_SETTINGS: dict[str, str] = {"G": "nav", "R": "nav_glo", "E": "nav_gal", "C": "nav_bds"}
 #: Transit time used when no pseudorange is available for a satellite (keeps arrays finite) [s].
 _TAU_NOMINAL_S = 0.075
 
@@ -238,26 +252,36 @@ def read_rinex_obs(path: str | os.PathLike[str], systems: str = "G") -> RinexObs
         lli=np.array([v[4] for v in r_val], dtype=bool), approx_position=approx, interval_s=float(interval), path=p)
 
 
-def _load_ephemeris(nav_path: str, obs: RinexObs, system: str = "G") -> BroadcastEphemeris:
-    """Ephemeris of one system from ``nav_path``, checked to cover the whole observation span."""
-    key = "scenario.nav" if system == "G" else "scenario.nav_bds"
+Ephemeris = BroadcastEphemeris | GlonassEphemeris
+_READERS = {"G": read_gps_navigation, "R": read_glonass_navigation, "E": read_galileo_navigation,
+            "C": read_beidou_navigation}
+
+
+def _load_ephemeris(nav_path: str, own_file: bool, obs: RinexObs, system: str) -> Ephemeris:
+    """Ephemeris of one system from ``nav_path``, checked to cover the whole observation span.
+
+    ``own_file`` says whether ``nav_path`` is the system's own setting or ``scenario.nav`` standing in for it.
+    """
+    key = f"scenario.{NAV_SETTINGS[system]}"
     if not nav_path:
-        raise SimbenchError(key, "no navigation file given",
-                            f"set {key} to a RINEX navigation file, e.g. ../shared/data/hk_tst_2019/hksc1180.19"
-                            + ("n" if system == "G" else "b"))
-    eph = read_beidou_navigation(nav_path) if system == "C" else read_gps_navigation(nav_path)
+        raise SimbenchError(key, f"no {SYSTEM_NAMES[system]} navigation file given",
+                            f"set {key} to a RINEX navigation file holding {SYSTEM_NAMES[system]} records, "
+                            "or scenario.nav to a mixed RINEX 3 navigation file")
+    setting = key if own_file else f"scenario.nav (no {key} given)"
+    eph = read_gps_navigation(nav_path) if system == "G" else _READERS[system](nav_path, setting=setting)
     t0 = float(obs.epoch_t_int[0]) + obs.epoch_t_frac[0]
     t1 = float(obs.epoch_t_int[-1]) + obs.epoch_t_frac[-1]
     lo, hi = eph.t_coverage
     if t0 < lo or t1 > hi:
-        raise SimbenchError(f"{key} '{nav_path}'",
-                            f"covers {format_gps_time(lo)} .. {format_gps_time(hi)} GPS, the observations span "
-                            f"{format_gps_time(t0)} .. {format_gps_time(t1)} GPS",
+        raise SimbenchError(f"{setting} '{nav_path}'",
+                            f"covers {format_gps_time(lo)} .. {format_gps_time(hi)} GPS with its "
+                            f"{SYSTEM_NAMES[system]} records, the observations span {format_gps_time(t0)} .. "
+                            f"{format_gps_time(t1)} GPS",
                             "pass the navigation file of the observation day")
     return eph
 
 
-def _satellite_states(obs: RinexObs, ephs: dict[str, BroadcastEphemeris]) -> dict[str, np.ndarray]:
+def _satellite_states(obs: RinexObs, ephs: dict[str, Ephemeris]) -> dict[str, np.ndarray]:
     """Per-row satellite state at transmit time (NaN where the ephemeris has no record)."""
     out = {k: np.full(obs.sat.size, np.nan) for k in ("x", "y", "z", "vx", "vy", "vz", "clock", "drift")}
     n = obs.epoch_t_int.size
@@ -279,7 +303,8 @@ def _satellite_states(obs: RinexObs, ephs: dict[str, BroadcastEphemeris]) -> dic
         for k, name in enumerate("xyz"):
             out[name][has] = st.pos[e_r, j_r, k]
             out["v" + name][has] = st.vel[e_r, j_r, k]
-        # IS-GPS-200 20.3.3.3.3.2 (and BDS B1I): the L1 user's clock is dt_sv - TGD
+        # IS-GPS-200 20.3.3.3.3.2, BDS B1I and Galileo E1 (OS SIS ICD 5.1.5): the single-frequency
+        # user's clock is dt_sv - TGD (resp. TGD1, BGD); GLONASS has tgd = 0
         out["clock"][has] = C_LIGHT * (st.clock[e_r, j_r] - np.nan_to_num(eph.tgd[j_r]))
         out["drift"][has] = C_LIGHT * st.clock_drift[e_r, j_r]
     return out
@@ -309,7 +334,9 @@ def empty_imu() -> pd.DataFrame:
 
 def load_rinex(obs_path: str | os.PathLike[str], nav_path: str | os.PathLike[str],
                truth_path: str | os.PathLike[str] | None = None, *, systems: str = "G",
-               nav_bds_path: str | os.PathLike[str] | None = None, name: str = "rinex",
+               nav_bds_path: str | os.PathLike[str] | None = None,
+               nav_glo_path: str | os.PathLike[str] | None = None,
+               nav_gal_path: str | os.PathLike[str] | None = None, name: str = "rinex",
                truth_max_gap_s: float = 2.0) -> Scenario:
     """Ingest a RINEX 3 observation file, its navigation file and a reference trajectory.
 
@@ -318,15 +345,17 @@ def load_rinex(obs_path: str | os.PathLike[str], nav_path: str | os.PathLike[str
     obs_path : str or PathLike
         RINEX 3 observation file.
     nav_path : str or PathLike
-        RINEX 2/3 GPS navigation file covering the observation span.
+        RINEX 2/3 GPS navigation file covering the observation span, or a mixed
+        RINEX 3 file that also serves the systems without a file of their own.
     truth_path : str or PathLike, optional
         Reference trajectory (``week,TOW,lat,lon,h`` CSV or ``SOW X Y Z``); see
         :func:`simbench.data.reference.read_reference`. Without it the truth
         table is empty (nothing can be scored).
     systems : str
-        Systems to ingest: ``'G'``, ``'C'`` or ``'GC'``.
-    nav_bds_path : str or PathLike, optional
-        RINEX 3 BeiDou navigation file (needed when ``systems`` has ``C``).
+        Systems to ingest, letters of ``'GREC'`` (GPS, GLONASS, Galileo, BeiDou).
+    nav_bds_path, nav_glo_path, nav_gal_path : str or PathLike, optional
+        RINEX 3 BeiDou, GLONASS, Galileo navigation files; when one is not
+        given, the records of that system come from ``nav_path``.
     name : str
         Scenario name for the result tables.
     truth_max_gap_s : float
@@ -340,8 +369,11 @@ def load_rinex(obs_path: str | os.PathLike[str], nav_path: str | os.PathLike[str
         log's interval), ``labels=None`` and an empty IMU table.
     """
     obs = read_rinex_obs(obs_path, systems)
-    paths = {"G": os.fspath(nav_path or ""), "C": os.fspath(nav_bds_path or "")}
-    ephs = {s: _load_ephemeris(paths[s], obs, s) for s in systems}
+    own = {"G": os.fspath(nav_path or ""), "C": os.fspath(nav_bds_path or ""),
+           "R": os.fspath(nav_glo_path or ""), "E": os.fspath(nav_gal_path or "")}
+    # the navigation file actually read for each system
+    paths = {s: own[s] or own["G"] for s in own}
+    ephs = {s: _load_ephemeris(paths[s], bool(own[s]), obs, s) for s in systems}
     st = _satellite_states(obs, ephs)
     keep = np.isfinite(st["x"])
     n_dropped = int((~keep).sum())
@@ -359,6 +391,11 @@ def load_rinex(obs_path: str | os.PathLike[str], nav_path: str | os.PathLike[str
                       max_rms_m=ROUGH_FIX_MAX_RMS_M, fill_untrusted=True).pos
     el, az = elevation_azimuth(rx[re], sat_pos[:, None, :])
     freq = np.array([SIGNALS[s[0]][1] for s in obs.sat[keep].tolist()])
+    glo = ephs.get("R")
+    if isinstance(glo, GlonassEphemeris):  # FDMA: each satellite's own L1 carrier
+        is_r = letters == "R"
+        channel = dict(zip(glo.sats.tolist(), glo.freq_number.tolist()))
+        freq[is_r] = glonass_l1_frequency([channel[s] for s in obs.sat[keep][is_r].tolist()])
     observations = pd.DataFrame({
         "epoch": grid[re], "t": t_rel_epoch[re], "sat": obs.sat[keep],
         "code_l1": obs.code[keep], "phase_l1": obs.phase_cycles[keep] * (C_LIGHT / freq),
@@ -390,11 +427,16 @@ def load_rinex(obs_path: str | os.PathLike[str], nav_path: str | os.PathLike[str
                   iono_alpha=tuple(map(float, alpha)), iono_beta=tuple(map(float, beta)), dual_frequency=False)
     meta = {
         "name": name, "seed": 0, "source": "rinex",
-        "files": {"obs": str(Path(obs_path)), "nav": paths["G"], "nav_bds": paths["C"],
-                  "truth": str(truth_path or "")},
+        "files": {"obs": str(Path(obs_path)), "nav": paths["G"], "nav_bds": paths["C"], "nav_glo": paths["R"],
+                  "nav_gal": paths["E"], "truth": str(truth_path or "")},
         "systems": systems, "signals": {s: SIGNALS[s][0] for s in systems},
         "rows_without_ephemeris_or_code": n_dropped,
         "epochs_with_truth": len(truth), "epochs": n_grid,
         "corrections": "raw observables; Klobuchar (NavInfo) and Saastamoinen applied by the estimator model",
     }
-    return Scenario(observations=observations, imu=empty_imu(), truth=truth, labels=None, nav=nav, meta=meta)
+    # absolute paths: tools run in their own working directory, and a cached scenario outlives the cwd
+    rinex = RinexFiles(obs=os.path.abspath(obs_path),
+                       nav=tuple(dict.fromkeys(os.path.abspath(paths[s]) for s in systems if paths.get(s))),
+                       systems=systems)
+    return Scenario(observations=observations, imu=empty_imu(), truth=truth, labels=None, nav=nav, meta=meta,
+                    rinex=rinex)

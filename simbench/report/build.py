@@ -1,9 +1,16 @@
 """Build a run's aggregate, ``claims.csv`` and ``report/`` (index.html, README.md, PNG figures).
 
-The claims table comes first: it is what a reader wants to know. Then one
-section per (sweep, scenario, receiver) group with its figures, statistics
-with bootstrap confidence intervals over seeds, paired comparisons and the
-gap to the oracle, then run time and estimator diagnostics.
+The measured claims come first: they are what a reader wants to know; a run
+that measures none (a single run, a real log) names them in one line at the
+end instead. Then one section per (sweep, scenario, receiver) group -- a real
+log titled by its source, not by the receiver preset -- with its figures,
+statistics with bootstrap confidence intervals over seeds, paired comparisons
+and the gap to the oracle, then run time and estimator diagnostics.
+
+Every statistic is read with the availability beside it; distributions and
+percentiles are over all reference epochs (an unsolved epoch counts as missed,
+:mod:`simbench.metrics`), and a percentile the availability does not reach is
+shown as '—'.
 """
 from __future__ import annotations
 
@@ -15,7 +22,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from simbench.claims import claims_table
+from simbench.claims import CLAIMS, claims_table
+from simbench.config import ScenarioSource
 from simbench.provenance import provenance
 from simbench.report.figures import (
     box_figure,
@@ -25,11 +33,14 @@ from simbench.report.figures import (
     runtime_figure,
     sensitivity_figure,
 )
+from simbench.runner import SUMMARY_COLUMNS
 from simbench.store import aggregate, diagnostics
 from simbench.tables import (
     CONVERGENCE_S,
     GROUP,
     convergence_statistics,
+    data_label,
+    data_source,
     oracle_gap,
     paired_comparisons,
     seed_statistics,
@@ -39,6 +50,9 @@ from simbench.variants import NO_OVERRIDES, config_defaults, is_default, overrid
 #: The comparison baseline when present (the a priori L2 estimator), else the first estimator.
 BASELINES = ("l2", "isam2_ppp", "ekf_ppp")
 LABEL_USERS_NOTE = "uses the true error labels: an accuracy floor, not an estimator one could deploy"
+#: How a percentile over reference epochs that the availability does not reach is shown.
+UNDEFINED = "—"
+NOT_MEASURED = "not measured"
 
 _CSS = """body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}
 table{border-collapse:collapse;font-size:13px;margin:0.5em 0 1.5em}td,th{border:1px solid #ccc;padding:3px 6px}
@@ -51,6 +65,8 @@ def finalize(run_dir: str | Path, config: dict[str, Any] | None) -> Path:
     """Aggregate job files, write ``claims.csv`` and build ``report/``; return the report directory."""
     run_dir = Path(run_dir)
     summary, epochs = aggregate(run_dir, provenance(config or {"run_dir": str(run_dir)}))
+    # results written before a column existed (e.g. source) are shown with it empty
+    summary = summary.reindex(columns=list(dict.fromkeys([*SUMMARY_COLUMNS, *summary.columns])))
     diag = diagnostics(run_dir)
     epochs = _ok_epochs(epochs, summary)  # figures and claims use the results the tables use
     claims = claims_table(summary, epochs, diag)
@@ -78,9 +94,14 @@ def build_report(run_dir: Path, summary: pd.DataFrame, epochs: pd.DataFrame, cla
     page.p(f"Run directory <code>{html.escape(str(run_dir.resolve()))}</code>: {len(summary)} result rows, "
            f"{summary['estimator'].nunique() if len(summary) else 0} estimators, "
            f"{summary['seed'].nunique() if len(summary) else 0} seeds.")
-    page.h2("Published claims")
-    page.table(claims, classes=lambda r: r["holds"].split()[0])
+    measured = claims["holds"] != NOT_MEASURED
+    if measured.any():
+        page.h2("Published claims")
+        page.table(claims[measured], classes=lambda r: r["holds"].split()[0])
+        if not measured.all():
+            page.p(_not_measured_line(claims), cls="note")
     if summary.empty:
+        _unmeasured_claims_section(page, claims)
         return page.write(out)
     oracles = sorted(summary.loc[summary["uses_labels"].fillna(False).astype(bool), "estimator"].unique())
     if oracles:
@@ -88,26 +109,38 @@ def build_report(run_dir: Path, summary: pd.DataFrame, epochs: pd.DataFrame, cla
     failed = summary[summary["status"] != "ok"]
     if len(failed):
         page.h2("Jobs not ok (left out of the figures and statistics)")
-        page.table(failed[["sweep", "scenario", "receiver", "seed", "estimator", "variant", "status", "message"]])
+        page.table(failed.assign(data=_labels(failed))[["sweep", "data", "seed", "estimator", "variant", "status",
+                                                        "message"]])
     stats = seed_statistics(summary)
     for keys, group in epochs.groupby(GROUP, dropna=False) if len(epochs) else []:
         sweep, scenario, receiver = keys
-        tag = re.sub(r"[^A-Za-z0-9_-]+", "_", "_".join(str(k) for k in keys if k))
-        name = f"{scenario}, {receiver} receiver" + (f" (sweep {sweep})" if sweep else "")
+        in_group = summary[_in_group(summary, keys)]
+        source = in_group["source"].iloc[0]
+        name = data_label(scenario, receiver, source) + (f" (sweep {sweep})" if sweep else "")
+        # file names too say what the data are: the source of a real log, the receiver of a simulation
+        kind = receiver if data_source(source) == ScenarioSource.simulated else data_source(source).value
+        tag = re.sub(r"[^A-Za-z0-9_-]+", "_", "_".join(str(k) for k in (sweep, scenario, kind) if k))
         page.h2(name)
         default = group[is_default(group["overrides"])]
         shown = (default if len(default) else group).copy()
+        n_reference = _reference_epochs(in_group, shown)
         # figures mark the estimators that read truth labels, as the tables' note does
-        shown["estimator"] = shown["estimator"].map(lambda e: f"{e} (truth labels)" if e in oracles else e)
+        marked = {e: f"{e} (truth labels)" if e in oracles else e for e in shown["estimator"].unique()}
+        shown["estimator"] = shown["estimator"].map(marked)
+        n_reference = {marked[e]: n for e, n in n_reference.items()}
         for metric, label in (("horizontal", "horizontal"), ("error_3d", "3-D")):
             page.img(ecdf_figure(shown, metric, out / f"ecdf_{metric}_{tag}.png",
-                                 f"ECDF of {label} error: {name}"))
-        page.img(box_figure(shown, out / f"box_{tag}.png", f"Horizontal error per estimator: {name}"))
+                                 f"ECDF of {label} error: {name}", n_reference))
+        page.img(box_figure(shown, out / f"box_{tag}.png", f"Horizontal error per estimator: {name}", n_reference))
         if shown["seed"].nunique() == 1:
             page.img(error_timeseries_figure(shown, out / f"error_time_{tag}.png", f"Horizontal error: {name}"))
         group_stats = stats[_in_group(stats, keys)]
-        page.h3("Statistics over seeds (errors in m; horizontal_median is the mean of per-seed medians, "
-                "95 % bootstrap CI)")
+        page.h3("Statistics over seeds (errors in m, availability beside them)")
+        page.p("availability = solved / reference epochs (epochs with truth). The <code>*_ref</code> percentiles "
+               "are over all reference epochs, an unsolved epoch counting as an infinite error: "
+               f"{UNDEFINED} when the availability is below the percentile (below 0.5 for a median, 0.95 for "
+               "p95). horizontal_median_ref is the mean of per-seed medians with its 95 % bootstrap CI; "
+               "<code>*_solved</code> and max are over the solved epochs only.", cls="note")
         page.table(group_stats.drop(columns=GROUP + ["overrides"]))
         early = convergence_statistics(group)
         if len(early):
@@ -123,17 +156,50 @@ def build_report(run_dir: Path, summary: pd.DataFrame, epochs: pd.DataFrame, cla
         if baseline:
             pairs = paired_comparisons(summary[_in_group(summary, keys)], baseline)
             if len(pairs):
-                page.h3(f"Paired comparison with {baseline} on the same seeds (ratio of mean medians; "
-                        "wins = share of seeds with a lower median)")
+                page.h3(f"Paired comparison with {baseline} on the same seeds (ratio of mean medians over the "
+                        "solved epochs; wins = share of seeds with a lower median; read with both availabilities)")
                 page.table(pairs.drop(columns=GROUP))
         gap = oracle_gap(summary[_in_group(summary, keys)])
         if len(gap):
-            page.h3("Gap to the oracle (mean per-seed median minus the oracle's) [m]")
+            page.h3("Gap to the oracle (mean per-seed median over the solved epochs minus the oracle's, with "
+                    "both availabilities) [m]")
             page.table(gap.drop(columns=GROUP))
         if group_stats["time_per_obs_s"].notna().any():
             page.img(runtime_figure(group_stats, out / f"runtime_{tag}.png", f"Run time: {name}"))
     _diagnostics_section(page, diag, out)
+    if not measured.any():
+        _unmeasured_claims_section(page, claims)
     return page.write(out)
+
+
+def _labels(summary: pd.DataFrame) -> pd.Series:
+    """:func:`~simbench.tables.data_label` of each row."""
+    return pd.Series([data_label(sc, rx, src) for sc, rx, src in
+                      zip(summary["scenario"], summary["receiver"], summary["source"])], index=summary.index,
+                     dtype=object)
+
+
+def _reference_epochs(summary: pd.DataFrame, epochs: pd.DataFrame) -> dict[str, int]:
+    """Per estimator: the reference epochs (summed ``n_epochs``) of the ok jobs whose epochs are in ``epochs``."""
+    keys = ["scenario_key", "estimator", "overrides"]
+    jobs = epochs[keys].fillna(NO_OVERRIDES).drop_duplicates()
+    rows = summary[summary["status"] == "ok"].fillna({"overrides": NO_OVERRIDES}).merge(jobs, on=keys)
+    return {name: int(n) for name, n in rows.groupby("estimator")["n_epochs"].sum().items()}
+
+
+def _not_measured_line(claims: pd.DataFrame) -> str:
+    """One line: how many claims were not measured and the sweeps that measure them."""
+    missing = claims.loc[claims["holds"] == NOT_MEASURED, "claim_id"]
+    sweeps = [c.sweep for c in CLAIMS if c.claim_id in set(missing)]
+    per_sweep = ", ".join(f"{s} ({sweeps.count(s)})" for s in dict.fromkeys(sweeps))
+    return (f"{len(missing)} of {len(claims)} published claims not measured here: their sweeps did not run "
+            f"(<code>python -m simbench +sweep=NAME</code>, all: <code>+sweep=thesis</code>): {per_sweep}. "
+            "claims.csv lists them.")
+
+
+def _unmeasured_claims_section(page: "_Page", claims: pd.DataFrame) -> None:
+    page.h2("Published claims")
+    page.p(_not_measured_line(claims), cls="note")
 
 
 def _in_group(summary: pd.DataFrame, keys: tuple) -> np.ndarray:
@@ -149,7 +215,7 @@ def _sensitivity_curves(group_stats: pd.DataFrame) -> pd.DataFrame | None:
     scale = pd.concat([override_value(rows["overrides"], "prior_scale", defaults[name])
                        for name, rows in scaled.groupby("estimator")]).astype(float)
     curves = scaled.assign(scale=scale)
-    return curves[["estimator", "scale", "horizontal_median", "ci_low", "ci_high"]]
+    return curves[["estimator", "scale", "horizontal_median_ref", "ci_low", "ci_high"]]
 
 
 def _diagnostics_section(page: "_Page", diag: dict[str, list[dict]], out: Path) -> None:
@@ -166,7 +232,7 @@ def _diagnostics_section(page: "_Page", diag: dict[str, list[dict]], out: Path) 
             page.h2("Estimator diagnostics (first job of each estimator)")
             shown = True
         job = jobs[0]["job"]
-        where = f"{job.get('scenario', '')}, {job.get('receiver', '')}, seed {job.get('seed', '')}"
+        where = f"{_job_label(job)}, seed {job.get('seed', '')}"
         page.h3(f"{estimator}: {where}")
         if scalars:
             page.table(pd.DataFrame([scalars]))
@@ -179,8 +245,8 @@ def _diagnostics_section(page: "_Page", diag: dict[str, list[dict]], out: Path) 
             job = busiest["job"]
             page.img(mixture_evolution_figure(
                 history, out / f"mixture_{estimator}.png",
-                f"{estimator}: noise model after each adaptation (0: a priori), {job.get('scenario', '')}, "
-                f"{job.get('receiver', '')}, seed {job.get('seed', '')}", xlabel="adaptation"))
+                f"{estimator}: noise model after each adaptation (0: a priori), {_job_label(job)}, "
+                f"seed {job.get('seed', '')}", xlabel="adaptation"))
         counts = _adaptation_counts(jobs)
         if counts is not None:
             page.p("<b>model adaptations in every job</b> (naive: one per T_c tested residuals)")
@@ -198,6 +264,11 @@ def _diagnostics_section(page: "_Page", diag: dict[str, list[dict]], out: Path) 
             if flat.shape[1]:
                 page.p(f"<b>{html.escape(key)}</b>")
                 page.table(flat.head(40))
+
+
+def _job_label(job: dict[str, Any]) -> str:
+    """:func:`~simbench.tables.data_label` of a job's summary row (a dict)."""
+    return data_label(job.get("scenario", ""), job.get("receiver", ""), job.get("source"))
 
 
 def _adaptation_counts(jobs: list[dict]) -> pd.DataFrame | None:
@@ -249,7 +320,10 @@ class _Page:
             cells = "".join(_cell(v) for v in row)
             body.append(f"<tr{cls}>{cells}</tr>")
         self.html.append(f"<table><tr>{head}</tr>{''.join(body)}</table>")
-        self.md += [df.to_markdown(index=False, floatfmt=".4g") if len(df) else "(none)", ""]
+        shown = df.copy()
+        for column in df.columns[df.isin([np.inf]).any()]:  # tabulate would print 'inf'
+            shown[column] = [_text(v) for v in df[column]]
+        self.md += [shown.to_markdown(index=False, floatfmt=".4g") if len(df) else "(none)", ""]
 
     def write(self, out: Path) -> Path:
         page = (f"<!doctype html><html><head><meta charset='utf-8'><title>simbench report</title>"
@@ -261,10 +335,14 @@ class _Page:
         return out
 
 
+def _text(value: Any) -> str:
+    """A float as the report shows it: 4 significant digits, '—' for an undefined percentile (inf)."""
+    return UNDEFINED if value == np.inf else "" if not np.isfinite(value) else f"{value:.4g}"
+
+
 def _cell(value: Any) -> str:
     if isinstance(value, (float, np.floating)):
-        text = "" if not np.isfinite(value) else f"{value:.4g}"
-        return f"<td class='num'>{text}</td>"
+        return f"<td class='num'>{_text(value)}</td>"
     if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
         return f"<td class='num'>{value}</td>"
     return f"<td>{html.escape(str(value))}</td>"

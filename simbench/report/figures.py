@@ -1,7 +1,14 @@
-"""Publication-quality figures from the results tables."""
+"""Publication-quality figures from the results tables.
+
+Each estimator keeps one colour and line style (:func:`estimator_styles`), so
+14 and more estimators stay distinct. Error distributions are drawn over all
+reference epochs (:func:`simbench.metrics.reference_ecdf`): a curve ends at its
+estimator's availability, below 1 when it left epochs unsolved.
+"""
 from __future__ import annotations
 
 import textwrap
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 
 import matplotlib
@@ -12,59 +19,115 @@ from matplotlib.ticker import MaxNLocator  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from simbench.metrics import ecdf  # noqa: E402
+from simbench.errors import SimbenchError  # noqa: E402
+from simbench.metrics import reference_ecdf, reference_percentile  # noqa: E402
 
 METRIC_LABELS = {"horizontal": "horizontal error [m]", "error_3d": "3-D error [m]"}
+#: After the ten colours of tab10 the line style changes, so 40 estimators get distinct lines.
+LINESTYLES = ("-", "--", ":", "-.")
+#: Legends with more entries go beside the axes instead of over the curves.
+LEGEND_INSIDE_MAX = 6
+#: What a figure says about curves that end below 1.
+REFERENCE_NOTE = "over all reference epochs: a curve ends at its availability, unsolved epochs counting as missed"
 
 
-def ecdf_figure(epochs: pd.DataFrame, metric: str, path: str | Path, title: str) -> Path:
-    """ECDF of one error metric per estimator, log-scaled error axis.
+def estimator_styles(names: Iterable[str]) -> dict[str, dict[str, object]]:
+    """A distinct ``color`` and ``linestyle`` per estimator name, by sorted name (same set, same styles)."""
+    colors = plt.get_cmap("tab10").colors
+    return {name: {"color": colors[i % len(colors)], "linestyle": LINESTYLES[(i // len(colors)) % len(LINESTYLES)]}
+            for i, name in enumerate(sorted(set(names)))}
+
+
+def availability_text(fraction: float) -> str:
+    """``36 % solved`` (whole percent; '< 1 %' and '> 99 %' rather than rounding to 0 or 100)."""
+    if 0 < fraction < 0.01:
+        return "< 1 % solved"
+    if 0.99 < fraction < 1:
+        return "> 99 % solved"
+    return f"{fraction:.0%} solved".replace("%", " %")
+
+
+def _references(epochs: pd.DataFrame, n_reference: Mapping[str, int]) -> dict[str, int]:
+    missing = sorted(set(epochs["estimator"]) - set(n_reference))
+    if missing:
+        raise SimbenchError("n_reference", f"has no reference epoch count for {', '.join(missing)}",
+                            "pass the summed n_epochs of each estimator's jobs")
+    return {name: int(n_reference[name]) for name in epochs["estimator"].unique()}
+
+
+def ecdf_figure(epochs: pd.DataFrame, metric: str, path: str | Path, title: str,
+                n_reference: Mapping[str, int]) -> Path:
+    """ECDF of one error metric per estimator over all reference epochs, log-scaled error axis.
 
     Parameters
     ----------
     epochs : pandas.DataFrame
-        ``epochs.parquet`` rows (columns ``estimator`` and ``metric``).
+        ``epochs.parquet`` rows (columns ``estimator`` and ``metric``): the solved epochs.
     metric : str
         ``horizontal`` or ``error_3d``.
     path : path-like
         PNG to write.
     title : str
+    n_reference : mapping of estimator name to int
+        Reference epochs of that estimator's jobs in ``epochs`` (the summed ``n_epochs``): the
+        denominator, so a curve ends at the estimator's availability. The legend gives the
+        availability and the median over reference epochs ('—' below 50 % availability).
     """
-    fig, ax = plt.subplots(figsize=(6.4, 4.2), dpi=150)
-    for name, group in sorted(epochs.groupby("estimator"), key=lambda kv: np.nanmedian(kv[1][metric])):
-        values = group[metric].to_numpy()
-        if not np.isfinite(values).any():
-            continue
-        x, p = ecdf(values)
-        ax.step(np.maximum(x, 1e-3), p, where="post", lw=1.6,
-                label=f"{name} (median {np.nanmedian(values):.2f} m)")
+    counts = _references(epochs, n_reference)
+    styles = estimator_styles(epochs["estimator"])
+    curves = []
+    for name, group in epochs.groupby("estimator"):
+        values = group[metric].to_numpy(float)
+        x, p = reference_ecdf(values, counts[name])
+        if x.size:
+            curves.append((reference_percentile(values, counts[name], 50.0), -p[-1], name, x, p))
+    beside = len(curves) > LEGEND_INSIDE_MAX
+    fig, ax = plt.subplots(figsize=(9.5 if beside else 6.4, 4.4), dpi=150)
+    for median, _, name, x, p in sorted(curves, key=lambda c: c[:3]):
+        x = np.maximum(x, 1e-3)
+        shown = f"{median:.2f} m" if np.isfinite(median) else "—"
+        ax.step(np.r_[x[0], x], np.r_[0.0, p], where="post", lw=1.5, **styles[name],
+                label=f"{name} ({availability_text(p[-1])}, median {shown})")
+        ax.plot(x[-1], p[-1], marker="o", ms=3, color=styles[name]["color"])  # where the curve stops
     ax.set_xscale("log")
     ax.set_xlabel(METRIC_LABELS.get(metric, metric))
-    ax.set_ylabel("fraction of epochs")
+    ax.set_ylabel("fraction of reference epochs")
     ax.set_ylim(0, 1.01)
     ax.grid(True, which="both", alpha=0.3)
-    ax.set_title(_wrap(fig, title, 12))
-    ax.legend(loc="lower right", fontsize=8, frameon=True)
+    # a legend beside the axes leaves the title about 5.5 inches
+    ax.set_title(_wrap(fig, f"{title}\n({REFERENCE_NOTE})", 10, 5.5 if beside else None), fontsize=10)
+    _legend(ax, len(curves), "lower right")
     return _save(fig, path)
 
 
 def error_timeseries_figure(epochs: pd.DataFrame, path: str | Path, title: str) -> Path:
     """Horizontal error over time per estimator (convergence behaviour)."""
-    fig, ax = plt.subplots(figsize=(7.0, 3.6), dpi=150)
+    styles = estimator_styles(epochs["estimator"])
+    n = epochs["estimator"].nunique()
+    fig, ax = plt.subplots(figsize=(7.0 if n <= LEGEND_INSIDE_MAX else 9.0, 3.6), dpi=150)
+    ax.set_title(_wrap(fig, title, 12, 6.0 if n > LEGEND_INSIDE_MAX else None))
     for name, group in epochs.groupby("estimator"):
-        ax.plot(group["t"], group["horizontal"], lw=1.0, label=name)
+        ax.plot(group["t"], group["horizontal"], lw=1.0, label=name, **styles[name])
     ax.set_yscale("log")
     ax.set_xlabel("time since start [s]")
     ax.set_ylabel("horizontal error [m]")
     ax.grid(True, which="both", alpha=0.3)
-    ax.set_title(_wrap(fig, title, 12))
-    ax.legend(loc="upper right", fontsize=8)
+    _legend(ax, n, "upper right")
     return _save(fig, path)
 
 
-def _wrap(fig: plt.Figure, text: str, fontsize: float) -> str:
-    """``text`` wrapped to the figure's width (titles otherwise run off narrow figures)."""
-    chars = max(20, int(fig.get_figwidth() * 72 / (0.55 * fontsize)))
+def _legend(ax: plt.Axes, entries: int, inside: str) -> None:
+    """Legend at ``inside`` for a few entries, beside the axes (two columns past 20) for many."""
+    if entries <= LEGEND_INSIDE_MAX:
+        ax.legend(loc=inside, fontsize=8, frameon=True)
+    else:
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False,
+                  ncols=1 if entries <= 20 else 2)
+
+
+def _wrap(fig: plt.Figure, text: str, fontsize: float, width_in: float | None = None) -> str:
+    """``text`` wrapped to the figure's width, or ``width_in`` inches (titles otherwise run off narrow figures)."""
+    chars = max(20, int((width_in or fig.get_figwidth()) * 72 / (0.55 * fontsize)))
     return "\n".join(textwrap.fill(line, chars) for line in text.split("\n"))
 
 
@@ -87,35 +150,45 @@ def _save(fig: plt.Figure, path: str | Path) -> Path:
     return path
 
 
-def box_figure(epochs: pd.DataFrame, path: str | Path, title: str, metric: str = "horizontal") -> Path:
-    """Box plot of per-epoch errors per estimator (dissertation Fig. 5.3.2), log scale."""
+def box_figure(epochs: pd.DataFrame, path: str | Path, title: str, n_reference: Mapping[str, int],
+               metric: str = "horizontal") -> Path:
+    """Box plot of the solved epochs' errors per estimator (dissertation Fig. 5.3.2), log scale.
+
+    Each label gives the estimator's availability (solved / ``n_reference`` epochs,
+    as in :func:`ecdf_figure`): the boxes describe only the epochs it solved.
+    """
+    counts = _references(epochs, n_reference)
     order = sorted(epochs["estimator"].unique(), key=lambda n: np.nanmedian(
         epochs.loc[epochs["estimator"] == n, metric]))
     data = [epochs.loc[epochs["estimator"] == n, metric].dropna().to_numpy() for n in order]
-    fig, ax = plt.subplots(figsize=(max(4.0, 0.9 * len(order) + 1.5), 4.0), dpi=150)
+    labels = [f"{n}\n{availability_text(len(d) / counts[n])}" for n, d in zip(order, data)]
+    fig, ax = plt.subplots(figsize=(max(4.0, 0.9 * len(order) + 1.5), 4.2), dpi=150)
     ax.boxplot(data, whis=(5, 95), showfliers=False, medianprops={"color": "black"})
-    ax.set_xticks(range(1, len(order) + 1), order, rotation=30, ha="right")
+    ax.set_xticks(range(1, len(order) + 1), labels, rotation=30, ha="right", fontsize=8)
     ax.set_yscale("log")
     ax.set_ylabel(METRIC_LABELS.get(metric, metric))
     ax.grid(True, axis="y", which="both", alpha=0.3)
-    ax.set_title(_wrap(fig, title, 10) + "\n(box: quartiles, whiskers: 5-95 %)", fontsize=10)
+    # wrapped as if larger: the default font runs wider than _wrap's estimate for narrow figures
+    ax.set_title(_wrap(fig, f"{title}\n(solved epochs only; box: quartiles, whiskers: 5-95 %)", 12), fontsize=10)
     return _save(fig, path)
 
 
 def sensitivity_figure(curves: pd.DataFrame, path: str | Path, title: str) -> Path:
     """Median error against the a priori covariance scale per estimator (dissertation Fig. 5.3.7).
 
-    ``curves`` has columns estimator, scale, horizontal_median, ci_low, ci_high.
+    ``curves`` has columns estimator, scale, horizontal_median_ref (over reference epochs; a
+    scale whose median is undefined, inf, is left out), ci_low, ci_high.
     """
     fig, ax = plt.subplots(figsize=(6.0, 4.0), dpi=150)
+    styles = estimator_styles(curves["estimator"])
     for name, group in curves.groupby("estimator"):
-        group = group.sort_values("scale")
-        ax.errorbar(group["scale"], group["horizontal_median"],
-                    yerr=[group["horizontal_median"] - group["ci_low"], group["ci_high"] - group["horizontal_median"]],
-                    marker="o", capsize=3, label=name)
+        group = group[np.isfinite(group["horizontal_median_ref"])].sort_values("scale")
+        median = group["horizontal_median_ref"]
+        ax.errorbar(group["scale"], median, yerr=[median - group["ci_low"], group["ci_high"] - median],
+                    marker="o", capsize=3, label=name, **styles[name])
     ax.set_xscale("log")
     ax.set_xlabel("a priori covariance scale s")
-    ax.set_ylabel("median horizontal error [m]")
+    ax.set_ylabel("median horizontal error [m]\n(over reference epochs)")
     ax.grid(True, which="both", alpha=0.3)
     ax.set_title(_wrap(fig, title, 10) + "\n(per-seed medians: mean and 95 % CI over seeds)", fontsize=10)
     ax.legend(fontsize=8)

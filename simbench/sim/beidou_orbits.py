@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from simbench.sim.constants import C_LIGHT, DEG, SECONDS_PER_WEEK
+from simbench.sim.constants import C_LIGHT, DEG
 from simbench.sim.orbits import FIT_HALF_WINDOW_S, BroadcastEphemeris
 
 __all__ = ["BeidouEphemeris", "BDS_MU", "BDS_OMEGA_EARTH", "BDS_F_REL", "GPS_MINUS_BDT_S", "BDT_WEEK_OFFSET",
@@ -46,23 +46,21 @@ class BeidouEphemeris(BroadcastEphemeris):
     ``toe``/``toc`` in continuous GPS seconds.
     """
 
+    mu = BDS_MU
+    omega_e = BDS_OMEGA_EARTH
+    f_rel = BDS_F_REL
+    week_origin_s = GPS_MINUS_BDT_S
+    system_name = "BeiDou"
+
     def __init__(self, sats: np.ndarray, records: dict[str, np.ndarray], iono_alpha: np.ndarray | None = None,
                  iono_beta: np.ndarray | None = None, source: str = "",
                  max_age_s: float = FIT_HALF_WINDOW_S) -> None:
         super().__init__(sats, records, iono_alpha, iono_beta, source, max_age_s)
-        # The parent sorted the records by (sat, toe) and derived its constants
-        # with GPS values; redo the constant-dependent parameters for BDS.
-        order = np.lexsort((records["toe"], records["sat"]))
-        r = {k: np.asarray(v)[order] for k, v in records.items()}
         prn = np.array([int(s[1:3]) for s in self.sats.tolist()])
         self._geo_record = np.isin(prn, list(GEO_PRNS))[self._sat_idx]
-        toe_bdt_sow = np.mod(self._toe - GPS_MINUS_BDT_S, SECONDS_PER_WEEK)
-        a = r["sqrta"] ** 2
+        # GEO elements are in a frame that does not rotate with the Earth: no -Omega_e in the node rate.
         p = self._p
-        p["n"] = np.sqrt(BDS_MU / a**3) + r["dn"]
-        p["lam0"] = r["omega0"] - BDS_OMEGA_EARTH * toe_bdt_sow
-        p["lamdot"] = np.where(self._geo_record, r["omegadot"], r["omegadot"] - BDS_OMEGA_EARTH)
-        p["frel"] = BDS_F_REL * r["e"] * r["sqrta"]
+        p["lamdot"] = np.where(self._geo_record, p["lamdot"] + BDS_OMEGA_EARTH, p["lamdot"])
         self._param_table = np.stack(list(p.values()), axis=0)
 
     def _kepler(self, gi: np.ndarray, tk: np.ndarray, tc: np.ndarray, pos: np.ndarray, vel: np.ndarray,

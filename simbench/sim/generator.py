@@ -1,4 +1,4 @@
-"""Scenario generation: trajectory, sky, error sources, observables, IMU.
+"""Scenario generation: trajectory, sky, error sources, observables, IMU, odometry.
 
 :func:`generate` turns a typed :class:`~simbench.config.SimConfig` into a
 :class:`~simbench.contract.Scenario`, deterministically: every error source
@@ -23,7 +23,7 @@ import pandas as pd
 import pymap3d
 
 from simbench.config import ConstellationKind, SimConfig, TrajectoryKind, validate_sim
-from simbench.contract import NavInfo, Scenario
+from simbench.contract import NavInfo, Scenario, empty_odometry
 from simbench.data.navigation import read_gps_navigation
 from simbench.errors import SimbenchError
 from simbench.sim import atmosphere, tracking
@@ -33,6 +33,7 @@ from simbench.sim.frames import dcm_body_to_ned
 from simbench.sim.geometry import line_of_sight
 from simbench.sim.gpstime import day_of_year
 from simbench.sim.imu import simulate_imu
+from simbench.sim.odometry import simulate_odometry
 from simbench.sim.orbits import NominalConstellation
 from simbench.sim.processes import gauss_markov, random_walk, receiver_clock, stream
 from simbench.sim.slips import phase_arcs
@@ -55,7 +56,8 @@ def generate(cfg: SimConfig) -> Scenario:
     Returns
     -------
     Scenario
-        Receiver view (observations, IMU), truth and labels.
+        Receiver view (observations, IMU, odometry), truth and labels; with odometry,
+        ``meta['odometry_errors']`` holds its true scale factor and yaw-rate bias.
     """
     cfg = validate_sim(cfg)
     sc, err, rx = cfg.scenario, cfg.scenario.errors, cfg.receiver
@@ -245,7 +247,13 @@ def generate(cfg: SimConfig) -> Scenario:
     nav = NavInfo(gps_week=sc.gps_week, start_sow_s=float(start_sow), iono_alpha=tuple(map(float, alpha)),
                   iono_beta=tuple(map(float, beta)), dual_frequency=sc.dual_frequency)
     meta = {"name": sc.name, "seed": seed, "config": asdict(cfg)}
-    return Scenario(observations=observations, imu=imu_table, truth=truth, labels=labels, nav=nav, meta=meta)
+    odometry = empty_odometry()
+    if sc.odometry.enabled:
+        odo = simulate_odometry(traj, sc.odometry, stream(seed, "odometry"))
+        odometry = odo.table
+        meta["odometry_errors"] = {"scale_factor": odo.scale_factor, "yaw_rate_bias_rps": odo.yaw_rate_bias_rps}
+    return Scenario(observations=observations, imu=imu_table, truth=truth, labels=labels, nav=nav, meta=meta,
+                    odometry=odometry)
 
 
 def _trajectory(cfg: SimConfig) -> tuple[Trajectory, float]:

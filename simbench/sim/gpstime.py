@@ -10,6 +10,11 @@ import numpy as np
 from simbench.sim.constants import GPS_EPOCH_ISO, SECONDS_PER_WEEK
 
 _GPS_EPOCH = np.datetime64(GPS_EPOCH_ISO, "ns")
+#: UTC dates from which GPS - UTC grew by one second (IERS Bulletin C); 18 s since 2017-01-01.
+_LEAP_SECOND_DATES = np.array(
+    ["1981-07-01", "1982-07-01", "1983-07-01", "1985-07-01", "1988-01-01", "1990-01-01", "1991-01-01",
+     "1992-07-01", "1993-07-01", "1994-07-01", "1996-01-01", "1997-07-01", "1999-01-01", "2006-01-01",
+     "2009-01-01", "2012-07-01", "2015-07-01", "2017-01-01"], dtype="datetime64[s]")
 
 
 def datetime64_to_gps(t: np.ndarray | np.datetime64 | str) -> np.ndarray:
@@ -30,6 +35,25 @@ def datetime64_to_gps(t: np.ndarray | np.datetime64 | str) -> np.ndarray:
     # directly would round to ~256 ns.
     sec, frac = np.divmod(ns, 1_000_000_000)
     return sec.astype(float) + frac * 1e-9
+
+
+def utc_to_gps(t_utc: np.ndarray | np.datetime64 | str) -> np.ndarray:
+    """Convert UTC calendar times to continuous GPS seconds (leap seconds from a table).
+
+    Parameters
+    ----------
+    t_utc : array_like of datetime64 or ISO strings
+        Calendar epochs in UTC (e.g. the GLONASS records of a RINEX 3 navigation file).
+
+    Returns
+    -------
+    t_gps : np.ndarray of float
+        Seconds since 1980-01-06 00:00:00 GPS [s]: the calendar value plus GPS - UTC
+        (the leap seconds announced up to 2017-01-01; none were added since).
+    """
+    t = np.asarray(t_utc, dtype="datetime64[ns]")
+    leap = np.searchsorted(_LEAP_SECOND_DATES.astype("datetime64[ns]"), t, side="right")
+    return datetime64_to_gps(t) + leap
 
 
 def gps_to_datetime64(t_gps: np.ndarray | float) -> np.ndarray:

@@ -36,6 +36,8 @@ __all__ = [
     "Constellation",
     "NominalConstellation",
     "BroadcastEphemeris",
+    "ClosestRecordSelector",
+    "state_time_grid",
     "FIT_HALF_WINDOW_S",
 ]
 
@@ -103,10 +105,27 @@ class Constellation(Protocol):
         ...
 
 
-def _epoch_grid(
+def state_time_grid(
     t_gps: np.ndarray, offset_s: np.ndarray | float | None, m: int
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Validate times; return reference times (n, 1) or (n, m) and offsets broadcast to (n, m)."""
+    """Validate the times of a ``states`` call (shared by every orbit provider).
+
+    Parameters
+    ----------
+    t_gps : array_like, shape (), (n,) or (n, m)
+        Reference times, continuous GPS seconds [s].
+    offset_s : array_like or None
+        Small offsets added after differencing [s]; broadcastable to (n, m).
+    m : int
+        Number of satellites.
+
+    Returns
+    -------
+    t : np.ndarray, shape (n, 1) or (n, m)
+        Reference times [s].
+    offset : np.ndarray, shape (n, m)
+        Offsets broadcast to one per epoch and satellite [s].
+    """
     try:
         t = np.asarray(t_gps, dtype=float)
         off = np.zeros(1) if offset_s is None else np.asarray(offset_s, dtype=float)
@@ -215,7 +234,7 @@ class NominalConstellation:
             ECEF(t) positions [m] and velocities [m/s]; clocks are zero; all valid.
         """
         m = self.sats.size
-        t, off = _epoch_grid(t_gps, offset_s, m)
+        t, off = state_time_grid(t_gps, offset_s, m)
         # Decades after 1993, n * (t - t_ref) is ~1e5 rad and float64 would
         # lose ~0.5 mm; advance the elements exactly to a whole-second anchor
         # near the requested times and propagate only the remainder in float64.
@@ -251,8 +270,76 @@ class NominalConstellation:
 # --------------------------------------------------------------------------- broadcast
 
 
+class ClosestRecordSelector:
+    """Closest-reference-time record of every satellite, as one piecewise-constant table over time.
+
+    Between consecutive breakpoints (midpoints of neighbouring reference times
+    of any satellite) the closest record of every satellite is fixed, so
+    choosing records for n epochs costs one searchsorted over n plus a row
+    gather. Used for GPS-like Toe and GLONASS tb alike.
+
+    Parameters
+    ----------
+    record_sat : np.ndarray of int, shape (R,)
+        Satellite index of each record, records sorted by (satellite, time).
+    record_t : np.ndarray, shape (R,)
+        Reference time (Toe, tb) of each record, continuous GPS seconds [s].
+    m : int
+        Number of satellites.
+    """
+
+    def __init__(self, record_sat: np.ndarray, record_t: np.ndarray, m: int) -> None:
+        self._t = np.asarray(record_t, dtype=float)
+        self._m = m
+        start = np.searchsorted(record_sat, np.arange(m), side="left")
+        stop = np.searchsorted(record_sat, np.arange(m), side="right")
+        mids = [0.5 * (self._t[lo:hi - 1] + self._t[lo + 1:hi]) for lo, hi in zip(start, stop)]
+        bp = np.unique(np.concatenate(mids)) if mids else np.zeros(0)
+        # Interval k is (bp[k-1], bp[k]]; its right end (or +inf) represents it,
+        # which makes a tie at a midpoint go to the earlier record.
+        rep = np.append(bp, np.inf)
+        table = np.full((rep.size, m), -1, dtype=np.intp)
+        for j in range(m):  # one small searchsorted per satellite, at load time only
+            lo, hi = start[j], stop[j]
+            if hi == lo:
+                continue
+            k = np.searchsorted(mids[j], rep, side="left")
+            table[:, j] = lo + k
+        self._breakpoints = bp
+        self._table = table
+
+    def select(self, t_gps: np.ndarray, max_age_s: float) -> np.ndarray:
+        """Record index per (epoch, satellite); -1 where |t - t_record| > ``max_age_s`` or no record.
+
+        Parameters
+        ----------
+        t_gps : np.ndarray, shape (n,), (n, 1) or (n, m)
+            Times [s]; 1-D (or one column) means the same time for all satellites.
+        max_age_s : float
+            Largest distance to the record's reference time [s].
+
+        Returns
+        -------
+        np.ndarray of int, shape (n, m)
+        """
+        t = np.asarray(t_gps, dtype=float)
+        if t.ndim == 1:
+            t = t[:, None]
+        k = np.searchsorted(self._breakpoints, t, side="left")
+        if t.shape[1] == 1:
+            idx = self._table[k[:, 0]]
+        else:
+            idx = self._table[k, np.arange(self._m)]
+        ok = (idx >= 0) & (np.abs(t - self._t[idx]) <= max_age_s)
+        return np.where(ok, idx, -1)
+
+
 class BroadcastEphemeris:
     """GPS broadcast ephemerides evaluated with the IS-GPS-200 user algorithm.
+
+    The Keplerian algorithm is shared by every system that broadcasts GPS-like
+    elements (Galileo, BeiDou): a subclass changes only the class constants
+    ``mu``, ``omega_e``, ``f_rel``, ``week_origin_s`` and ``system_name``.
 
     Read from a file with :func:`simbench.data.navigation.read_gps_navigation`.
     For each requested (epoch, satellite) the healthy record whose Toe is
@@ -281,6 +368,17 @@ class BroadcastEphemeris:
     record_toe : np.ndarray, shape (R,)
         Toe of each stored record, continuous GPS seconds [s].
     """
+
+    #: Gravitational parameter of the system's Keplerian algorithm [m^3/s^2].
+    mu: float = MU_EARTH
+    #: Earth rotation rate of the system's reference frame [rad/s].
+    omega_e: float = OMEGA_EARTH
+    #: Relativistic clock constant F = -2 sqrt(mu) / c^2 as the ICD rounds it [s/sqrt(m)].
+    f_rel: float = F_REL
+    #: Start of the system's week after the GPS week start (Omega0 refers to it) [s].
+    week_origin_s: float = 0.0
+    #: Name used in messages.
+    system_name: str = "GPS"
 
     def __init__(
         self,
@@ -318,7 +416,7 @@ class BroadcastEphemeris:
         m = self.sats.size
         start = np.searchsorted(self._sat_idx, np.arange(m), side="left")
         stop = np.searchsorted(self._sat_idx, np.arange(m), side="right")
-        self._build_selection_table(start, stop)
+        self._selector = ClosestRecordSelector(self._sat_idx, self._toe, m)
         # Time-independent per-record quantities, precomputed once. Trig of the
         # argument of perigee and of i0 lets _kepler use angle-addition formulas
         # instead of ~6 transcendental calls per satellite-epoch.
@@ -329,14 +427,14 @@ class BroadcastEphemeris:
             "crs": r["crs"], "crc": r["crc"], "cus": r["cus"], "cuc": r["cuc"],
             "cis": r["cis"], "cic": r["cic"],
             "m0": r["m0"], "e": e, "a": a,
-            "n": np.sqrt(MU_EARTH / a**3) + r["dn"],
+            "n": np.sqrt(self.mu / a**3) + r["dn"],
             "sq1e2": np.sqrt(1.0 - e**2),
             "cw": np.cos(r["w"]), "sw": np.sin(r["w"]),
             "ci0": np.cos(r["i0"]), "si0": np.sin(r["i0"]), "idot": r["idot"],
-            # Node longitude at Toe in ECEF(Toe): Omega0 is referred to the week start.
-            "lam0": r["omega0"] - OMEGA_EARTH * np.mod(self._toe, 604_800.0),
-            "lamdot": r["omegadot"] - OMEGA_EARTH,
-            "frel": F_REL * e * r["sqrta"],
+            # Node longitude at Toe in ECEF(Toe): Omega0 is referred to the system's week start.
+            "lam0": r["omega0"] - self.omega_e * np.mod(self._toe - self.week_origin_s, 604_800.0),
+            "lamdot": r["omegadot"] - self.omega_e,
+            "frel": self.f_rel * e * r["sqrta"],
         }
         self._param_table = np.stack(list(self._p.values()), axis=0)
         self._param_names = list(self._p)
@@ -350,29 +448,6 @@ class BroadcastEphemeris:
         self.t_coverage = (
             float(self._toe.min() - self.max_age_s), float(self._toe.max() + self.max_age_s)
         )
-
-    def _build_selection_table(self, start: np.ndarray, stop: np.ndarray) -> None:
-        """Precompute closest-Toe selection as one piecewise-constant table over time.
-
-        Between consecutive breakpoints (midpoints of neighbouring Toes of any
-        satellite) the closest record of every satellite is fixed, so choosing
-        records for n epochs costs one searchsorted over n plus a row gather.
-        """
-        m = self.sats.size
-        mids = [0.5 * (self._toe[lo:hi - 1] + self._toe[lo + 1:hi]) for lo, hi in zip(start, stop)]
-        bp = np.unique(np.concatenate(mids)) if mids else np.zeros(0)
-        # Interval k is (bp[k-1], bp[k]]; its right end (or +inf) represents it,
-        # which makes a tie at a midpoint go to the earlier record.
-        rep = np.append(bp, np.inf)
-        table = np.full((rep.size, m), -1, dtype=np.intp)
-        for j in range(m):  # one small searchsorted per satellite, at load time only
-            lo, hi = start[j], stop[j]
-            if hi == lo:
-                continue
-            k = np.searchsorted(mids[j], rep, side="left")
-            table[:, j] = lo + k
-        self._breakpoints = bp
-        self._select_table = table
 
     def select_records(self, t_gps: np.ndarray) -> np.ndarray:
         """Index of the record used for each (epoch, satellite), -1 if none.
@@ -389,17 +464,7 @@ class BroadcastEphemeris:
             the closest Toe (ties: the earlier), or -1 if |t - Toe| > ``max_age_s``
             or the satellite has no record.
         """
-        t = np.asarray(t_gps, dtype=float)
-        if t.ndim == 1:
-            t = t[:, None]
-        m = self.sats.size
-        k = np.searchsorted(self._breakpoints, t, side="left")
-        if t.shape[1] == 1:
-            idx = self._select_table[k[:, 0]]
-        else:
-            idx = self._select_table[k, np.arange(m)]
-        ok = (idx >= 0) & (np.abs(t - self._toe[idx]) <= self.max_age_s)
-        return np.where(ok, idx, -1)
+        return self._selector.select(t_gps, self.max_age_s)
 
     def states(self, t_gps: np.ndarray, offset_s: np.ndarray | float | None = None) -> SatelliteStates:
         """Satellite positions, velocities and clocks by the IS-GPS-200 algorithm.
@@ -425,7 +490,7 @@ class BroadcastEphemeris:
         SimbenchError
             If at some requested epoch no satellite has a valid ephemeris.
         """
-        t, off = _epoch_grid(t_gps, offset_s, self.sats.size)
+        t, off = state_time_grid(t_gps, offset_s, self.sats.size)
         n, m = off.shape
         pos = np.empty((n, m, 3))
         vel = np.empty((n, m, 3))
@@ -459,7 +524,7 @@ class BroadcastEphemeris:
         n_bad = int((~(self.select_records(t_epochs) >= 0).any(axis=1)).sum())
         raise SimbenchError(
             "t_gps",
-            f"no valid GPS ephemeris at {n_bad} of {t_epochs.size} epochs "
+            f"no valid {self.system_name} ephemeris at {n_bad} of {t_epochs.size} epochs "
             f"(first {format_gps_time(first)} GPS); {self.source or 'the ephemeris'} covers "
             f"{format_gps_time(self.t_coverage[0])} .. {format_gps_time(self.t_coverage[1])} GPS",
             "choose a start time inside that span or a navigation file for the simulated dates",
