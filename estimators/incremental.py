@@ -61,11 +61,13 @@ from estimators.ppp_graph import (
     PppGraph,
     PppGraphConfig,
     amb_key,
-    isb_key,
-    sysclock_key,
     clock_key,
+    drift_key,
     iono_key,
+    isb_key,
     pos_key,
+    sysclock_key,
+    vel_key,
     zwd_key,
 )
 from simbench.contract import ReceiverData
@@ -254,6 +256,9 @@ class IncrementalGraphEstimator(Estimator):
         v = gtsam.Values()
         v.insert(pos_key(k - 1), isam.calculateEstimatePoint3(pos_key(k - 1)))
         v.insert(zwd_key(k - 1), isam.calculateEstimateDouble(zwd_key(k - 1)))
+        if g.constant_velocity:
+            v.insert(vel_key(k - 1), isam.calculateEstimatePoint3(vel_key(k - 1)))
+            v.insert(drift_key(k - 1), isam.calculateEstimateDouble(drift_key(k - 1)))
         for s in range(1, g.obs.n_isb + 1):
             v.insert(isb_key(s, k - 1), isam.calculateEstimateDouble(isb_key(s, k - 1)))
         if g.with_iono:
@@ -316,8 +321,9 @@ def isam2_params(cfg: IncrementalConfig) -> gtsam.ISAM2Params:
     params = gtsam.ISAM2Params()
     thresholds = gtsam.ISAM2ThresholdMap()
     thresholds.insert(("x", np.full(3, cfg.relinearize_threshold)))
-    for linear in "cwibzsj":
+    for linear in "cwibzsjf":
         thresholds.insert((linear, np.array([np.inf])))
+    thresholds.insert(("v", np.full(3, np.inf)))
     params.setRelinearizeThreshold(thresholds)
     params.relinearizeSkip = cfg.relinearize_skip
     params.setFactorization("QR")

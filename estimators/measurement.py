@@ -34,6 +34,7 @@ from simbench.contract import ReceiverData
 from simbench.errors import SimbenchError
 from simbench.sim import atmosphere
 from simbench.gnss.geometry import sagnac_range_gradient
+from simbench.gnss.signals import l1_wavelength_m
 from simbench.gnss.spp import solve_epochs
 from simbench.gnss.troposphere import troposphere_terms
 from simbench.sim.constants import DEG, IF_A1, IF_A2
@@ -185,6 +186,10 @@ class PppObservations:
     systems: tuple[str, ...] = ("G",)
     #: int, per row: index into ``systems`` (0 = the reference clock); None means all 0
     system_index: np.ndarray | None = None
+    #: m/s, per row: measured range rate ``-lambda D`` plus the satellite clock drift (what the
+    #: receiver clock drift and the geometric range rate explain); NaN without a usable Doppler
+    range_rate: np.ndarray | None = None
+    sat_vel: np.ndarray | None = None  #: m/s, (N, 3) satellite ECEF velocity
 
     @property
     def has_phase(self) -> np.ndarray:
@@ -306,6 +311,13 @@ def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: floa
     az = sub["az"].to_numpy(float) * DEG
     sat_pos = sub[["sat_x", "sat_y", "sat_z"]].to_numpy(float)
     sat_clock = sub["sat_clock"].to_numpy(float)
+    range_rate = np.full(len(sub), np.nan)
+    sat_vel = np.full((len(sub), 3), np.nan)
+    if {"doppler_l1", "sat_vx", "sat_vy", "sat_vz", "sat_clock_drift"} <= set(sub.columns):
+        sat_vel = sub[["sat_vx", "sat_vy", "sat_vz"]].to_numpy(float)
+        range_rate = (-l1_wavelength_m(sub["sat"].to_numpy()) * sub["doppler_l1"].to_numpy(float)
+                      + sub["sat_clock_drift"].to_numpy(float))
+        range_rate[~np.isfinite(sat_vel).all(axis=1)] = np.nan
     doy = day_of_year(data.nav.gps_week, data.nav.start_sow_s)
 
     if ionosphere_free:
@@ -339,7 +351,7 @@ def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: floa
         sigma_phase=phase_sigma_m * sigma_scale, epoch_ids=epoch_ids, epoch_t=t[epoch_start],
         epoch_start=epoch_start, epoch_stop=epoch_stop, sat_names=tuple(str(s) for s in sat_names),
         n_arcs=int(arc.max(initial=-1)) + 1, ionosphere_free=ionosphere_free, doy=doy, systems=systems,
-        system_index=system_index)
+        system_index=system_index, range_rate=range_rate, sat_vel=sat_vel)
 
 
 def _rough_lat_lon(sat_pos: np.ndarray, code: np.ndarray, sigma: np.ndarray, el: np.ndarray, doy: float,

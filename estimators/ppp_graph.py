@@ -109,7 +109,9 @@ import numpy as np
 
 from estimators.measurement import PppObservations
 from estimators.ppp_config import ClockModel, StochasticModelConfig
-from simbench.errors import SimbenchError
+from simbench.config import Choice
+from simbench.errors import SimbenchError, require_positive
+from simbench.gnss.doppler import range_rate
 from simbench.gnss.geometry import sagnac_range
 from simbench.gnss.spp import solve_epochs
 from simbench.gnss.troposphere import troposphere_terms
@@ -124,6 +126,9 @@ __all__ = [
     "amb_key",
     "isb_key",
     "sysclock_key",
+    "vel_key",
+    "drift_key",
+    "MotionModel",
     "clock_key",
     "gauss_newton_step",
     "iono_key",
@@ -158,6 +163,16 @@ def amb_key(arc: int) -> int:
     return gtsam.symbol("b", arc)
 
 
+def vel_key(k: int) -> int:
+    """Velocity key (Point3, ECEF m/s) of solved epoch ``k`` (constant-velocity model only)."""
+    return gtsam.symbol("v", k)
+
+
+def drift_key(k: int) -> int:
+    """Receiver clock drift key (double, m/s) of solved epoch ``k`` (constant-velocity model only)."""
+    return gtsam.symbol("f", k)
+
+
 def sysclock_key(system: int, k: int) -> int:
     """Receiver clock key (seconds) of further GNSS system ``system`` (1..) at solved epoch ``k``."""
     return gtsam.symbol("s", (system << 32) | k)
@@ -172,13 +187,43 @@ def isb_key(system: int, k: int) -> int:
 ZERO_KEY = gtsam.symbol("z", 0)
 
 
+class MotionModel(Choice):
+    """Process model of the receiver position between epochs (member names are the YAML words)."""
+
+    random_walk = "random_walk"  #: position random walk ``pos_rw_m_rts`` (Table 4.4.2)
+    #: velocity states, white acceleration ``accel_sigma_mps2_rts``, Doppler range-rate factors
+    constant_velocity = "constant_velocity"
+
+
 @dataclass
 class PppGraphConfig(StochasticModelConfig):
     """Stochastic model of the PPP graph: the shared Table 4.4.2 model of :class:`StochasticModelConfig`.
 
     In the graph the clock prior holds at every epoch and the slant ionosphere
-    residual is one key per row, a random walk along its arc.
+    residual is one key per row, a random walk along its arc. With
+    ``motion_model = constant_velocity`` each epoch also has a velocity, driven by
+    white acceleration, and a receiver clock drift (random walk), and the rows with
+    a Doppler give range-rate factors on them. The drift is a state of its own, not
+    the difference of consecutive clocks (GTSAM's ``DopplerFactor``): receivers that
+    keep their clock within a millisecond by jumps (u-blox) make that difference
+    jump by thousands of km/s.
     """
+
+    motion_model: MotionModel = MotionModel.random_walk
+    #: white-acceleration density of the constant-velocity model per axis [m/s^2/sqrt(s)] (a car in town)
+    accel_sigma_mps2_rts: float = 2.0
+    vel_sigma_mps: float = 30.0  #: a priori velocity sigma per axis at the first epoch [m/s]
+    #: zenith range-rate sigma of a Doppler factor [m/s], scaled by 1/sin(el)
+    doppler_sigma_mps: float = 0.3
+    drift_sigma_mps: float = 1000.0  #: a priori receiver clock drift sigma [m/s] around the first epoch's fit
+    drift_rw_mps_rts: float = 0.5  #: receiver clock drift random walk [m/s/sqrt(s)]
+
+    def validate(self, where: str) -> None:
+        """The shared checks, then the motion-model densities and sigmas."""
+        super().validate(where)
+        for name in ("accel_sigma_mps2_rts", "vel_sigma_mps", "doppler_sigma_mps", "drift_sigma_mps",
+                     "drift_rw_mps_rts"):
+            require_positive(f"{where}.{name}", getattr(self, name), "give a positive sigma or density")
 
 
 #: Random-walk sigmas never go below this (two epochs with the same time) [m or s].
@@ -222,6 +267,7 @@ class PppGraph:
     def __init__(self, obs: PppObservations, cfg: PppGraphConfig) -> None:
         self.obs = obs
         self.cfg = cfg
+        self.constant_velocity = cfg.motion_model == MotionModel.constant_velocity
         self.with_iono = bool(cfg.estimate_iono and not obs.ionosphere_free)
         n, nk = obs.n_obs, obs.n_epochs
         self.row_epoch = np.repeat(np.arange(nk), obs.epoch_stop - obs.epoch_start)
@@ -232,6 +278,8 @@ class PppGraph:
         spp = solve_epochs(self.row_epoch, obs.sat_pos, obs.code, n_epochs=nk, sigma=obs.sigma_code, el=obs.el,
                            doy=obs.doy, system_index=self.row_system, fill_untrusted=True)
         self.spp_pos, self.spp_clock_m = spp.pos, spp.clock_m[:, 0]
+        if self.constant_velocity:
+            self.drift0 = self._drift_start()
         # start of each further system's bias: the median single-point clock difference over the
         # epochs that see that system (an epoch without it has 0 there)
         self.isb0_m = np.zeros(obs.n_isb)
@@ -265,6 +313,24 @@ class PppGraph:
         self.zwd0 = float(atmosphere.saastamoinen_zenith_m(lat0, h0)[1][0])
         self._unit = gtsam.noiseModel.Unit.Create(1)
 
+    def _drift_start(self) -> np.ndarray:
+        """Per-epoch start of the clock drift [m/s]: median range-rate residual of a receiver at rest,
+        carried forward over epochs without Doppler (vehicle speeds are small beside typical drifts)."""
+        obs = self.obs
+        rdot0 = range_rate(obs.sat_pos, np.nan_to_num(obs.sat_vel), self.spp_pos[self.row_epoch],
+                           np.zeros((obs.n_obs, 3)))[0]
+        res = obs.range_rate - rdot0
+        out = np.full(obs.n_epochs, np.nan)
+        for k, rows in obs.iter_epochs():
+            r = res[rows]
+            if np.isfinite(r).any():
+                out[k] = np.nanmedian(r)
+        known = np.flatnonzero(np.isfinite(out))
+        if known.size == 0:
+            return np.zeros(obs.n_epochs)
+        last = np.maximum.accumulate(np.where(np.isfinite(out), np.arange(obs.n_epochs), -1))
+        return np.where(last >= 0, out[np.maximum(last, 0)], out[known[0]])
+
     # ------------------------------------------------------------------ noise helpers
 
     @staticmethod
@@ -277,14 +343,22 @@ class PppGraph:
     # ------------------------------------------------------------------ structural factors
 
     def prior_factors(self, k: int) -> gtsam.NonlinearFactorGraph:
-        """Priors introduced at epoch ``k``: start priors (k = 0), clock, new arcs, first iono of new arcs."""
+        """Priors introduced at epoch ``k``: start priors (k = 0), clock, new arcs, first iono of new arcs;
+        with the constant-velocity model also the epoch's Doppler factor."""
         cfg, obs = self.cfg, self.obs
         g = gtsam.NonlinearFactorGraph()
         if k == 0:
             g.add(gtsam.PriorFactorPoint3(pos_key(0), gtsam.Point3(*self.spp_pos[0]),
                                           gtsam.noiseModel.Isotropic.Sigma(3, cfg.pos_sigma_m)))
+            if self.constant_velocity:
+                g.add(gtsam.PriorFactorPoint3(vel_key(0), gtsam.Point3(0.0, 0.0, 0.0),
+                                              gtsam.noiseModel.Isotropic.Sigma(3, cfg.vel_sigma_mps)))
+                g.add(gtsam.PriorFactorDouble(drift_key(0), float(self.drift0[0]),
+                                              self._sigma1(cfg.drift_sigma_mps)))
             g.add(gtsam.PriorFactorDouble(zwd_key(0), self.zwd0, self._sigma1(cfg.zwd_sigma_m)))
             g.add(gtsam.PriorFactorDouble(ZERO_KEY, 0.0, self._sigma1(_ZERO_SIGMA)))
+        if self.constant_velocity:  # the epoch's range rates (a measurement, but not reweighted)
+            g.push_back(self._doppler_factor(k))
         if k == 0 or cfg.clock_model == ClockModel.white:
             g.add(gtsam.PriorFactorDouble(clock_key(k), self.spp_clock_m[k] / C_LIGHT,
                                           self._sigma1(cfg.clock_sigma_m / C_LIGHT)))
@@ -308,10 +382,7 @@ class PppGraph:
         linear = gtsam.JacobianFactor(keys[0], np.array([[C_LIGHT]]), keys[1], np.array([[-C_LIGHT]]),
                                       keys[2], np.array([[-1.0]]), np.zeros(1),
                                       gtsam.noiseModel.Isotropic.Sigma(1, _ISB_TIE_SIGMA_M))
-        at = gtsam.Values()
-        for key in keys:  # linear: linearising at zero makes the factor exact everywhere
-            at.insert(key, 0.0)
-        return gtsam.LinearContainerFactor(linear, at)
+        return _linear(linear, dict.fromkeys(keys, 0.0))
 
     def motion_factors(self, k: int) -> gtsam.NonlinearFactorGraph:
         """Random-walk factors linking epoch ``k`` to ``k - 1`` (empty for k = 0)."""
@@ -320,8 +391,11 @@ class PppGraph:
             return g
         cfg, obs = self.cfg, self.obs
         dt = float(obs.epoch_t[k] - obs.epoch_t[k - 1])
-        g.add(gtsam.BetweenFactorPoint3(pos_key(k - 1), pos_key(k), gtsam.Point3(0, 0, 0),
-                                        gtsam.noiseModel.Isotropic.Sigma(3, self._rw(cfg.pos_rw_m_rts, dt))))
+        if self.constant_velocity:
+            g.push_back(self._constant_velocity_factors(k, dt))
+        else:
+            g.add(gtsam.BetweenFactorPoint3(pos_key(k - 1), pos_key(k), gtsam.Point3(0, 0, 0),
+                                            gtsam.noiseModel.Isotropic.Sigma(3, self._rw(cfg.pos_rw_m_rts, dt))))
         g.add(gtsam.BetweenFactorDouble(zwd_key(k - 1), zwd_key(k), 0.0,
                                         self._sigma1(self._rw(cfg.zwd_rw_m_rts, dt))))
         if cfg.clock_model == ClockModel.random_walk:
@@ -337,6 +411,49 @@ class PppGraph:
                 dti = float(obs.t[r] - obs.t[p])
                 g.add(gtsam.BetweenFactorDouble(iono_key(p), iono_key(int(r)), 0.0,
                                                 self._sigma1(self._rw(cfg.iono_rw_m_rts, dti))))
+        return g
+
+    def _constant_velocity_factors(self, k: int, dt: float) -> gtsam.NonlinearFactorGraph:
+        """White-acceleration motion and clock-drift random walk from ``k - 1`` to ``k``.
+
+        ``p_k - p_{k-1} - v_{k-1} dt ~ N(0, q dt^3/3)`` (a linear factor on three keys,
+        native ``JacobianFactor`` in a ``LinearContainerFactor``) and ``v_k - v_{k-1} ~
+        N(0, q dt)``; the cross-covariance of the exact discretisation is dropped.
+        """
+        cfg = self.cfg
+        g = gtsam.NonlinearFactorGraph()
+        q = cfg.accel_sigma_mps2_rts
+        eye = np.eye(3)
+        keys = (pos_key(k - 1), vel_key(k - 1), pos_key(k))
+        tie = gtsam.JacobianFactor(keys[0], -eye, keys[1], -dt * eye, keys[2], eye, np.zeros(3),
+                                   gtsam.noiseModel.Isotropic.Sigma(3, max(q * np.sqrt(dt**3 / 3.0), _MIN_RW_SIGMA)))
+        g.add(_linear(tie, {key: gtsam.Point3(0.0, 0.0, 0.0) for key in keys}))
+        g.add(gtsam.BetweenFactorPoint3(vel_key(k - 1), vel_key(k), gtsam.Point3(0, 0, 0),
+                                        gtsam.noiseModel.Isotropic.Sigma(3, self._rw(q, dt))))
+        g.add(gtsam.BetweenFactorDouble(drift_key(k - 1), drift_key(k), 0.0,
+                                        self._sigma1(self._rw(cfg.drift_rw_mps_rts, dt))))
+        return g
+
+    def _doppler_factor(self, k: int) -> gtsam.NonlinearFactorGraph:
+        """The range-rate rows of epoch ``k`` as one linear factor on its velocity and clock drift.
+
+        ``rr = rdot(p, v) + drift`` is linear in ``v`` for a fixed line of sight; the line of
+        sight is taken at the single-point position (tens of metres move it by ~1e-5 rad)
+        with the Earth's rotation during transit (:func:`simbench.gnss.doppler.range_rate`).
+        """
+        g = gtsam.NonlinearFactorGraph()
+        obs = self.obs
+        rows = obs.epoch_slice(k)
+        rr = obs.range_rate[rows]
+        use = np.flatnonzero(np.isfinite(rr)) + rows.start
+        if use.size == 0:
+            return g
+        pos = np.broadcast_to(self.spp_pos[k], (use.size, 3))
+        rdot0, _, d_vel = range_rate(obs.sat_pos[use], obs.sat_vel[use], pos, np.zeros((use.size, 3)))
+        sigma = self.cfg.doppler_sigma_mps / np.sin(obs.el[use])
+        linear = gtsam.JacobianFactor(vel_key(k), d_vel, drift_key(k), np.ones((use.size, 1)),
+                                      obs.range_rate[use] - rdot0, gtsam.noiseModel.Diagonal.Sigmas(sigma))
+        g.add(_linear(linear, {vel_key(k): gtsam.Point3(0.0, 0.0, 0.0), drift_key(k): 0.0}))
         return g
 
     def structure_factors(self) -> gtsam.NonlinearFactorGraph:
@@ -494,6 +611,12 @@ class PppGraph:
         v.insert(pos_key(k), gtsam.Point3(*np.asarray(pos, float)))
         v.insert(clock_key(k), float(self.spp_clock_m[k] / C_LIGHT))
         v.insert(zwd_key(k), float(zwd))
+        if self.constant_velocity:
+            vel = np.zeros(3)
+            if previous is not None and k > 0 and previous.exists(vel_key(k - 1)):
+                vel = previous.atPoint3(vel_key(k - 1))
+            v.insert(vel_key(k), gtsam.Point3(*np.asarray(vel, float)))
+            v.insert(drift_key(k), float(self.drift0[k]))
         for s in range(1, obs.n_isb + 1):
             isb = self.isb0_m[s - 1]
             if previous is not None and k > 0 and previous.exists(isb_key(s, k - 1)):
@@ -580,6 +703,15 @@ class PppGraph:
         geo = sagnac_range(obs.sat_pos, pos[e]) + clocks[e, self.row_system] + zwd[e] * self.wet_mapping
         bias = np.where(self.has_phase, amb[np.maximum(obs.arc, 0)] if amb.size else 0.0, np.nan)
         return self.code_z - (geo + iono), self.phase_z - (geo - iono + bias)
+
+
+def _linear(factor: gtsam.GaussianFactor, at: dict[int, Any]) -> gtsam.LinearContainerFactor:
+    """A linear factor in a nonlinear graph, linearised at ``at`` (zero: exact wherever evaluated,
+    since its keys are vector spaces)."""
+    values = gtsam.Values()
+    for key, value in at.items():
+        values.insert(key, value)
+    return gtsam.LinearContainerFactor(factor, values)
 
 
 #: Smallest |1 - rho| of a conditional code/phase factor (see measurement_factors).

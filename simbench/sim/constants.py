@@ -16,6 +16,7 @@ WGS84_E2: float = WGS84_F * (2.0 - WGS84_F)  #: first eccentricity squared [-]
 
 F_L1: float = 1_575.42e6  #: GPS L1 carrier frequency [Hz]
 F_L2: float = 1_227.60e6  #: GPS L2 carrier frequency [Hz]
+F_B1I: float = 1_561.098e6  #: BeiDou B1I carrier frequency [Hz]
 LAMBDA_L1: float = C_LIGHT / F_L1  #: L1 wavelength [m]
 LAMBDA_L2: float = C_LIGHT / F_L2  #: L2 wavelength [m]
 CHIP_RATE_CA: float = 1.023e6  #: C/A code chipping rate [chip/s]
