@@ -190,6 +190,10 @@ class PppObservations:
     #: receiver clock drift and the geometric range rate explain); NaN without a usable Doppler
     range_rate: np.ndarray | None = None
     sat_vel: np.ndarray | None = None  #: m/s, (N, 3) satellite ECEF velocity
+    #: per solved epoch, (n_epochs, 4): mean wheel speed [m/s], mean yaw rate [rad/s] (positive
+    #: turning right) and their mean reported variances over the odometry samples since the
+    #: previous epoch (t_{k-1}, t_k]; NaN rows without samples; None when there is no odometry
+    odometry: np.ndarray | None = None
 
     @property
     def has_phase(self) -> np.ndarray:
@@ -351,7 +355,22 @@ def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: floa
         sigma_phase=phase_sigma_m * sigma_scale, epoch_ids=epoch_ids, epoch_t=t[epoch_start],
         epoch_start=epoch_start, epoch_stop=epoch_stop, sat_names=tuple(str(s) for s in sat_names),
         n_arcs=int(arc.max(initial=-1)) + 1, ionosphere_free=ionosphere_free, doy=doy, systems=systems,
-        system_index=system_index, range_rate=range_rate, sat_vel=sat_vel)
+        system_index=system_index, range_rate=range_rate, sat_vel=sat_vel,
+        odometry=_odometry_per_epoch(data.odometry, t[epoch_start]) if len(data.odometry) else None)
+
+
+def _odometry_per_epoch(odo: pd.DataFrame, epoch_t: np.ndarray) -> np.ndarray:
+    """Means of the odometry samples in (t_{k-1}, t_k] for every epoch (the first: up to t_0)."""
+    odo = odo.sort_values("t")
+    values = odo[["speed", "yaw_rate", "var_speed", "var_yaw_rate"]].to_numpy(float)
+    k = np.searchsorted(epoch_t, odo["t"].to_numpy(float), side="left")
+    inside = k < len(epoch_t)
+    count = np.bincount(k[inside], minlength=len(epoch_t)).astype(float)
+    out = np.full((len(epoch_t), 4), np.nan)
+    for j in range(4):
+        total = np.bincount(k[inside], values[inside, j], minlength=len(epoch_t))
+        np.divide(total, count, out=out[:, j], where=count > 0)
+    return out
 
 
 def _rough_lat_lon(sat_pos: np.ndarray, code: np.ndarray, sigma: np.ndarray, el: np.ndarray, doy: float,

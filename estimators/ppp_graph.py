@@ -111,8 +111,8 @@ from estimators.measurement import PppObservations
 from estimators.ppp_config import ClockModel, StochasticModelConfig
 from simbench.config import Choice
 from simbench.errors import SimbenchError, require_positive
-from simbench.gnss.doppler import range_rate
-from simbench.gnss.geometry import sagnac_range
+from simbench.gnss.doppler import doppler_velocity, range_rate
+from simbench.gnss.geometry import enu_basis, sagnac_range
 from simbench.gnss.spp import solve_epochs
 from simbench.gnss.troposphere import troposphere_terms
 from simbench.sim import atmosphere
@@ -217,17 +217,25 @@ class PppGraphConfig(StochasticModelConfig):
     doppler_sigma_mps: float = 0.3
     drift_sigma_mps: float = 1000.0  #: a priori receiver clock drift sigma [m/s] around the first epoch's fit
     drift_rw_mps_rts: float = 0.5  #: receiver clock drift random walk [m/s/sqrt(s)]
+    #: constant velocity only: add the vehicle's wheel odometry (speed, yaw rate) when the data have it
+    use_odometry: bool = True
+    #: sigma of the non-holonomic constraint (no sideways velocity of a car) [m/s]
+    nhc_sigma_mps: float = 0.3
 
     def validate(self, where: str) -> None:
         """The shared checks, then the motion-model densities and sigmas."""
         super().validate(where)
         for name in ("accel_sigma_mps2_rts", "vel_sigma_mps", "doppler_sigma_mps", "drift_sigma_mps",
-                     "drift_rw_mps_rts"):
+                     "drift_rw_mps_rts", "nhc_sigma_mps"):
             require_positive(f"{where}.{name}", getattr(self, name), "give a positive sigma or density")
 
 
 #: Random-walk sigmas never go below this (two epochs with the same time) [m or s].
 _MIN_RW_SIGMA = 1e-9
+#: Below this wheel speed the vehicle stands still (zero horizontal velocity) [m/s].
+_STANDSTILL_MPS = 0.2
+#: A Doppler velocity slower than this gives no usable direction of travel [m/s].
+_DIRECTION_MIN_SPEED_MPS = 2.0
 #: Sigma of the factor tying a further system's clock to the first clock plus its bias [m].
 _ISB_TIE_SIGMA_M = 1e-3
 #: Sigma of the prior holding ZERO_KEY at zero [m].
@@ -280,6 +288,10 @@ class PppGraph:
         self.spp_pos, self.spp_clock_m = spp.pos, spp.clock_m[:, 0]
         if self.constant_velocity:
             self.drift0 = self._drift_start()
+        self.with_odometry = bool(self.constant_velocity and cfg.use_odometry and obs.odometry is not None)
+        if self.with_odometry:
+            self.enu = enu_basis(self.spp_pos)
+            self.heading_ref = self._doppler_directions()
         # start of each further system's bias: the median single-point clock difference over the
         # epochs that see that system (an epoch without it has 0 there)
         self.isb0_m = np.zeros(obs.n_isb)
@@ -432,7 +444,66 @@ class PppGraph:
                                         gtsam.noiseModel.Isotropic.Sigma(3, self._rw(q, dt))))
         g.add(gtsam.BetweenFactorDouble(drift_key(k - 1), drift_key(k), 0.0,
                                         self._sigma1(self._rw(cfg.drift_rw_mps_rts, dt))))
+        if self.with_odometry:
+            g.push_back(self._odometry_factors(k, dt))
         return g
+
+    def _odometry_factors(self, k: int, dt: float) -> gtsam.NonlinearFactorGraph:
+        """Wheel speed, non-holonomic and yaw-rate constraints on the velocities of ``k - 1`` and ``k``.
+
+        With ``H`` the local east/north projection and ``s``, ``omega`` the mean speed and
+        yaw rate since the previous epoch (all linear in the velocity keys):
+
+        * standstill (``|s| < 0.2 m/s``): ``H v_k = 0``;
+        * moving, with a direction ``u`` from the epoch's Doppler velocity fix: ``u . v_k = |s|``
+          and ``(up x u) . v_k = 0`` (no sideways motion, ``nhc_sigma_mps``);
+        * turning: ``H v_k = (s_k / s_{k-1}) R(omega dt) H v_{k-1}`` (heading clockwise from
+          north advances by ``omega dt``; the speed ratio carries the along-track change).
+        """
+        g = gtsam.NonlinearFactorGraph()
+        odo = self.obs.odometry
+        speed, yaw_rate, var_speed, var_yaw = odo[k]
+        if not np.isfinite(speed):
+            return g
+        horizontal = self.enu[k, :2]
+        sig_s = float(np.sqrt(max(var_speed, 1e-6)))
+        zero = gtsam.Point3(0.0, 0.0, 0.0)
+        if abs(speed) < _STANDSTILL_MPS:
+            g.add(_linear(gtsam.JacobianFactor(vel_key(k), horizontal, np.zeros(2),
+                                               gtsam.noiseModel.Isotropic.Sigma(2, sig_s)), {vel_key(k): zero}))
+        elif np.isfinite(self.heading_ref[k]).all():
+            u = self.heading_ref[k]
+            across = np.cross(self.enu[k, 2], u)
+            g.add(_linear(gtsam.JacobianFactor(vel_key(k), np.vstack([u, across]), np.array([abs(speed), 0.0]),
+                                               gtsam.noiseModel.Diagonal.Sigmas(
+                                                   np.array([sig_s, self.cfg.nhc_sigma_mps]))), {vel_key(k): zero}))
+        prev_speed = odo[k - 1, 0]
+        if np.isfinite(yaw_rate) and np.isfinite(prev_speed) and abs(prev_speed) >= _STANDSTILL_MPS and dt > 0:
+            turn = yaw_rate * dt
+            rot = np.array([[np.cos(turn), np.sin(turn)], [-np.sin(turn), np.cos(turn)]])
+            ratio = speed / prev_speed
+            sigma = float(np.sqrt(2.0 * var_speed + (speed * dt) ** 2 * max(var_yaw, 0.0)) + 1e-3)
+            g.add(_linear(gtsam.JacobianFactor(vel_key(k - 1), -ratio * rot @ self.enu[k - 1, :2], vel_key(k),
+                                               horizontal, np.zeros(2), gtsam.noiseModel.Isotropic.Sigma(2, sigma)),
+                          {vel_key(k - 1): zero, vel_key(k): zero}))
+        return g
+
+    def _doppler_directions(self) -> np.ndarray:
+        """Unit ECEF direction of the horizontal Doppler velocity of each epoch; NaN when slower
+        than ``_DIRECTION_MIN_SPEED_MPS`` or without five Doppler rows."""
+        obs = self.obs
+        out = np.full((obs.n_epochs, 3), np.nan)
+        for k, rows in obs.iter_epochs():
+            use = np.flatnonzero(np.isfinite(obs.range_rate[rows])) + rows.start
+            if use.size < 5:
+                continue
+            vel, _ = doppler_velocity(obs.sat_pos[use], obs.sat_vel[use], self.spp_pos[k], obs.range_rate[use],
+                                      self.cfg.doppler_sigma_mps / np.sin(obs.el[use]))
+            east, north = self.enu[k, 0] @ vel, self.enu[k, 1] @ vel
+            speed = np.hypot(east, north)
+            if speed >= _DIRECTION_MIN_SPEED_MPS:
+                out[k] = (east * self.enu[k, 0] + north * self.enu[k, 1]) / speed
+        return out
 
     def _doppler_factor(self, k: int) -> gtsam.NonlinearFactorGraph:
         """The range-rate rows of epoch ``k`` as one linear factor on its velocity and clock drift.

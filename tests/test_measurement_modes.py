@@ -120,3 +120,14 @@ def test_a_receiver_clock_jump_does_not_break_the_doppler_model(gps: simbench.Sc
     ref, _ = _solve_graph(gps, measurements="code", motion_model="constant_velocity")
     assert np.median(vel_err[5:]) < 0.2
     assert np.max(np.abs(cv - ref)) < 0.05
+
+
+def test_wheel_odometry_steadies_the_velocity_without_doppler() -> None:
+    """Urban drive, code only, Doppler removed: speed, standstill and yaw-rate factors carry the velocity."""
+    sc = simbench.simulate("urban", "low", seed=1001, **{"scenario.duration_s": 120})
+    assert len(sc.odometry) > 0
+    no_doppler = dataclasses.replace(sc, observations=sc.observations.assign(doppler_l1=np.nan))
+    _, without = _solve_graph(no_doppler, measurements="code", motion_model="constant_velocity", use_odometry=False)
+    _, with_odo = _solve_graph(no_doppler, measurements="code", motion_model="constant_velocity")
+    assert np.median(with_odo) < 0.8 * np.median(without)
+    assert np.percentile(with_odo, 95) < np.percentile(without, 95)
