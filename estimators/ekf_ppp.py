@@ -88,7 +88,7 @@ class EkfPpp(Estimator):
         # slant-ionosphere slots follow the bias slots, one per satellite, reset with the arc
         n_iono = n_slots if cfg.estimate_iono and not cfg.ionosphere_free else 0
         iono0 = N_BASE_STATES + n_slots
-        # one constant receiver clock offset per further GNSS system (inter-system bias), last
+        # one receiver clock offset per further GNSS system (inter-system bias, random walk), last
         isb0 = N_BASE_STATES + n_slots + n_iono
         nx = isb0 + obs.n_isb
         kf = ExtendedKalmanFilter(dim_x=nx, dim_z=1)
@@ -104,12 +104,16 @@ class EkfPpp(Estimator):
         _, zwd0 = atmosphere.saastamoinen_zenith_m(lat0, h0)
         x = np.zeros(nx)
         x[_POS], x[_CLK], x[_ZWD] = pos0, clock0, float(zwd0)
+        for s in range(1, obs.n_isb + 1):  # start each bias at its median over the first epochs that see it
+            seen = np.unique(row_k[obs.system_index[rows] == s])
+            if seen.size:
+                x[isb0 + s - 1] = float(np.median(fix.clock_m[seen, s] - fix.clock_m[seen, 0]))
         p_diag = np.full(nx, cfg.ambiguity_sigma_m**2)
         p_diag[_POS] = cfg.pos_sigma_m**2
         p_diag[_CLK] = cfg.clock_sigma_m**2
         p_diag[_ZWD] = cfg.zwd_sigma_m**2
         p_diag[iono0:] = cfg.iono_sigma_m**2
-        p_diag[isb0:] = cfg.clock_sigma_m**2
+        p_diag[isb0:] = cfg.isb_sigma_m**2
         kf.x = x
         kf.P = np.diag(p_diag)
 
@@ -117,7 +121,9 @@ class EkfPpp(Estimator):
         amb_var = cfg.ambiguity_sigma_m**2
         q_pos, q_zwd, q_clk = cfg.pos_rw_m_rts**2, cfg.zwd_rw_m_rts**2, cfg.clock_noise_m_rts**2
         q_iono, iono_var = cfg.iono_rw_m_rts**2, cfg.iono_sigma_m**2
-        iono_diag = np.arange(iono0, nx)
+        iono_diag = np.arange(iono0, isb0)
+        isb_diag = np.arange(isb0, nx)
+        q_isb = cfg.isb_rw_m_rts**2
         white_clock = cfg.clock_model == ClockModel.white
         diag = np.arange(3)
 
@@ -139,6 +145,7 @@ class EkfPpp(Estimator):
                 P[diag, diag] += q_pos * dt
                 P[_ZWD, _ZWD] += q_zwd * dt
                 P[iono_diag, iono_diag] += q_iono * dt
+                P[isb_diag, isb_diag] += q_isb * dt
                 if white_clock:
                     P[_CLK, :] = 0.0
                     P[:, _CLK] = 0.0

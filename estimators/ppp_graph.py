@@ -111,7 +111,7 @@ from estimators.measurement import PppObservations
 from estimators.ppp_config import ClockModel, StochasticModelConfig
 from simbench.config import Choice
 from simbench.errors import SimbenchError, require_positive
-from simbench.gnss.doppler import doppler_velocity, range_rate
+from simbench.gnss.doppler import doppler_velocities, range_rate
 from simbench.gnss.geometry import enu_basis, sagnac_range
 from simbench.gnss.spp import solve_epochs
 from simbench.gnss.troposphere import troposphere_terms
@@ -490,19 +490,16 @@ class PppGraph:
 
     def _doppler_directions(self) -> np.ndarray:
         """Unit ECEF direction of the horizontal Doppler velocity of each epoch; NaN when slower
-        than ``_DIRECTION_MIN_SPEED_MPS`` or without five Doppler rows."""
+        than ``_DIRECTION_MIN_SPEED_MPS`` or without four Doppler rows."""
         obs = self.obs
+        vel, _ = doppler_velocities(self.row_epoch, obs.sat_pos, obs.sat_vel, self.spp_pos[self.row_epoch],
+                                    obs.range_rate, self.cfg.doppler_sigma_mps / np.sin(obs.el), obs.n_epochs)
+        east = np.einsum("ki,ki->k", self.enu[:, 0], vel)
+        north = np.einsum("ki,ki->k", self.enu[:, 1], vel)
+        speed = np.hypot(east, north)
+        fast = speed >= _DIRECTION_MIN_SPEED_MPS  # False for NaN
         out = np.full((obs.n_epochs, 3), np.nan)
-        for k, rows in obs.iter_epochs():
-            use = np.flatnonzero(np.isfinite(obs.range_rate[rows])) + rows.start
-            if use.size < 5:
-                continue
-            vel, _ = doppler_velocity(obs.sat_pos[use], obs.sat_vel[use], self.spp_pos[k], obs.range_rate[use],
-                                      self.cfg.doppler_sigma_mps / np.sin(obs.el[use]))
-            east, north = self.enu[k, 0] @ vel, self.enu[k, 1] @ vel
-            speed = np.hypot(east, north)
-            if speed >= _DIRECTION_MIN_SPEED_MPS:
-                out[k] = (east * self.enu[k, 0] + north * self.enu[k, 1]) / speed
+        out[fast] = (east[fast, None] * self.enu[fast, 0] + north[fast, None] * self.enu[fast, 1]) / speed[fast, None]
         return out
 
     def _doppler_factor(self, k: int) -> gtsam.NonlinearFactorGraph:

@@ -11,7 +11,7 @@ import numpy as np
 
 from simbench.sim.constants import C_LIGHT, OMEGA_EARTH
 
-__all__ = ["range_rate", "doppler_velocity"]
+__all__ = ["range_rate", "doppler_velocity", "doppler_velocities"]
 
 
 def _rotated_satellite(sat_pos: np.ndarray, sat_vel: np.ndarray,
@@ -65,36 +65,64 @@ def range_rate(sat_pos: np.ndarray, sat_vel: np.ndarray, rx_pos: np.ndarray,
     return rdot, d_pos, d_vel
 
 
-def doppler_velocity(sat_pos: np.ndarray, sat_vel: np.ndarray, rx_pos: np.ndarray, range_rate_obs: np.ndarray,
-                     sigma: np.ndarray, iterations: int = 3) -> tuple[np.ndarray, float]:
-    """Least-squares receiver velocity and clock drift from one epoch's Doppler.
+def doppler_velocities(epoch: np.ndarray, sat_pos: np.ndarray, sat_vel: np.ndarray, rx_pos: np.ndarray,
+                       range_rate_obs: np.ndarray, sigma: np.ndarray,
+                       n_epochs: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Weighted least-squares receiver velocity and clock drift of many epochs at once.
+
+    The range rate is linear in the receiver velocity for a given receiver position
+    (the light-time denominator of :func:`range_rate` does not depend on it), so one
+    solve of each epoch's 4x4 normal equations is exact.
 
     Parameters
     ----------
-    sat_pos, sat_vel : ndarray, shape (k, 3)
+    epoch : ndarray of int, shape (N,)
+        Epoch index 0..n_epochs-1 of each row.
+    sat_pos, sat_vel : ndarray, shape (N, 3)
         Satellite ECEF position [m] and velocity [m/s].
-    rx_pos : ndarray, shape (3,)
-        Receiver position [m] (a few metres of error do not matter).
-    range_rate_obs : ndarray, shape (k,)
-        Observed range rate plus receiver clock drift [m/s] (``-lambda D`` plus the satellite drift).
-    sigma : ndarray, shape (k,)
+    rx_pos : ndarray, shape (N, 3) or (3,)
+        Receiver position of each row's epoch [m] (a few metres of error do not matter).
+    range_rate_obs : ndarray, shape (N,)
+        Observed range rate plus receiver clock drift [m/s] (``-lambda D`` plus the satellite drift);
+        non-finite rows are ignored.
+    sigma : ndarray, shape (N,)
         Standard deviations [m/s].
+    n_epochs : int, optional
+        Number of epochs (default ``epoch.max() + 1``).
 
     Returns
     -------
-    vel : ndarray, shape (3,)
-        ECEF velocity [m/s].
-    drift : float
-        Receiver clock drift times c [m/s].
+    vel : ndarray, shape (n_epochs, 3)
+        ECEF velocity [m/s]; NaN for epochs with fewer than 4 usable rows.
+    drift : ndarray, shape (n_epochs,)
+        Receiver clock drift times c [m/s]; NaN likewise.
     """
-    vel, drift = np.zeros(3), 0.0
-    w = 1.0 / sigma
-    A = np.empty((len(sigma), 4))
-    A[:, 3] = 1.0
-    for _ in range(iterations):
-        rdot, _, d_vel = range_rate(sat_pos, sat_vel, rx_pos, vel)
-        A[:, :3] = d_vel
-        dx, *_ = np.linalg.lstsq(A * w[:, None], (range_rate_obs - rdot - drift) * w, rcond=None)
-        vel = vel + dx[:3]
-        drift += float(dx[3])
+    epoch = np.asarray(epoch, np.int64)
+    nk = int(n_epochs if n_epochs is not None else epoch.max(initial=-1) + 1)
+    ok = np.isfinite(range_rate_obs) & np.isfinite(sat_vel).all(axis=1) & np.isfinite(sigma)
+    rows = np.flatnonzero(ok)
+    rows = rows[np.argsort(epoch[rows], kind="stable")]
+    vel, drift = np.full((nk, 3), np.nan), np.full(nk, np.nan)
+    if rows.size == 0:
+        return vel, drift
+    rx = np.broadcast_to(np.asarray(rx_pos, float), (len(epoch), 3))[rows]
+    rdot0, _, d_vel = range_rate(sat_pos[rows], sat_vel[rows], rx, np.zeros((rows.size, 3)))
+    A = np.column_stack([d_vel, np.ones(rows.size)])
+    w = 1.0 / np.asarray(sigma, float)[rows] ** 2
+    present, starts, counts = np.unique(epoch[rows], return_index=True, return_counts=True)
+    N = np.add.reduceat(A[:, :, None] * A[:, None, :] * w[:, None, None], starts, axis=0)
+    b = np.add.reduceat(A * (w * (range_rate_obs[rows] - rdot0))[:, None], starts, axis=0)
+    solvable = counts >= 4
+    # pinv: rows with negligible weight must leave a minimum-norm answer, not an error
+    x = np.einsum("kij,kj->ki", np.linalg.pinv(N[solvable]), b[solvable])
+    vel[present[solvable]] = x[:, :3]
+    drift[present[solvable]] = x[:, 3]
     return vel, drift
+
+
+def doppler_velocity(sat_pos: np.ndarray, sat_vel: np.ndarray, rx_pos: np.ndarray, range_rate_obs: np.ndarray,
+                     sigma: np.ndarray) -> tuple[np.ndarray, float]:
+    """:func:`doppler_velocities` of one epoch: velocity (3,) [m/s] and clock drift times c [m/s]."""
+    vel, drift = doppler_velocities(np.zeros(len(sigma), np.int64), sat_pos, sat_vel, rx_pos, range_rate_obs,
+                                    sigma, n_epochs=1)
+    return vel[0], float(drift[0])
