@@ -22,7 +22,6 @@ from simbench.contract import ReceiverData
 from simbench.gnss.spp import solve_epochs
 from simbench.gnss.troposphere import troposphere_terms
 from simbench.sim import atmosphere
-from simbench.sim.constants import LAMBDA_L1
 from simbench.sim.frames import geodetic_from_ecef
 
 __all__ = ["GnssEpoch", "GnssInsData", "SinglePointFix", "prepare_gnss_ins"]
@@ -79,15 +78,14 @@ def prepare_gnss_ins(data: ReceiverData, cfg: GnssInsConfig) -> GnssInsData:
     obs = prepare_ppp(data, ionosphere_free=False, code_sigma_m=cfg.code_sigma_m, phase_sigma_m=1.0,
                       elevation_mask_deg=cfg.elevation_mask_deg, min_satellites=4, max_gap_epochs=1,
                       measurements=MeasurementMode.code)  # code and Doppler only: code-only logs run
-    extra = (data.observations.set_index(["epoch", "sat"])
-             [["doppler_l1", "sat_vx", "sat_vy", "sat_vz", "sat_clock_drift", "cn0_l1"]]
-             .reindex(pd.MultiIndex.from_arrays([obs.epoch, obs.sat])).to_numpy(float))
-    rr = -LAMBDA_L1 * extra[:, 0] + extra[:, 4]
-    sig_rr = cfg.doppler_sigma_mps * 10.0 ** ((cfg.doppler_ref_cn0_dbhz - extra[:, 5]) / 20.0)
-    ok_rr = np.isfinite(rr) & np.isfinite(sig_rr) & np.isfinite(extra[:, 1:4]).all(axis=1)
+    cn0 = (data.observations.set_index(["epoch", "sat"])["cn0_l1"]
+           .reindex(pd.MultiIndex.from_arrays([obs.epoch, obs.sat])).to_numpy(float))
+    sig_rr = cfg.doppler_sigma_mps * 10.0 ** ((cfg.doppler_ref_cn0_dbhz - cn0) / 20.0)
+    # range rates as prepare_ppp forms them (NaN where unusable, e.g. GLONASS FDMA rows)
+    ok_rr = np.isfinite(obs.range_rate) & np.isfinite(sig_rr)
     w_rr = np.where(ok_rr, 1.0 / np.where(ok_rr, sig_rr, 1.0), 0.0)
-    rr = np.where(ok_rr, rr, 0.0)
-    sat_vel = np.where(ok_rr[:, None], extra[:, 1:4], 0.0)
+    rr = np.where(ok_rr, obs.range_rate, 0.0)
+    sat_vel = np.where(ok_rr[:, None], obs.sat_vel, 0.0)
 
     # one receiver clock for all rows, as in the window (no inter-system bias state)
     k = np.repeat(np.arange(obs.n_epochs), obs.epoch_stop - obs.epoch_start)
