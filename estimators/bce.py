@@ -60,7 +60,7 @@ import pandas as pd
 
 from estimators import register
 from estimators.batch_robust import BatchConfig, BatchGraphEstimator
-from estimators.clustering import Mixture, fit_dpgmm, select_features
+from estimators.clustering import Mixture, code_marginal_labels, fit_dpgmm, select_features
 from estimators.measurement import PppObservations
 from estimators.ppp_graph import PppGraph, gauss_newton_step
 from simbench.contract import ReceiverData
@@ -197,7 +197,7 @@ class Bce(_IterativeCovariance):
         labels = np.empty(len(r), np.int64)
         labels[has if has.any() else slice(None)] = mix.labels
         if has.any() and not has.all():  # rows without phase: most likely component of the code marginal
-            labels[~has] = _code_marginal_labels(r[~has, 0], mix.weights, means, covs)
+            labels[~has] = code_marginal_labels(r[~has, 0], mix.weights, means, covs)
         return _component_noise(means, covs, labels), {"mixture": mix.to_json()}
 
 
@@ -250,13 +250,6 @@ def _within(rows: np.ndarray | slice, has: np.ndarray) -> np.ndarray | None:
         return rows if isinstance(rows, np.ndarray) else None
     position = np.cumsum(has) - 1
     return position[rows[has[rows]]]
-
-
-def _code_marginal_labels(code: np.ndarray, weights: np.ndarray, means: np.ndarray, covs: np.ndarray) -> np.ndarray:
-    """Most likely component of each code residual under each component's code marginal."""
-    var = covs[:, 0, 0]
-    log_p = np.log(weights) - 0.5 * (np.log(var) + (code[:, None] - means[None, :, 0]) ** 2 / var)
-    return np.argmax(log_p, axis=1)
 
 
 def _residual_statistics(r: np.ndarray, mix: Mixture, fallback: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -26,7 +26,7 @@ from sklearn.manifold import spectral_embedding
 from sklearn.mixture import BayesianGaussianMixture
 from sklearn.neighbors import kneighbors_graph
 
-__all__ = ["Mixture", "fit_dpgmm", "mcfs_scores", "select_features"]
+__all__ = ["Mixture", "code_marginal_labels", "fit_dpgmm", "mcfs_scores", "select_features"]
 
 
 @dataclass
@@ -122,6 +122,30 @@ def fit_dpgmm(x: np.ndarray, *, truncation: int = 10, max_iter: int = 1000, tol:
     return Mixture(weights=w / w.sum(), means=model.means_[keep].copy(),
                    covariances=model.covariances_[keep].copy(), labels=remap[labels], counts=counts[keep],
                    model=model)
+
+
+def code_marginal_labels(code: np.ndarray, weights: np.ndarray, means: np.ndarray, covs: np.ndarray) -> np.ndarray:
+    """Most likely component of each code residual under the components' code marginals.
+
+    For rows with no phase residual: the marginal of component ``c`` over its first
+    (code) dimension is ``N(means[c, 0], covs[c, 0, 0])``.
+
+    Parameters
+    ----------
+    code : ndarray, shape (m,)
+        Code residuals [m].
+    weights : ndarray, shape (K,)
+    means : ndarray, shape (K, D)
+    covs : ndarray, shape (K, D, D)
+        Component weights, means [m] and covariances [m^2]; dimension 0 is the code.
+
+    Returns
+    -------
+    ndarray of int, shape (m,)
+    """
+    var = covs[:, 0, 0]
+    log_p = np.log(weights) - 0.5 * (np.log(var) + (code[:, None] - means[None, :, 0]) ** 2 / var)
+    return np.argmax(log_p, axis=1)
 
 
 def mcfs_scores(x: np.ndarray, *, n_clusters: int = 3, n_neighbors: int = 5, n_nonzero: int | None = None,

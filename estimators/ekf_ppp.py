@@ -56,7 +56,7 @@ from estimators.measurement import (
 )
 from estimators.ppp_config import ClockModel, StochasticModelConfig
 from simbench.contract import ReceiverData
-from simbench.gnss.spp import solve_epochs
+from simbench.gnss.spp import solve_epochs, system_clock_offsets
 from simbench.gnss.troposphere import troposphere_terms
 from simbench.sim import atmosphere
 from simbench.sim.frames import geodetic_from_ecef
@@ -81,6 +81,7 @@ class EkfPpp(Estimator):
 
     name = "ekf_ppp"
     Config = EkfPppConfig
+
     def _estimate(self, data: ReceiverData) -> tuple[pd.DataFrame, dict[str, Any]]:
         cfg: EkfPppConfig = self.config
         obs = prepare_ppp(data, **cfg.prepare_kwargs())
@@ -104,10 +105,7 @@ class EkfPpp(Estimator):
         _, zwd0 = atmosphere.saastamoinen_zenith_m(lat0, h0)
         x = np.zeros(nx)
         x[_POS], x[_CLK], x[_ZWD] = pos0, clock0, float(zwd0)
-        for s in range(1, obs.n_isb + 1):  # start each bias at its median over the first epochs that see it
-            seen = np.unique(row_k[obs.system_index[rows] == s])
-            if seen.size:
-                x[isb0 + s - 1] = float(np.median(fix.clock_m[seen, s] - fix.clock_m[seen, 0]))
+        x[isb0:] = system_clock_offsets(fix, row_k, obs.system_index[rows])
         p_diag = np.full(nx, cfg.ambiguity_sigma_m**2)
         p_diag[_POS] = cfg.pos_sigma_m**2
         p_diag[_CLK] = cfg.clock_sigma_m**2

@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 
 from estimators import register
-from estimators.clustering import fit_dpgmm
+from estimators.clustering import code_marginal_labels, fit_dpgmm
 from estimators.incremental import (
     EpochPrediction,
     IncrementalConfig,
@@ -145,9 +145,7 @@ class AdaptiveNoiseModel:
         if full.any():
             comp[full] = mdl.most_likely(res[full])
         if (~full).any():
-            var = mdl.covs[:, 0, 0]
-            ll = (-0.5 * (res[~full, :1] - mdl.means[:, 0]) ** 2 / var - 0.5 * np.log(var) + np.log(mdl.weights))
-            comp[~full] = np.argmax(ll, axis=1)
+            comp[~full] = code_marginal_labels(res[~full, 0], mdl.weights, mdl.means, mdl.covs)
         sig = np.sqrt(np.diagonal(mdl.covs, axis1=1, axis2=2))[comp]
         z = np.abs(res - mdl.means[comp]) / sig
         inlier = (z[:, 0] < self.cfg.z_threshold) & ((z[:, -1] < self.cfg.z_threshold) | ~full)

@@ -113,7 +113,7 @@ from simbench.config import Choice
 from simbench.errors import SimbenchError, require_positive
 from simbench.gnss.doppler import doppler_velocities, range_rate
 from simbench.gnss.geometry import enu_basis, sagnac_range
-from simbench.gnss.spp import solve_epochs
+from simbench.gnss.spp import solve_epochs, system_clock_offsets
 from simbench.gnss.troposphere import troposphere_terms
 from simbench.sim import atmosphere
 from simbench.sim.constants import C_LIGHT
@@ -286,25 +286,22 @@ class PppGraph:
         spp = solve_epochs(self.row_epoch, obs.sat_pos, obs.code, n_epochs=nk, sigma=obs.sigma_code, el=obs.el,
                            doy=obs.doy, system_index=self.row_system, fill_untrusted=True)
         self.spp_pos, self.spp_clock_m = spp.pos, spp.clock_m[:, 0]
-        if self.constant_velocity:
-            self.drift0 = self._drift_start()
         self.with_odometry = bool(self.constant_velocity and cfg.use_odometry and obs.odometry is not None)
-        if self.with_odometry:
-            self.enu = enu_basis(self.spp_pos)
-            self.heading_ref = self._doppler_directions()
-        # start of each further system's bias: the median single-point clock difference over the
-        # epochs that see that system (an epoch without it has 0 there)
-        self.isb0_m = np.zeros(obs.n_isb)
-        for s in range(1, obs.n_isb + 1):
-            seen = np.zeros(nk, bool)
-            seen[self.row_epoch[self.row_system == s]] = True
-            diff = spp.clock_m[seen, s] - spp.clock_m[seen, 0]
-            self.isb0_m[s - 1] = float(np.median(diff)) if diff.size else 0.0
+        if self.constant_velocity:
+            # one Doppler fix per epoch: the drift's start values and the odometry's direction of travel
+            doppler_vel, drift = doppler_velocities(self.row_epoch, obs.sat_pos, obs.sat_vel,
+                                                    self.spp_pos[self.row_epoch], obs.range_rate,
+                                                    cfg.doppler_sigma_mps / np.sin(obs.el), nk)
+            self.drift0 = _carry_forward(drift)
+            if self.with_odometry:
+                self.enu = enu_basis(self.spp_pos)
+                self.heading_ref = self._directions_of_travel(doppler_vel)
+        self.isb0_m = system_clock_offsets(spp, self.row_epoch, self.row_system)
         lat, _, h = geodetic_from_ecef(self.spp_pos)
         hydro, self.wet_mapping = troposphere_terms(obs.el, lat[self.row_epoch], h[self.row_epoch], obs.doy)
         self.code_z = obs.code - hydro
         self.phase_z = obs.phase - hydro
-        self.has_phase = obs.arc >= 0
+        self.has_phase = obs.has_phase
         # rows of an arc in epoch order: the previous row of the same arc, or -1 (also -1 on rows
         # without phase, which belong to no arc)
         phase_rows = np.flatnonzero(self.has_phase)
@@ -324,24 +321,6 @@ class PppGraph:
         lat0, _, h0 = geodetic_from_ecef(self.spp_pos[:1])
         self.zwd0 = float(atmosphere.saastamoinen_zenith_m(lat0, h0)[1][0])
         self._unit = gtsam.noiseModel.Unit.Create(1)
-
-    def _drift_start(self) -> np.ndarray:
-        """Per-epoch start of the clock drift [m/s]: median range-rate residual of a receiver at rest,
-        carried forward over epochs without Doppler (vehicle speeds are small beside typical drifts)."""
-        obs = self.obs
-        rdot0 = range_rate(obs.sat_pos, np.nan_to_num(obs.sat_vel), self.spp_pos[self.row_epoch],
-                           np.zeros((obs.n_obs, 3)))[0]
-        res = obs.range_rate - rdot0
-        out = np.full(obs.n_epochs, np.nan)
-        for k, rows in obs.iter_epochs():
-            r = res[rows]
-            if np.isfinite(r).any():
-                out[k] = np.nanmedian(r)
-        known = np.flatnonzero(np.isfinite(out))
-        if known.size == 0:
-            return np.zeros(obs.n_epochs)
-        last = np.maximum.accumulate(np.where(np.isfinite(out), np.arange(obs.n_epochs), -1))
-        return np.where(last >= 0, out[np.maximum(last, 0)], out[known[0]])
 
     # ------------------------------------------------------------------ noise helpers
 
@@ -488,17 +467,14 @@ class PppGraph:
                           {vel_key(k - 1): zero, vel_key(k): zero}))
         return g
 
-    def _doppler_directions(self) -> np.ndarray:
-        """Unit ECEF direction of the horizontal Doppler velocity of each epoch; NaN when slower
-        than ``_DIRECTION_MIN_SPEED_MPS`` or without four Doppler rows."""
-        obs = self.obs
-        vel, _ = doppler_velocities(self.row_epoch, obs.sat_pos, obs.sat_vel, self.spp_pos[self.row_epoch],
-                                    obs.range_rate, self.cfg.doppler_sigma_mps / np.sin(obs.el), obs.n_epochs)
+    def _directions_of_travel(self, vel: np.ndarray) -> np.ndarray:
+        """Unit ECEF direction of each epoch's horizontal Doppler velocity ``vel`` (n_epochs, 3); NaN
+        when slower than ``_DIRECTION_MIN_SPEED_MPS`` or without a fix."""
         east = np.einsum("ki,ki->k", self.enu[:, 0], vel)
         north = np.einsum("ki,ki->k", self.enu[:, 1], vel)
         speed = np.hypot(east, north)
         fast = speed >= _DIRECTION_MIN_SPEED_MPS  # False for NaN
-        out = np.full((obs.n_epochs, 3), np.nan)
+        out = np.full((self.obs.n_epochs, 3), np.nan)
         out[fast] = (east[fast, None] * self.enu[fast, 0] + north[fast, None] * self.enu[fast, 1]) / speed[fast, None]
         return out
 
@@ -741,13 +717,12 @@ class PppGraph:
         """Estimated position of every solved epoch, shape (n_epochs, 3) [m]."""
         return np.array([values.atPoint3(pos_key(k)) for k in range(self.obs.n_epochs)])
 
-    def inter_system_biases(self, values: gtsam.Values, epochs: range | None = None) -> dict[str, list[float]]:
-        """Estimated inter-system bias of each further system [m], per epoch of ``epochs`` (default all).
+    def inter_system_biases(self, values: gtsam.Values) -> dict[str, list[float]]:
+        """Estimated inter-system bias of each further system at every epoch [m].
 
         Keyed by system letter (``obs.systems[1:]``); empty for single-system data.
         """
-        ks = range(self.obs.n_epochs) if epochs is None else epochs
-        return {name: [values.atDouble(isb_key(s, k)) for k in ks]
+        return {name: [values.atDouble(isb_key(s, k)) for k in range(self.obs.n_epochs)]
                 for s, name in enumerate(self.obs.systems[1:], start=1)}
 
     def residuals(self, values: gtsam.Values) -> tuple[np.ndarray, np.ndarray]:
@@ -771,6 +746,16 @@ class PppGraph:
         geo = sagnac_range(obs.sat_pos, pos[e]) + clocks[e, self.row_system] + zwd[e] * self.wet_mapping
         bias = np.where(self.has_phase, amb[np.maximum(obs.arc, 0)] if amb.size else 0.0, np.nan)
         return self.code_z - (geo + iono), self.phase_z - (geo - iono + bias)
+
+
+def _carry_forward(x: np.ndarray) -> np.ndarray:
+    """``x`` with each NaN replaced by the last finite value before it (the first finite one at the
+    start); zeros when nothing is finite."""
+    known = np.isfinite(x)
+    if not known.any():
+        return np.zeros_like(x)
+    last = np.maximum.accumulate(np.where(known, np.arange(len(x)), -1))
+    return np.where(last >= 0, x[np.maximum(last, 0)], x[np.argmax(known)])
 
 
 def _linear(factor: gtsam.GaussianFactor, at: dict[int, Any]) -> gtsam.LinearContainerFactor:

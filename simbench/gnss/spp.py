@@ -23,7 +23,7 @@ from simbench.gnss.geometry import sagnac_range_gradient
 from simbench.gnss.troposphere import troposphere_terms
 from simbench.sim.frames import geodetic_from_ecef
 
-__all__ = ["SppSolution", "solve_epochs", "ROUGH_FIX_MAX_RMS_M"]
+__all__ = ["SppSolution", "solve_epochs", "system_clock_offsets", "ROUGH_FIX_MAX_RMS_M"]
 
 #: Trust limit of the post-fit RMS for rough positions from raw logs (elevation, azimuth) [m]:
 #: generous, since street-canyon NLOS leaves tens of metres, but a wrong ephemeris leaves kilometres.
@@ -201,6 +201,33 @@ def solve_epochs(epoch: np.ndarray, sat_pos: np.ndarray, code: np.ndarray, *, n_
         refit = np.divide(total, count, out=np.zeros_like(total), where=count > 0)
         clock[bad] = refit[bad]
     return SppSolution(pos=pos, clock_m=clock, trusted=trusted, rms_m=rms, n_rows=n_rows)
+
+
+def system_clock_offsets(sol: SppSolution, epoch: np.ndarray, system_index: np.ndarray) -> np.ndarray:
+    """Inter-system bias start values: each further system's clock minus the first system's [m].
+
+    The median over the epochs whose rows include that system (an epoch without it
+    has no clock for it); 0 for a system no epoch sees.
+
+    Parameters
+    ----------
+    sol : SppSolution
+        Solutions of the epochs ``epoch`` indexes.
+    epoch, system_index : np.ndarray of int, shape (N,)
+        Epoch and system of each row the solutions were computed from.
+
+    Returns
+    -------
+    np.ndarray, shape (n_systems - 1,)
+    """
+    epoch = np.asarray(epoch, np.int64)
+    system_index = np.asarray(system_index, np.int64)
+    out = np.zeros(sol.clock_m.shape[1] - 1)
+    for s in range(1, sol.clock_m.shape[1]):
+        seen = np.unique(epoch[system_index == s])
+        if seen.size:
+            out[s - 1] = float(np.median(sol.clock_m[seen, s] - sol.clock_m[seen, 0]))
+    return out
 
 
 def _hydrostatic(pos: np.ndarray, e: np.ndarray, el: np.ndarray, doy: float) -> np.ndarray:
