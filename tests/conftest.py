@@ -14,6 +14,8 @@ from pathlib import Path
 import pytest
 from threadpoolctl import threadpool_limits
 
+from simbench.errors import SimbenchError
+
 # One BLAS thread per test process, here and in the CLI runs the tests start: with
 # ``pytest -n 2`` on 2 cores, OpenBLAS's spinning threads made the suite several times slower.
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
@@ -56,3 +58,13 @@ def shared_dir() -> Path:
 def shared_data(shared_dir: Path) -> Path:
     """``shared/data``: the WVU drives and the Hong Kong log."""
     return require_shared(shared_dir / "data")
+
+
+def one_line_error(fn, *args, **kwargs) -> str:
+    """Call ``fn``; assert it raises a :class:`SimbenchError` whose message is one line of the
+    form ``field: problem -- fix``; return the message."""
+    with pytest.raises(SimbenchError) as info:
+        fn(*args, **kwargs)
+    msg = str(info.value)
+    assert "\n" not in msg and " -- " in msg
+    return msg

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pymap3d
 import pytest
+from conftest import one_line_error
 from scipy.integrate import solve_ivp
 
 from simbench.config import SimConfig, validate_sim
@@ -135,14 +136,6 @@ E01 = dict(af0=4.448782419786e-05, af1=-9.890754881781e-12, af2=0.0, crs=1.30718
            week=1930.0, bgd_a=-6.286427378654e-09, bgd_b=-7.217749953270e-09)
 
 
-def _one_line_error(fn, *args, **kwargs) -> str:
-    with pytest.raises(SimbenchError) as info:
-        fn(*args, **kwargs)
-    msg = str(info.value)
-    assert "\n" not in msg and " -- " in msg
-    return msg
-
-
 # --------------------------------------------------------------------------- GLONASS
 
 
@@ -205,13 +198,13 @@ def test_glonass_reader_time_scale_and_bad_records(tmp_path: Path) -> None:
     # a malformed number and an impossible channel give one line each
     bad = tmp_path / "bad.rnx"
     bad.write_text(NAV_HEADER + rec.replace("1.948561668396E+00", "1.948561668396X+00") + "\n")
-    assert "malformed R13 record" in _one_line_error(read_glonass_navigation, bad)
+    assert "malformed R13 record" in one_line_error(read_glonass_navigation, bad)
     chan = tmp_path / "chan.rnx"
     chan.write_text(NAV_HEADER + _record("R13", "2023 01 08 11 45 00", _glonass_values({**R13, "k": 20})) + "\n")
-    assert "frequency number 20" in _one_line_error(read_glonass_navigation, chan)
+    assert "frequency number 20" in one_line_error(read_glonass_navigation, chan)
     only_e = tmp_path / "e.rnx"
     only_e.write_text(NAV_HEADER + _record("E01", "2017 01 01 00 10 00", _galileo_values(E01)) + "\n")
-    msg = _one_line_error(read_glonass_navigation, only_e)
+    msg = one_line_error(read_glonass_navigation, only_e)
     assert "scenario.nav_glo" in msg and "no GLONASS records" in msg
 
 
@@ -378,17 +371,17 @@ def test_systems_setting_and_missing_navigation(tmp_path: Path) -> None:
     sc.nav = str(tmp_path / "gps.rnx")
     (tmp_path / "gps.rnx").write_text("     3.04           N: GNSS NAV DATA    G: GPS              RINEX VERSION / TYPE\n")
     sc.systems = "GX"
-    msg = _one_line_error(validate_sim, cfg)
+    msg = one_line_error(validate_sim, cfg)
     assert "scenario.systems" in msg and "X" in msg and "GREC" in msg
     sc.systems = "GE"  # a GPS-only nav file cannot serve Galileo
-    assert "scenario.nav_gal" in _one_line_error(validate_sim, cfg)
+    assert "scenario.nav_gal" in one_line_error(validate_sim, cfg)
     sc.nav_gal = "e.rnx"
     validate_sim(cfg)
     sc.systems = "GR"
-    assert "scenario.nav_glo" in _one_line_error(validate_sim, cfg)
+    assert "scenario.nav_glo" in one_line_error(validate_sim, cfg)
     # a mixed file serves every system
     (tmp_path / "gps.rnx").write_text("     3.04           N: GNSS NAV DATA    M: MIXED            RINEX VERSION / TYPE\n")
     sc.systems = "GREC"
     validate_sim(cfg)
     sc.nav = ""
-    assert "scenario.nav" in _one_line_error(validate_sim, cfg)
+    assert "scenario.nav" in one_line_error(validate_sim, cfg)

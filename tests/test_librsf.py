@@ -5,6 +5,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import one_line_error
 
 from estimators.measurement import prepare_ppp
 from estimators.ppp_config import MeasurementMode
@@ -103,23 +104,17 @@ def test_system_flags_and_the_old_layout(tmp_path: Path) -> None:
 
 
 def test_bad_input(tmp_path: Path) -> None:
-    def one_line(fn, *a, **k) -> str:
-        with pytest.raises(SimbenchError) as info:
-            fn(*a, **k)
-        assert "\n" not in str(info.value)
-        return str(info.value)
-
-    assert "does not exist" in one_line(read_librsf, tmp_path / "none.txt")
+    assert "does not exist" in one_line_error(read_librsf, tmp_path / "none.txt")
     no_ranges = tmp_path / "odo.txt"
     no_ranges.write_text("odom3 0.0 1 0 0 0 0 0 1 1 1 1 1 1\n")
-    assert "no pseudorange3" in one_line(read_librsf, no_ranges)
+    assert "no pseudorange3" in one_line_error(read_librsf, no_ranges)
     junk = tmp_path / "junk.txt"
     junk.write_text("satpos 1 2 3\n")
-    assert "unknown line types" in one_line(read_librsf, junk)
+    assert "unknown line types" in one_line_error(read_librsf, junk)
     # a reference file whose times do not overlap the pseudoranges
     gt = tmp_path / "gt.txt"
     gt.write_text("point3 5000.0 4e6 1e6 4.8e6 0 0 0 0 0 0 0 0 0\npoint3 5001.0 4e6 1e6 4.8e6 0 0 0 0 0 0 0 0 0\n")
-    assert "does not overlap" in one_line(load_librsf, FIXTURE, gt, gps_week=WEEK, start_sow_s=SOW)
+    assert "does not overlap" in one_line_error(load_librsf, FIXTURE, gt, gps_week=WEEK, start_sow_s=SOW)
 
 
 def test_synthetic_writer_and_the_scenario_preset(tmp_path: Path) -> None:

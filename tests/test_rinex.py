@@ -8,6 +8,7 @@ import numpy as np
 import pandas as pd
 import pymap3d
 import pytest
+from conftest import one_line_error
 
 import estimators
 from estimators.base import Estimator
@@ -156,32 +157,24 @@ def test_reference_layouts(tmp_path: Path) -> None:
     assert np.isnan(m[1]).all()
 
 
-def _one_line_error(fn, *args, **kwargs) -> str:
-    with pytest.raises(SimbenchError) as info:
-        fn(*args, **kwargs)
-    msg = str(info.value)
-    assert "\n" not in msg and " -- " in msg
-    return msg
-
-
 @needs_hk
 def test_bad_input_gives_one_line_errors(tmp_path: Path) -> None:
-    assert "does not exist" in _one_line_error(load_rinex, tmp_path / "none.obs", NAV, TRUTH)
+    assert "does not exist" in one_line_error(load_rinex, tmp_path / "none.obs", NAV, TRUTH)
     # a file without pseudorange observables
     head = OBS.read_text().splitlines()
     end = next(i for i, ln in enumerate(head) if "END OF HEADER" in ln)
     no_code = [ln.replace("G    4 C1C L1C D1C S1C", "G    3 L1C D1C S1C    ") for ln in head[:end + 1]]
     bad = tmp_path / "nocode.obs"
     bad.write_text("\n".join(no_code + head[end + 1:end + 20]) + "\n")
-    assert "no pseudorange" in _one_line_error(read_rinex_obs, bad)
+    assert "no pseudorange" in one_line_error(read_rinex_obs, bad)
     # navigation data of another day (the WVU drive, December 2018)
-    assert "covers" in _one_line_error(load_rinex, OBS, DATA / "wvu_drives" / "brdc.18n", TRUTH)
+    assert "covers" in one_line_error(load_rinex, OBS, DATA / "wvu_drives" / "brdc.18n", TRUTH)
     # a reference of another week
     other = tmp_path / "other.csv"
     other.write_text("2032,46701,22.3,114.17,6.6\n2032,46702,22.3,114.17,6.6\n")
-    assert "does not overlap" in _one_line_error(load_rinex, OBS, NAV, other)
+    assert "does not overlap" in one_line_error(load_rinex, OBS, NAV, other)
     # the navigation file given as observations
-    assert "RINEX 3 observation" in _one_line_error(read_rinex_obs, NAV)
+    assert "RINEX 3 observation" in one_line_error(read_rinex_obs, NAV)
 
 
 def test_scenario_dispatch_validates_paths() -> None:
