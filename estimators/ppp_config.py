@@ -3,7 +3,9 @@
 EKF-PPP (:class:`~estimators.ekf_ppp.EkfPppConfig`) and the GTSAM graph
 estimators (:class:`~estimators.ppp_graph.PppGraphConfig` and its children)
 carry the same model fields with the same defaults; they live here once,
-with their one validation entry point.
+with their one validation entry point. The motion and clock-drift model
+(:class:`MotionModelConfig`: random walk or constant velocity with Doppler and
+wheel odometry) is shared the same way.
 """
 from __future__ import annotations
 
@@ -14,7 +16,8 @@ from simbench.config import Choice, check_choices
 from simbench.contract import Need
 from simbench.errors import SimbenchError, require_at_least, require_positive
 
-__all__ = ["ClockModel", "MeasurementMode", "StochasticModelConfig"]
+__all__ = ["DIRECTION_MIN_SPEED_MPS", "STANDSTILL_MPS", "ClockModel", "MeasurementMode", "MotionModel",
+           "MotionModelConfig", "StochasticModelConfig"]
 
 
 class ClockModel(Choice):
@@ -99,3 +102,49 @@ class StochasticModelConfig:
                 "phase_sigma_m": self.phase_sigma_m, "elevation_mask_deg": self.elevation_mask_deg,
                 "min_satellites": self.min_satellites, "max_gap_epochs": self.max_gap_epochs,
                 "measurements": self.measurements}
+
+
+class MotionModel(Choice):
+    """Process model of the receiver position between epochs (member names are the YAML words)."""
+
+    random_walk = "random_walk"  #: position random walk ``pos_rw_m_rts`` (Table 4.4.2)
+    #: velocity states, white acceleration ``accel_sigma_mps2_rts``, Doppler range-rate factors
+    constant_velocity = "constant_velocity"
+
+
+#: Below this wheel speed the vehicle stands still (zero horizontal velocity) [m/s].
+STANDSTILL_MPS = 0.2
+#: A velocity slower than this gives no usable direction of travel for the odometry [m/s].
+DIRECTION_MIN_SPEED_MPS = 2.0
+
+
+@dataclass
+class MotionModelConfig(StochasticModelConfig):
+    """The shared stochastic model plus the motion and clock-drift model between epochs.
+
+    ``random_walk`` (default) is Table 4.4.2's position random walk. With
+    ``constant_velocity`` each epoch also has a velocity, driven by white
+    acceleration, and a receiver clock drift (random walk); the rows with a Doppler
+    give range-rate measurements of both, and wheel odometry (when the data have
+    it and ``use_odometry``) constrains the velocity.
+    """
+
+    motion_model: MotionModel = MotionModel.random_walk
+    #: white-acceleration density of the constant-velocity model per axis [m/s^2/sqrt(s)] (a car in town)
+    accel_sigma_mps2_rts: float = 2.0
+    vel_sigma_mps: float = 30.0  #: a priori velocity sigma per axis at the first epoch [m/s]
+    #: zenith range-rate sigma of a Doppler measurement [m/s], scaled by 1/sin(el)
+    doppler_sigma_mps: float = 0.3
+    drift_sigma_mps: float = 1000.0  #: a priori receiver clock drift sigma [m/s] around the first epoch's fit
+    drift_rw_mps_rts: float = 0.5  #: receiver clock drift random walk [m/s/sqrt(s)]
+    #: constant velocity only: add the vehicle's wheel odometry (speed, yaw rate) when the data have it
+    use_odometry: bool = True
+    #: sigma of the non-holonomic constraint (no sideways velocity of a car) [m/s]
+    nhc_sigma_mps: float = 0.3
+
+    def validate(self, where: str) -> None:
+        """The shared checks, then the motion-model densities and sigmas."""
+        super().validate(where)
+        for name in ("accel_sigma_mps2_rts", "vel_sigma_mps", "doppler_sigma_mps", "drift_sigma_mps",
+                     "drift_rw_mps_rts", "nhc_sigma_mps"):
+            require_positive(f"{where}.{name}", getattr(self, name), "give a positive sigma or density")

@@ -108,9 +108,14 @@ import gtsam
 import numpy as np
 
 from estimators.measurement import PppObservations
-from estimators.ppp_config import ClockModel, StochasticModelConfig
-from simbench.config import Choice
-from simbench.errors import SimbenchError, require_positive
+from estimators.ppp_config import (
+    DIRECTION_MIN_SPEED_MPS,
+    STANDSTILL_MPS,
+    ClockModel,
+    MotionModel,
+    MotionModelConfig,
+)
+from simbench.errors import SimbenchError
 from simbench.gnss.doppler import doppler_velocities, range_rate
 from simbench.gnss.geometry import enu_basis, sagnac_range
 from simbench.gnss.spp import solve_epochs, system_clock_offsets
@@ -187,17 +192,9 @@ def isb_key(system: int, k: int) -> int:
 ZERO_KEY = gtsam.symbol("z", 0)
 
 
-class MotionModel(Choice):
-    """Process model of the receiver position between epochs (member names are the YAML words)."""
-
-    random_walk = "random_walk"  #: position random walk ``pos_rw_m_rts`` (Table 4.4.2)
-    #: velocity states, white acceleration ``accel_sigma_mps2_rts``, Doppler range-rate factors
-    constant_velocity = "constant_velocity"
-
-
 @dataclass
-class PppGraphConfig(StochasticModelConfig):
-    """Stochastic model of the PPP graph: the shared Table 4.4.2 model of :class:`StochasticModelConfig`.
+class PppGraphConfig(MotionModelConfig):
+    """Stochastic model of the PPP graph: the shared model of :class:`~estimators.ppp_config.MotionModelConfig`.
 
     In the graph the clock prior holds at every epoch and the slant ionosphere
     residual is one key per row, a random walk along its arc. With
@@ -209,33 +206,9 @@ class PppGraphConfig(StochasticModelConfig):
     jump by thousands of km/s.
     """
 
-    motion_model: MotionModel = MotionModel.random_walk
-    #: white-acceleration density of the constant-velocity model per axis [m/s^2/sqrt(s)] (a car in town)
-    accel_sigma_mps2_rts: float = 2.0
-    vel_sigma_mps: float = 30.0  #: a priori velocity sigma per axis at the first epoch [m/s]
-    #: zenith range-rate sigma of a Doppler factor [m/s], scaled by 1/sin(el)
-    doppler_sigma_mps: float = 0.3
-    drift_sigma_mps: float = 1000.0  #: a priori receiver clock drift sigma [m/s] around the first epoch's fit
-    drift_rw_mps_rts: float = 0.5  #: receiver clock drift random walk [m/s/sqrt(s)]
-    #: constant velocity only: add the vehicle's wheel odometry (speed, yaw rate) when the data have it
-    use_odometry: bool = True
-    #: sigma of the non-holonomic constraint (no sideways velocity of a car) [m/s]
-    nhc_sigma_mps: float = 0.3
-
-    def validate(self, where: str) -> None:
-        """The shared checks, then the motion-model densities and sigmas."""
-        super().validate(where)
-        for name in ("accel_sigma_mps2_rts", "vel_sigma_mps", "doppler_sigma_mps", "drift_sigma_mps",
-                     "drift_rw_mps_rts", "nhc_sigma_mps"):
-            require_positive(f"{where}.{name}", getattr(self, name), "give a positive sigma or density")
-
 
 #: Random-walk sigmas never go below this (two epochs with the same time) [m or s].
 _MIN_RW_SIGMA = 1e-9
-#: Below this wheel speed the vehicle stands still (zero horizontal velocity) [m/s].
-_STANDSTILL_MPS = 0.2
-#: A Doppler velocity slower than this gives no usable direction of travel [m/s].
-_DIRECTION_MIN_SPEED_MPS = 2.0
 #: Sigma of the factor tying a further system's clock to the first clock plus its bias [m].
 _ISB_TIE_SIGMA_M = 1e-3
 #: Sigma of the prior holding ZERO_KEY at zero [m].
@@ -447,7 +420,7 @@ class PppGraph:
         horizontal = self.enu[k, :2]
         sig_s = float(np.sqrt(max(var_speed, 1e-6)))
         zero = gtsam.Point3(0.0, 0.0, 0.0)
-        if abs(speed) < _STANDSTILL_MPS:
+        if abs(speed) < STANDSTILL_MPS:
             g.add(_linear(gtsam.JacobianFactor(vel_key(k), horizontal, np.zeros(2),
                                                gtsam.noiseModel.Isotropic.Sigma(2, sig_s)), {vel_key(k): zero}))
         elif np.isfinite(self.heading_ref[k]).all():
@@ -457,7 +430,7 @@ class PppGraph:
                                                gtsam.noiseModel.Diagonal.Sigmas(
                                                    np.array([sig_s, self.cfg.nhc_sigma_mps]))), {vel_key(k): zero}))
         prev_speed = odo[k - 1, 0]
-        if np.isfinite(yaw_rate) and np.isfinite(prev_speed) and abs(prev_speed) >= _STANDSTILL_MPS and dt > 0:
+        if np.isfinite(yaw_rate) and np.isfinite(prev_speed) and abs(prev_speed) >= STANDSTILL_MPS and dt > 0:
             turn = yaw_rate * dt
             rot = np.array([[np.cos(turn), np.sin(turn)], [-np.sin(turn), np.cos(turn)]])
             ratio = speed / prev_speed
@@ -469,11 +442,11 @@ class PppGraph:
 
     def _directions_of_travel(self, vel: np.ndarray) -> np.ndarray:
         """Unit ECEF direction of each epoch's horizontal Doppler velocity ``vel`` (n_epochs, 3); NaN
-        when slower than ``_DIRECTION_MIN_SPEED_MPS`` or without a fix."""
+        when slower than ``DIRECTION_MIN_SPEED_MPS`` or without a fix."""
         east = np.einsum("ki,ki->k", self.enu[:, 0], vel)
         north = np.einsum("ki,ki->k", self.enu[:, 1], vel)
         speed = np.hypot(east, north)
-        fast = speed >= _DIRECTION_MIN_SPEED_MPS  # False for NaN
+        fast = speed >= DIRECTION_MIN_SPEED_MPS  # False for NaN
         out = np.full((self.obs.n_epochs, 3), np.nan)
         out[fast] = (east[fast, None] * self.enu[fast, 0] + north[fast, None] * self.enu[fast, 1]) / speed[fast, None]
         return out

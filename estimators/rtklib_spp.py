@@ -1,9 +1,12 @@
-"""RTKLIB single-point positioning: the external reference baseline on real logs.
+"""RTKLIB single-point positioning: the external reference baseline on real logs and simulated scenarios.
 
-``rtklib_spp`` hands the raw RINEX files a scenario was read from
-(:class:`~simbench.contract.RinexFiles`, ``Need.rinex_files``) to RTKLIB's
-``rnx2rtkp`` (Debian package ``rtklib``, 2.4.3) and scores its solutions like
-any other estimator's. RTKLIB's single mode (``pntpos``) is an independent
+``rtklib_spp`` hands RINEX files (``Need.rinex_files``) to RTKLIB's ``rnx2rtkp``
+(Debian package ``rtklib``, 2.4.3) and scores its solutions like any other
+estimator's: on a log read from RINEX the raw files it was read from
+(:class:`~simbench.contract.RinexFiles`); on a simulated scenario the files
+:func:`simbench.export.write_receiver_rinex` writes from the receiver's view
+into a temporary directory (observations as simulated, the broadcast orbits the
+signals came from; see :mod:`simbench.export.rinex`). RTKLIB's single mode (``pntpos``) is an independent
 implementation of what a receiver does: per epoch, weighted least squares on
 the L1 code (GPS C/A, BeiDou B1I) with broadcast orbits and clocks, the
 Klobuchar ionosphere and the Saastamoinen troposphere, one clock offset per
@@ -46,10 +49,11 @@ from estimators.base import Estimator, solution_frame
 from simbench.config import Choice, check_choices
 from simbench.contract import Need, ReceiverData
 from simbench.data.rtklib_pos import parse_rtklib_pos
+from simbench.data.solution_times import match_receiver_epochs
 from simbench.errors import SimbenchError, require_positive
-from simbench.sim.constants import SECONDS_PER_WEEK
+from simbench.export import write_receiver_rinex
 
-__all__ = ["EXECUTABLE", "IonosphereModel", "RtklibSpp", "RtklibSppConfig", "TroposphereModel", "match_to_epochs",
+__all__ = ["EXECUTABLE", "IonosphereModel", "RtklibSpp", "RtklibSppConfig", "TroposphereModel",
            "rnx2rtkp_options", "run_rnx2rtkp"]
 
 #: The RTKLIB post-processing program.
@@ -190,46 +194,9 @@ def run_rnx2rtkp(obs: str, navs: Sequence[str], options: Mapping[str, str], time
     return text
 
 
-def match_to_epochs(t_solution: np.ndarray, t_epoch: np.ndarray, max_offset_s: float) -> tuple[np.ndarray, np.ndarray]:
-    """Pair solutions with the epochs nearest in time, at most one solution per epoch.
-
-    Parameters
-    ----------
-    t_solution : np.ndarray, shape (m,)
-        Solution times [s] (any origin shared with ``t_epoch``).
-    t_epoch : np.ndarray, shape (n,)
-        Time of epoch index 0..n-1 [s]; NaN for epochs without observations.
-    max_offset_s : float
-        Solutions further than this from every epoch are left unpaired [s].
-
-    Returns
-    -------
-    solution_index, epoch_index : np.ndarray of int, shape (k,)
-        Matched pairs, increasing in epoch; where several solutions are nearest
-        to one epoch, the closest is kept.
-    """
-    valid = np.flatnonzero(np.isfinite(t_epoch))
-    if valid.size == 0 or t_solution.size == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    order = valid[np.argsort(t_epoch[valid], kind="stable")]
-    ts = t_epoch[order]
-    right = np.clip(np.searchsorted(ts, t_solution), 1, ts.size - 1) if ts.size > 1 else np.zeros(t_solution.size, int)
-    left = np.maximum(right - 1, 0)
-    pick = np.where(np.abs(t_solution - ts[left]) <= np.abs(ts[right] - t_solution), left, right)
-    offset = np.abs(t_solution - ts[pick])
-    sol = np.flatnonzero(offset <= max_offset_s)
-    epoch = order[pick[sol]]
-    # closest first, then the first occurrence of each epoch
-    by_offset = np.lexsort((offset[sol], epoch))
-    sol, epoch = sol[by_offset], epoch[by_offset]
-    first = np.ones(epoch.size, dtype=bool)
-    first[1:] = np.diff(epoch) != 0
-    return sol[first].astype(np.int64), epoch[first].astype(np.int64)
-
-
 @register
 class RtklibSpp(Estimator):
-    """RTKLIB ``rnx2rtkp`` single-point solutions on the scenario's raw RINEX files."""
+    """RTKLIB ``rnx2rtkp`` single-point solutions on the scenario's RINEX files (raw or exported)."""
 
     name = "rtklib_spp"
     Config = RtklibSppConfig
@@ -242,25 +209,21 @@ class RtklibSpp(Estimator):
         return ""
 
     def _estimate(self, data: ReceiverData) -> tuple[pd.DataFrame, dict[str, Any]]:
-        if data.rinex is None:
-            raise SimbenchError("rtklib_spp", "the scenario has no RINEX files",
-                                "run it on scenario=rinex (the runner skips it elsewhere)")
         start = time.perf_counter()
         cfg: RtklibSppConfig = self.config
-        options = rnx2rtkp_options(cfg, data.rinex.systems)
-        text = run_rnx2rtkp(data.rinex.obs, data.rinex.nav, options, cfg.timeout_s)
+        with tempfile.TemporaryDirectory(prefix="rtklib_spp-export-") as tmp:
+            files = data.rinex if data.rinex is not None else write_receiver_rinex(data, tmp, "receiver")
+            options = rnx2rtkp_options(cfg, files.systems)
+            text = run_rnx2rtkp(files.obs, files.nav, options, cfg.timeout_s)
         pos = parse_rtklib_pos(text, f"{EXECUTABLE} output")
-        t_epoch = data.nav.gps_week * SECONDS_PER_WEEK + data.nav.start_sow_s + data.epoch_times
-        steps = np.diff(np.sort(t_epoch[np.isfinite(t_epoch)]))
-        interval = float(np.median(steps)) if steps.size else 1.0
-        si, ei = match_to_epochs(pos["t_gps"].to_numpy(), t_epoch, 0.5 * interval)
+        si, ei, _ = match_receiver_epochs(data, pos["t_gps"].to_numpy())
         matched = pos.iloc[si]
         update_s = (time.perf_counter() - start) / max(si.size, 1)
         epochs = solution_frame(ei, data.epoch_times[ei], matched[["x", "y", "z"]].to_numpy(),
                                 np.full(si.size, update_s))
         program = next((ln.split(":", 1)[1].strip() for ln in text.splitlines() if ln.startswith("% program")), "")
         diagnostics = {
-            "program": program, "options": options,
+            "program": program, "options": options, "files": "raw" if data.rinex is not None else "exported",
             "n_solutions": len(pos), "n_matched": int(si.size),
             "quality_counts": {str(k): int(v) for k, v in matched["q"].value_counts().sort_index().items()},
             "median_satellites": float(matched["ns"].median()) if len(matched) else float("nan"),

@@ -1,7 +1,8 @@
 """simbench: simulation-and-benchmark harness for robust GNSS and GNSS/INS estimation.
 
-The notebook entry point is :func:`simulate`; the command line is
-``python -m simbench`` (a Hydra app, configs in the repository's ``conf/``).
+The notebook entry points are :func:`simulate` (one scenario) and :func:`run`
+(a study: estimators x seeds, scored, with a report; :mod:`simbench.study`); the
+command line is ``python -m simbench`` (a Hydra app, configs in the repository's ``conf/``).
 """
 from __future__ import annotations
 
@@ -10,7 +11,16 @@ from typing import Any
 from simbench.contract import NavInfo, ReceiverData, Scenario
 from simbench.errors import SimbenchError
 
-__all__ = ["simulate", "Scenario", "ReceiverData", "NavInfo", "SimbenchError"]
+__all__ = ["simulate", "run", "StudyResult", "Scenario", "ReceiverData", "NavInfo", "SimbenchError"]
+
+
+def __getattr__(name: str) -> Any:
+    """:func:`run` and :class:`StudyResult` on first use: they load Hydra and every estimator."""
+    if name in ("run", "StudyResult"):
+        from simbench import study
+
+        return getattr(study, name)
+    raise AttributeError(f"module 'simbench' has no attribute '{name}'")
 
 
 def simulate(scenario: str = "urban", receiver: str = "low", seed: int = 0, imu: str = "consumer",

@@ -7,11 +7,16 @@ estimator saw byte-identical data for a given (scenario, seed). A claim whose
 rows are missing is ``not measured`` -- never ``holds``. Estimator settings
 (window length, prior scale) come from the structured ``overrides`` column
 (:mod:`simbench.variants`).
+
+A claim is evaluated once per *world*: each scenario preset its sweep ran on
+(the ``scenario`` column), on that world's rows alone, so the thesis studies
+run on ``urban``, ``urban_deep`` and ``morgantown1`` give one verdict per world
+(:func:`claims_table` rows, :func:`claims_by_world` one column per world).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 import pandas as pd
@@ -20,11 +25,16 @@ from scipy import stats
 from simbench.variants import config_defaults, is_default, override_value
 
 #: Columns of ``claims.csv``.
-CLAIM_COLUMNS = ["claim_id", "source", "statement", "metric", "measured", "published", "holds", "ci_low",
+CLAIM_COLUMNS = ["claim_id", "world", "source", "statement", "metric", "measured", "published", "holds", "ci_low",
                  "ci_high", "n_seeds", "note"]
 
 BOOTSTRAP_RESAMPLES = 2000
 CONFIDENCE = 0.95
+#: The result column that names a world: the scenario preset a sweep ran on.
+WORLD = "scenario"
+#: Cell of :func:`claims_by_world` for a claim whose sweep did not run on that world.
+NOT_RUN = "—"
+
 #: Convergence window of the Ch.4 tables (Table 4.4.5: the first 15 minutes) [s].
 CONVERGENCE_S = 900.0
 
@@ -255,18 +265,82 @@ def adaptation_outcome(diagnostics: dict[str, list[dict]]) -> Outcome | None:
 
 def claims_table(summary: pd.DataFrame, epochs: pd.DataFrame,
                  diagnostics: dict[str, list[dict]] | None = None) -> pd.DataFrame:
-    """Evaluate every claim; rows in :data:`CLAIM_COLUMNS` order."""
+    """Evaluate every claim on every world its sweep ran on; rows in :data:`CLAIM_COLUMNS` order.
+
+    A claim whose sweep ran on no world has one ``not measured`` row with an empty ``world``.
+    Rows are in :data:`CLAIMS` order, the worlds of one claim sorted by name.
+    """
     rows = []
     for claim in CLAIMS:
-        outcome = None if summary.empty else claim.evaluate(summary, epochs, diagnostics or {})
         base = {"claim_id": claim.claim_id, "source": claim.source, "statement": claim.statement,
                 "metric": claim.metric, "published": claim.published}
-        if outcome is None:
-            rows.append({**base, "measured": np.nan, "holds": "not measured", "ci_low": np.nan,
-                         "ci_high": np.nan, "n_seeds": 0,
-                         "note": f"its sweep {claim.sweep} was not run (or had no ok rows)"})
-        else:
-            rows.append({**base, "measured": outcome.measured, "holds": "holds" if outcome.holds else
-                         "does not hold", "ci_low": outcome.ci_low, "ci_high": outcome.ci_high,
-                         "n_seeds": outcome.n_seeds, "note": outcome.note})
+        worlds = claim_worlds(summary, claim.sweep)
+        if not worlds:
+            rows.append({**base, "world": "", **_not_measured(f"its sweep {claim.sweep} was not run")})
+        for world in worlds:
+            outcome = claim.evaluate(in_world(summary, world), in_world(epochs, world),
+                                     _diagnostics_in_world(diagnostics or {}, world))
+            if outcome is None:
+                rows.append({**base, "world": world,
+                             **_not_measured(f"its sweep {claim.sweep} had no ok rows for this claim here")})
+            else:
+                rows.append({**base, "world": world, "measured": outcome.measured,
+                             "holds": "holds" if outcome.holds else "does not hold", "ci_low": outcome.ci_low,
+                             "ci_high": outcome.ci_high, "n_seeds": outcome.n_seeds, "note": outcome.note})
     return pd.DataFrame(rows, columns=CLAIM_COLUMNS)
+
+
+def claim_worlds(summary: pd.DataFrame, sweep: str) -> list[str]:
+    """The worlds (scenario presets) that ``sweep`` has result rows on, sorted."""
+    if summary.empty:
+        return []
+    return sorted(summary.loc[summary["sweep"] == sweep, WORLD].dropna().astype(str).unique())
+
+
+def in_world(frame: pd.DataFrame, world: str) -> pd.DataFrame:
+    """The rows of ``frame`` on ``world``; a frame without a :data:`WORLD` column is one world (all rows)."""
+    return frame[frame[WORLD] == world] if WORLD in frame.columns else frame
+
+
+def _diagnostics_in_world(diagnostics: dict[str, list[dict]], world: str) -> dict[str, list[dict]]:
+    # a diagnostics record whose job row is missing (no summary file) is one world, as in in_world
+    return {name: [d for d in jobs if d["job"].get(WORLD, world) == world] for name, jobs in diagnostics.items()}
+
+
+def _not_measured(note: str) -> dict[str, Any]:
+    return {"measured": np.nan, "holds": "not measured", "ci_low": np.nan, "ci_high": np.nan, "n_seeds": 0,
+            "note": note}
+
+
+def claims_by_world(claims: pd.DataFrame) -> pd.DataFrame:
+    """One row per claim, one column per world: ``measured`` and the verdict in one cell.
+
+    Parameters
+    ----------
+    claims : pandas.DataFrame
+        :func:`claims_table` (or ``claims.csv``).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``claim_id``, ``published``, then one per world (sorted by name) with
+        cells like ``0.84 holds`` / ``1.07 [0.91, 1.23] does not hold``, ``not measured``,
+        or :data:`NOT_RUN` where the claim's sweep did not run on that world. No world
+        columns when no claim's sweep ran.
+    """
+    measured = claims[claims["world"].fillna("") != ""]
+    worlds = sorted(measured["world"].astype(str).unique())
+    cells = {(r.claim_id, r.world): _cell(r) for r in measured.itertuples()}
+    order = list(dict.fromkeys(claims["claim_id"]))
+    published = claims.drop_duplicates("claim_id").set_index("claim_id")["published"]
+    return pd.DataFrame([{"claim_id": cid, "published": published[cid],
+                          **{w: cells.get((cid, w), NOT_RUN) for w in worlds}} for cid in order],
+                        columns=["claim_id", "published", *worlds])
+
+
+def _cell(row: Any) -> str:
+    """``measured [ci] verdict`` of one :func:`claims_table` row (an ``itertuples`` record)."""
+    if row.holds == "not measured":
+        return row.holds
+    ci = f" [{row.ci_low:.2f}, {row.ci_high:.2f}]" if np.isfinite(row.ci_low) and np.isfinite(row.ci_high) else ""
+    return f"{row.measured:.3g}{ci} {row.holds}"

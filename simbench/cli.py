@@ -8,17 +8,24 @@ builds ``claims.csv`` and ``report/``.
 """
 from __future__ import annotations
 
-import subprocess
+import inspect
 import sys
 from pathlib import Path
 
 import hydra
+import pandas as pd
 from hydra.core.hydra_config import HydraConfig
+from hydra.core.override_parser.overrides_parser import OverridesParser
+from hydra.errors import HydraException
 from hydra.types import RunMode
 from omegaconf import DictConfig, open_dict
+from tabulate import tabulate
 
-from simbench.compose import CONF_DIR, check_group_choices, compose_config
+import estimators
+from simbench.compose import CONF_DIR, check_group_choices, compose_config, register_schemas
+from simbench.config import to_typed
 from simbench.errors import SimbenchError
+from simbench.studies import StudiesConfig, run_studies
 
 SHOWN = ["estimator", "variant", "status", "availability", "horizontal_median", "horizontal_mean",
          "horizontal_p95", "horizontal_max", "error_3d_median", "update_median_s", "message"]
@@ -29,10 +36,12 @@ def _app(cfg: DictConfig) -> None:
     from simbench.jobs import run_job
 
     hc = HydraConfig.get()
-    if hc.mode == RunMode.MULTIRUN:
-        # the sweep directory is resolved once by the launcher; a ${now:} in results_dir is not
-        with open_dict(cfg):
+    with open_dict(cfg):
+        if hc.mode == RunMode.MULTIRUN:
+            # the sweep directory is resolved once by the launcher; a ${now:} in results_dir is not
             cfg.results_dir = hc.sweep.dir
+        if cfg.blas_threads is None:  # a cluster job uses the CPUs its launcher reserved (submitit)
+            cfg.blas_threads = hc.launcher.get("cpus_per_task")
     try:
         if cfg.progress:
             print(f"job: scenario={cfg.scenario.name} receiver={cfg.receiver.name} seed={cfg.seed} "
@@ -48,33 +57,55 @@ def _app(cfg: DictConfig) -> None:
 def main() -> None:
     """Entry point: compose once up front so a bad override gets one line, not Hydra's error page."""
     args = sys.argv[1:]
-    composable = not any(a.startswith("-") for a in args) and not any("," in a or "(" in a for a in args)
     try:
+        register_schemas()  # a broken plug-in estimator stops here, in one line naming its package
+        if "--estimators" in args:
+            print(tabulate(estimator_table(), headers="keys", tablefmt="plain", showindex=False))
+            return
         # group options are checked for sweeps and flags too: Hydra would only say "Could not load"
         check_group_choices(a for a in args if not a.startswith("-"))
-        cfg = compose_config(args) if composable else None
+        shaping = config_overrides(args)
+        cfg = compose_config(shaping) if shaping is not None else None
+        if cfg is not None and "studies" in cfg:  # a sweep of sweeps (thesis): studies x worlds
+            studies = to_typed({k: cfg[k] for k in ("studies", "worlds", "own_scenario", "study_args") if k in cfg},
+                               StudiesConfig, "config")
+            sys.exit(run_studies(studies, Path(cfg.results_dir), args))
     except SimbenchError as exc:
         print(f"error: {exc}", file=sys.stderr)
         sys.exit(2)
-    if cfg is not None and "studies" in cfg:
-        sys.exit(run_studies(list(cfg.studies), Path(cfg.results_dir), args))
     _app()
 
 
-def run_studies(studies: list[str], root: Path, args: list[str]) -> int:
-    """Run several sweeps into ``root/<study>`` one after another, then one aggregate over all of them."""
-    from simbench.report.build import finalize
+def config_overrides(args: list[str]) -> list[str] | None:
+    """The command-line arguments that shape the config: all but sweeps and ``hydra.*`` settings.
 
-    passed = [a for a in args if not a.startswith(("+sweep=", "sweep_name=", "results_dir="))]
-    failed = []
-    for study in studies:
-        print(f"=== study {study}", file=sys.stderr)
-        code = subprocess.call([sys.executable, "-m", "simbench", f"+sweep={study}",
-                                f"results_dir={root / study}", *passed])
-        if code:
-            failed.append(study)  # its finished jobs are in the store; the others still run
-    report = finalize(root, {"studies": studies, "args": passed})
-    print(f"results: {root.resolve()}  report: {report.resolve() / 'index.html'}", file=sys.stderr)
-    if failed:
-        print(f"error: studies {', '.join(failed)} exited with errors -- see their logs in {root}", file=sys.stderr)
-    return 1 if failed else 0
+    Hydra expands sweeps per job and applies its own settings itself; a setting like
+    ``hydra.sweeper.params.seed=0`` does not even compose for a sweep file without
+    sweeper params (``thesis``, whose studies it is meant for).
+
+    None when there is a flag (``-m``, ``--help``) or an argument Hydra's parser
+    rejects: Hydra then handles the command line itself.
+    """
+    if any(a.startswith("-") for a in args):
+        return None
+    try:
+        parsed = OverridesParser.create().parse_overrides(args)
+    except HydraException:
+        return None
+    return [a for a, o in zip(args, parsed) if not o.is_sweep_override() and not o.key_or_group.startswith("hydra.")]
+
+
+def estimator_table() -> pd.DataFrame:
+    """The registered estimators (``python -m simbench --estimators``).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``name``, ``family`` (the module defining the class, without the
+        ``estimators.`` prefix of the built-ins), ``source`` (``built-in`` or the
+        plug-in's package) and ``description`` (the first line of the class docstring).
+    """
+    rows = [{"name": name, "family": cls.__module__.removeprefix("estimators."), "source": estimators.source(name),
+             "description": (inspect.getdoc(cls) or "").partition("\n")[0]}
+            for name, cls in estimators.registered().items()]
+    return pd.DataFrame(rows, columns=["name", "family", "source", "description"])

@@ -1,6 +1,8 @@
 """Compose configurations from ``conf/`` outside a Hydra app (notebooks, tests)."""
 from __future__ import annotations
 
+import functools
+import inspect
 import re
 from collections.abc import Iterable
 from pathlib import Path
@@ -15,36 +17,104 @@ from omegaconf.errors import OmegaConfBaseException
 import yaml
 
 import estimators
-from simbench.config import ImuConfig, ReceiverConfig, ScenarioConfig
+from simbench.config import ImuConfig, ReceiverConfig, ScenarioConfig, to_typed
 from simbench.errors import SimbenchError
 
 #: The repository's top-level ``conf/`` directory.
 CONF_DIR = Path(__file__).resolve().parent.parent / "conf"
 
 
+@functools.cache
 def register_schemas() -> None:
-    """Put the typed schemas into Hydra's ConfigStore.
+    """Put the typed schemas and the plug-in estimators into Hydra's ConfigStore (once per process).
 
     Each preset file in ``conf/<group>/`` starts from its schema (``defaults:
     [schema, _self_]``), and each ``conf/estimator/<name>.yaml`` from its
     estimator's ``Config`` dataclass (``defaults: [<name>_schema, _self_]``), so
     every field exists in the composed config, can be overridden without ``+``
     and is type-checked by Hydra; the estimator files hold only what differs
-    from the dataclass defaults.
+    from the dataclass defaults. A plug-in estimator gets the same node from
+    :func:`plugin_config_node`, and ``estimator/all`` lists every registered
+    estimator, built-in and plug-in, so the default run and the sweeps include
+    the plug-ins without an edit to ``conf/``.
+
+    Raises
+    ------
+    SimbenchError
+        For a broken plug-in, naming its package (:func:`estimators.discover`).
     """
     cs = ConfigStore.instance()
     for group, node in (("scenario", ScenarioConfig), ("receiver", ReceiverConfig), ("imu", ImuConfig)):
         cs.store(group=group, name="schema", node=node)
     for name, cls in estimators.registered().items():
         cs.store(group="estimator", name=f"{name}_schema", node={name: cls.Config})
+    for name, plugin in estimators.plugins().items():
+        cs.store(group="estimator", name=name, node=plugin_config_node(plugin))
+    cs.store(group="estimator", name=estimators.ALL, node={"defaults": list(estimators.registered())})
 
 
-register_schemas()
+def plugin_config_node(plugin: estimators.Plugin) -> dict[str, Any]:
+    """The ``estimator/<name>`` config of a plug-in estimator.
+
+    Its ``Config`` dataclass defaults, overridden by ``<name>.yaml`` beside the
+    module that defines the class when the package ships one, in the form of
+    ``conf/estimator/<name>.yaml`` (``defaults: [<name>_schema, _self_]`` and
+    ``<name>:`` with the values that differ from the dataclass).
+
+    Raises
+    ------
+    SimbenchError
+        Naming the package, for a shipped YAML of another form or with values
+        that do not type-check against ``Config``.
+    """
+    name = plugin.cls.name
+    node: dict[str, Any] = {"defaults": [f"{name}_schema", "_self_"], name: {}}
+    path = shipped_yaml(plugin.cls)
+    if path is None:
+        return node
+    field = f"estimator plug-in '{name}'"
+    fix = f"fix {path.name} in package '{plugin.package}' (README, Add your estimator)"
+    try:
+        shipped = yaml.safe_load(path.read_text()) or {}
+    except yaml.YAMLError as exc:
+        detail = " ".join(str(exc).split())  # PyYAML's message spans lines
+        raise SimbenchError(field, f"package '{plugin.package}': {path.name} is not YAML: {detail}", fix) from None
+    if (not isinstance(shipped, dict) or set(shipped) - set(node)
+            or shipped.get("defaults", node["defaults"]) != node["defaults"]):
+        raise SimbenchError(field, f"package '{plugin.package}': {path.name} must hold only 'defaults: "
+                            f"[{name}_schema, _self_]' and '{name}:'", fix)
+    node[name] = shipped.get(name) or {}
+    try:
+        to_typed(node[name], plugin.cls.Config, f"estimator.{name}")
+    except SimbenchError as exc:
+        raise SimbenchError(field, f"package '{plugin.package}': {path.name}: {exc}", fix) from None
+    return node
+
+
+def shipped_yaml(cls: type[estimators.Estimator]) -> Path | None:
+    """``<cls.name>.yaml`` beside the module that defines a plug-in estimator class, if its package ships one."""
+    path = Path(inspect.getfile(cls)).with_name(f"{cls.name}.yaml")
+    return path if path.is_file() else None
+
+
+def estimator_yaml(name: str) -> Path | None:
+    """The YAML file of estimator ``name``: ``conf/estimator/<name>.yaml`` for a built-in,
+    :func:`shipped_yaml` for a plug-in (None when its package ships none)."""
+    if estimators.source(name) == estimators.BUILT_IN:
+        return CONF_DIR / "estimator" / f"{name}.yaml"
+    return shipped_yaml(estimators.get(name))
 
 
 def available(group: str) -> list[str]:
-    """Names of the options of a config group (``scenario``, ``receiver``, ...)."""
-    return sorted(p.stem for p in (CONF_DIR / group).glob("*.yaml"))
+    """Names of the options of a config group (``scenario``, ``receiver``, ...).
+
+    The files of ``conf/<group>/``; for ``estimator`` also the plug-in estimators
+    and ``all`` (every registered estimator).
+    """
+    names = {p.stem for p in (CONF_DIR / group).glob("*.yaml")}
+    if group == "estimator":
+        names |= {*estimators.plugins(), estimators.ALL}
+    return sorted(names)
 
 
 def config_groups() -> list[str]:
@@ -102,8 +172,10 @@ def config_groups_help() -> str:
     for group in config_groups():
         options = available(group)
         default = defaults.get(group)
-        if isinstance(default, list):
-            note = "a list, e.g. [ekf_ppp,l2]; default: " + ("all" if sorted(default) == options else ",".join(default))
+        if default == estimators.ALL:
+            note = "a list, e.g. [ekf_ppp,l2]; default: all, every registered estimator"
+        elif isinstance(default, list):
+            note = "a list, e.g. [ekf_ppp,l2]; default: " + ",".join(default)
         elif default is not None:
             note = f"default: {default}"
         else:
@@ -129,6 +201,7 @@ def compose_config(overrides: list[str] | None = None) -> DictConfig:
         raise SimbenchError("conf", f"config directory {CONF_DIR} not found",
                             "install simbench from its repository with 'pip install -e .'")
     overrides = list(overrides or [])
+    register_schemas()
     check_group_choices(overrides)
     if GlobalHydra.instance().is_initialized():
         GlobalHydra.instance().clear()

@@ -50,6 +50,22 @@ class ConstellationKind(Choice):
     broadcast = "broadcast"  #: a RINEX GPS navigation file (``nav_path``)
 
 
+class FacadeMaterial(Choice):
+    """Building facade material: sets the Fresnel reflection coefficient (ITU-R P.2040 Table 3)."""
+
+    concrete = "concrete"
+    brick = "brick"
+    glass = "glass"
+    metal = "metal"
+
+
+class HeightDistribution(Choice):
+    """How the heights of the street canyon's buildings are drawn (:func:`simbench.sim.trajectory.block_sides`)."""
+
+    uniform = "uniform"  #: uniform over ``building_height_m``
+    rayleigh = "rayleigh"  #: Rayleigh with scale ``building_height_scale_m`` (ITU-R P.1410-5 statistical city)
+
+
 class ScenarioSource(Choice):
     """Where a scenario's observations come from."""
 
@@ -180,10 +196,30 @@ class NlosConfig:
 
     enabled: bool = True
     building_height_m: tuple[float, float] = (10.0, 40.0)  #: uniform per block side
+    #: uniform (over building_height_m) | rayleigh (scale building_height_scale_m)
+    height_distribution: HeightDistribution = HeightDistribution.uniform
+    #: Rayleigh scale of the heights [m]; ITU-R P.1410-5 gives 8 suburban, 15 urban, 20 dense urban, 50 high-rise
+    building_height_scale_m: float = 50.0
     wall_distance_m: tuple[float, float] = (8.0, 20.0)  #: road centre to facade
     open_fraction: float = 0.2  #: fraction of block sides with no building
-    reflection_probability: float = 0.5  #: masked satellite received via a reflection
-    reflection_loss_db: float = 8.0  #: C/N0 loss of a reflected-only signal
+    #: chance that a facade offers a specular reflection where geometry allows one
+    #: (recesses, windows, gaps and passing traffic break the rest); persistent in time
+    reflection_probability: float = 0.5
+    facade_material: FacadeMaterial = FacadeMaterial.concrete  #: Fresnel coefficients of the facades
+    #: per-bounce loss of a rough, irregular facade on top of the Fresnel coefficient [dB]
+    scattering_loss_db: float = 2.0
+    #: antenna rejection of left-hand circular polarisation at zenith, falling as sin(elevation)
+    #: (a single bounce turns RHCP towards LHCP) [dB]
+    lhcp_rejection_db: float = 10.0
+    #: facade relief (recessed windows, pillars, balconies): std of the reflecting surface's offset [m]
+    facade_relief_sigma_m: float = 0.3
+    #: and its correlation length along the road [m]: moving past it makes reflections fade
+    facade_relief_length_m: float = 2.0
+    #: a masked satellite's reflecting building stands this far beyond the far facade (taller buildings
+    #: behind, across crossing streets), uniform and persistent per satellite [m]; (0, 0): the far facade
+    reflector_beyond_m: tuple[float, float] = (0.0, 0.0)
+    #: replayed routes: length of road along which one building side keeps its height and setback [m]
+    roadside_segment_m: float = 60.0
 
 
 @dataclass
@@ -294,6 +330,12 @@ class ReceiverConfig:
     integration_s: float = 0.001
     doppler_sigma_hz: float = 0.5  #: at the reference C/N0, scales as 10^((ref - C/N0)/20)
     doppler_ref_cn0_dbhz: float = 45.0
+    #: C/N0 a satellite needs to be (re)acquired [dB-Hz]
+    acquisition_threshold_dbhz: float = 33.0
+    #: below this C/N0 the lock detector drops the channel [dB-Hz] (GNSS-SDR's default cn0_min is 25)
+    lock_threshold_dbhz: float = 25.0
+    #: time a signal must stay above the acquisition threshold before it is tracked again [s]
+    reacquisition_s: float = 1.0
 
 
 @dataclass
@@ -441,5 +483,13 @@ def validate_sim(cfg: SimConfig) -> SimConfig:
                         ("receiver.integration_s", cfg.receiver.integration_s)):
         if value <= 0:
             raise SimbenchError(name, f"must be positive, got {value}", "see conf/receiver/ for presets")
+    rx = cfg.receiver
+    if rx.acquisition_threshold_dbhz < rx.lock_threshold_dbhz:
+        raise SimbenchError("receiver.acquisition_threshold_dbhz",
+                            f"{rx.acquisition_threshold_dbhz} dB-Hz is below the lock threshold "
+                            f"{rx.lock_threshold_dbhz} dB-Hz", "acquiring needs at least the C/N0 that keeps lock")
+    if rx.reacquisition_s < 0:
+        raise SimbenchError("receiver.reacquisition_s", f"must not be negative, got {rx.reacquisition_s}",
+                            "give the re-acquisition time in seconds, e.g. receiver.reacquisition_s=1")
     return cfg
 

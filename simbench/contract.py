@@ -87,11 +87,11 @@ LABEL_COLUMNS: dict[str, str] = {
     "epoch": "int, GNSS epoch index", "sat": "str, satellite id",
     "sigma_code_l1": "m, true DLL tracking jitter std of this observation",
     "sigma_phase_l1": "m, true PLL tracking jitter std",
-    "multipath_code_l1": "m, true code multipath error",
-    "sigma_multipath_code_l1": "m, stationary std of the code multipath process of this observation",
+    "multipath_code_l1": "m, true code multipath error (diffuse process + the DLL's error on the canyon rays)",
+    "sigma_multipath_code_l1": "m, std of the code multipath of this observation (process std and canyon-ray RMS)",
     "multipath_phase_l1": "m, true carrier multipath error",
-    "nlos": "bool, reflected-only (non-line-of-sight) reception",
-    "nlos_delay": "m, extra path length of the NLOS reception (0 if LOS)",
+    "nlos": "bool, non-line-of-sight: the direct ray is masked and the loops lock to a reflection",
+    "nlos_delay": "m, extra path of the ray the loops lock to (a reflection; cm for a ray diffracted over a roof)",
     "iono_l1": "m, true slant ionospheric delay on L1 (code +, phase -)",
     "tropo": "m, true slant tropospheric delay",
     "orbit_clock_error": "m, line-of-sight projection of (true - product) orbit plus clock error",
@@ -128,6 +128,11 @@ class NavInfo:
     iono_corrected : bool
         The code and phase already have the ionospheric delay removed (e.g.
         libRSF files); the broadcast Klobuchar delay must not be removed again.
+    ephemeris : str
+        The broadcast orbits the satellite states come from, for tools that need
+        a navigation file (:mod:`simbench.export`): ``'nominal'`` (the simulator's
+        nominal constellation), the path of a RINEX GPS navigation file, or
+        ``''`` when unknown (libRSF logs, whose files carry satellite positions only).
     """
 
     gps_week: int
@@ -136,6 +141,7 @@ class NavInfo:
     iono_beta: tuple[float, ...]
     dual_frequency: bool
     iono_corrected: bool = False
+    ephemeris: str = ""
 
 
 @dataclass(frozen=True)
@@ -280,7 +286,8 @@ class Need(str, Enum):
     labels = "labels"
     #: L2 code and phase (``nav.dual_frequency`` and any finite ``code_l2``).
     dual_frequency = "dual_frequency"
-    #: The raw RINEX files the scenario was read from (``Scenario.rinex``), for external tools.
+    #: RINEX files for external tools: those a log was read from (``Scenario.rinex``), or written by
+    #: :mod:`simbench.export` from the observations and the broadcast orbits (``NavInfo.ephemeris``).
     rinex_files = "rinex_files"
 
 
@@ -290,7 +297,8 @@ MISSING_NEED_REASONS: dict[Need, str] = {
     Need.imu: "needs an IMU table; the scenario has fewer than 2 IMU samples (a GNSS-only log)",
     Need.labels: "needs error labels; the scenario (real data) has none",
     Need.dual_frequency: "needs L2 code and phase; the observations are single-frequency",
-    Need.rinex_files: "needs the raw RINEX files; the scenario was not read from RINEX (simulated or libRSF)",
+    Need.rinex_files: "needs RINEX files; the scenario was not read from RINEX and has no broadcast orbits to "
+                      "export (a libRSF log)",
 }
 
 
@@ -316,7 +324,7 @@ def available_needs(scenario: Scenario) -> frozenset[Need]:
     if (scenario.nav.dual_frequency and "code_l2" in obs
             and np.isfinite(obs["code_l2"].to_numpy(dtype=float)).any()):
         offered.add(Need.dual_frequency)
-    if scenario.rinex is not None:
+    if scenario.rinex is not None or scenario.nav.ephemeris:
         offered.add(Need.rinex_files)
     return frozenset(offered)
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
-from typing import Any
+from typing import Any, Optional
 
 import pandas as pd
 from omegaconf import DictConfig, OmegaConf
@@ -34,10 +34,11 @@ class RunOptions:
     results_dir: str = "results/run"
     progress: bool = True
     sweep_name: str = ""  #: name of the sweep this job belongs to ('' for a single run)
-    #: BLAS/OpenMP threads of the job's process. Our matrices are small, so extra threads
-    #: only spin: two jobs with OpenBLAS's default two threads each on 2 cores ran BCE-AD
-    #: 13x slower (151 s against 11 s) than with one thread each.
-    blas_threads: int = 1
+    #: BLAS/OpenMP threads of the job's process; None: 1, or under the command line the
+    #: launcher's CPUs per job (``hydra.launcher.cpus_per_task`` of submitit) when set. Our matrices
+    #: are small, so extra threads only spin: two jobs with OpenBLAS's default two threads each
+    #: on 2 cores ran BCE-AD 13x slower (151 s against 11 s) than with one thread each.
+    blas_threads: Optional[int] = None
 
 
 def run_job(cfg: DictConfig, *, fail_fast: bool = True) -> pd.DataFrame:
@@ -55,9 +56,9 @@ def run_job(cfg: DictConfig, *, fail_fast: bool = True) -> pd.DataFrame:
     """
     opts = to_typed({k: cfg[k] for k in ("results_dir", "progress", "sweep_name", "blas_threads") if k in cfg},
                     RunOptions, "config")
-    if opts.blas_threads < 1:
-        raise SimbenchError("blas_threads", f"is {opts.blas_threads}", "set blas_threads to 1 or more")
-    with threadpool_limits(limits=opts.blas_threads):
+    if opts.blas_threads is not None and opts.blas_threads < 1:
+        raise SimbenchError("blas_threads", f"is {opts.blas_threads}", "set blas_threads to 1 or more (or null)")
+    with threadpool_limits(limits=opts.blas_threads or 1):
         return _run_job(cfg, opts, fail_fast=fail_fast)
 
 

@@ -126,29 +126,55 @@ def run_estimators(scenario: Scenario, estimator_configs: Mapping[str, Any], *, 
             row.update(status="failed", message=one_line(exc), n_solved=0, availability=0.0)
             rows.append(row)
             continue
-        err = enu_errors(sol.epochs, scenario.truth)
-        horizontal = err["horizontal"].to_numpy()
-        finite = np.isfinite(horizontal)
-        status, message = "ok", ""
-        if not finite.any():
-            status, message = "failed", "no finite solution"
-        elif not finite.all() or np.nanmax(err["error_3d"].to_numpy()) > DIVERGENCE_M:
-            status, message = "diverged", f"non-finite or > {DIVERGENCE_M:.0f} m 3-D errors"
-        row.update(status=status, message=message,
-                   n_solved=int(finite.sum()), availability=float(finite.sum()) / max(scenario.n_epochs, 1),
-                   **summary_stats(err["horizontal"], "horizontal"), **summary_stats(err["error_3d"], "error_3d"),
-                   **reference_stats(horizontal, scenario.n_epochs, "horizontal"),
-                   **reference_stats(err["error_3d"], scenario.n_epochs, "error_3d"),
-                   total_s=sol.total_s, time_per_obs_s=sol.total_s / max(len(scenario.observations), 1),
-                   update_median_s=float(np.nanmedian(sol.epochs["update_s"])) if len(sol.epochs) else np.nan,
-                   update_p95_s=float(np.nanpercentile(sol.epochs["update_s"], 95)) if len(sol.epochs) else np.nan)
+        scores, err = score_solution(scenario, sol.epochs, sol.total_s)
+        row.update(scores)
         rows.append(row)
-        frames.append(err[["epoch", "t", "e", "n", "u", "horizontal", "error_3d", "update_s"]]
-                      .assign(**key, estimator=name))
+        frames.append(err.assign(**key, estimator=name))
         diagnostics[name] = sol.diagnostics
     summary = pd.DataFrame(rows).reindex(columns=list(SUMMARY_COLUMNS))
     epochs = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
     return RunResult(summary=summary, epochs=epochs.reindex(columns=list(EPOCH_COLUMNS)), diagnostics=diagnostics)
+
+
+def score_solution(scenario: Scenario, solution: pd.DataFrame, total_s: float) -> tuple[dict[str, Any], pd.DataFrame]:
+    """Score one solution against the scenario's truth, as every estimator is scored.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    solution : pandas.DataFrame
+        Columns ``epoch, t, x, y, z, update_s`` (ECEF m; update time s, NaN when unknown).
+    total_s : float
+        Wall time of the run that produced it [s]; NaN when unknown (a foreign solution).
+
+    Returns
+    -------
+    scores : dict
+        The :data:`SUMMARY_COLUMNS` from ``status`` to ``update_p95_s`` but ``uses_labels``,
+        ``n_epochs`` and ``n_obs``: status (ok, diverged, or failed when nothing is finite),
+        availability over the reference epochs and the error statistics.
+    errors : pandas.DataFrame
+        Per-epoch errors, columns ``epoch, t, e, n, u, horizontal, error_3d, update_s``.
+    """
+    err = enu_errors(solution, scenario.truth)
+    horizontal = err["horizontal"].to_numpy()
+    finite = np.isfinite(horizontal)
+    status, message = "ok", ""
+    if not finite.any():
+        status, message = "failed", "no finite solution"
+    elif not finite.all() or np.nanmax(err["error_3d"].to_numpy()) > DIVERGENCE_M:
+        status, message = "diverged", f"non-finite or > {DIVERGENCE_M:.0f} m 3-D errors"
+    update_s = solution["update_s"].to_numpy(dtype=float)
+    timed = np.isfinite(update_s).any()  # a foreign solution has no update times
+    scores = dict(status=status, message=message,
+                  n_solved=int(finite.sum()), availability=float(finite.sum()) / max(scenario.n_epochs, 1),
+                  **summary_stats(err["horizontal"], "horizontal"), **summary_stats(err["error_3d"], "error_3d"),
+                  **reference_stats(horizontal, scenario.n_epochs, "horizontal"),
+                  **reference_stats(err["error_3d"], scenario.n_epochs, "error_3d"),
+                  total_s=total_s, time_per_obs_s=total_s / max(len(scenario.observations), 1),
+                  update_median_s=float(np.nanmedian(update_s)) if timed else np.nan,
+                  update_p95_s=float(np.nanpercentile(update_s, 95)) if timed else np.nan)
+    return scores, err[["epoch", "t", "e", "n", "u", "horizontal", "error_3d", "update_s"]]
 
 
 def scenario_source(scenario: Scenario) -> str:

@@ -5,9 +5,35 @@ here as further branches, so the CLI and the sweep cache need not know them.
 """
 from __future__ import annotations
 
-from simbench.config import ScenarioSource, SimConfig, validate_sim
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from simbench.config import ScenarioSource, SimConfig, to_typed, validate_sim
 from simbench.contract import Scenario
 from simbench.sim.generator import generate
+
+#: The keys of a composed ``conf/config.yaml`` that describe the data (the rest picks estimators and output).
+SIM_KEYS = ("scenario", "receiver", "imu", "seed")
+
+
+def sim_config(cfg: Mapping[str, Any]) -> SimConfig:
+    """The typed :class:`SimConfig` part of a composed ``conf/config.yaml``.
+
+    Raises
+    ------
+    SimbenchError
+        For a value that does not type-check, naming the key.
+    """
+    return to_typed({k: cfg[k] for k in SIM_KEYS}, SimConfig, "config")
+
+
+def scenario_from_overrides(overrides: Sequence[str]) -> tuple[SimConfig, Scenario]:
+    """Compose ``conf/config.yaml`` with command-line style overrides (``scenario=rinex``,
+    ``receiver=high``, ``seed=3``) and build that scenario; return the typed config and the scenario."""
+    from simbench.compose import compose_config  # imports the estimator registry: only when composing
+
+    sim = sim_config(compose_config(list(overrides)))
+    return sim, build_scenario(sim)
 
 
 def build_scenario(cfg: SimConfig) -> Scenario:

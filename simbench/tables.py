@@ -15,6 +15,7 @@ from scipy import stats
 
 from simbench.claims import BOOTSTRAP_RESAMPLES, CONFIDENCE, CONVERGENCE_S, ratio_of_means
 from simbench.config import ScenarioSource
+from simbench.published import DRIVE_MEDIANS_M, DRIVE_SCENARIOS, PUBLISHED_FAMILY
 from simbench.variants import NO_OVERRIDES, is_default
 
 #: Columns that identify a variant of an estimator: the structured overrides and their label.
@@ -161,3 +162,43 @@ def convergence_statistics(epochs: pd.DataFrame, t_max: float = CONVERGENCE_S) -
                     "error_3d_median": float(runs["median"].mean()), "error_3d_mean": mean, "ci_low": lo,
                     "ci_high": hi, "error_3d_max": float(runs["max"].mean())})
     return pd.DataFrame(out)
+
+
+def drive_comparison(summary: pd.DataFrame) -> pd.DataFrame:
+    """Our median horizontal error on the Morgantown drives beside the dissertation's.
+
+    Parameters
+    ----------
+    summary : pandas.DataFrame
+        Result rows; only default variants of ``morgantownN`` scenarios with a
+        published counterpart (:data:`simbench.published.PUBLISHED_FAMILY`) are used.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per receiver, drive and estimator: ``sweep``, ``receiver``,
+        ``drive``, ``estimator``, ``published_as``, ``n_seeds``, ``availability``,
+        ``median_ref`` (mean over seeds of the median over reference epochs) [m],
+        ``published`` [m] and ``ratio`` = median_ref / published. Empty when no row qualifies.
+    """
+    columns = ["sweep", "receiver", "drive", "estimator", "published_as", "n_seeds", "availability",
+               "median_ref", "published", "ratio"]
+    if summary.empty:
+        return pd.DataFrame(columns=columns)
+    rows = summary[summary["scenario"].isin(list(DRIVE_SCENARIOS)) & summary["estimator"].isin(list(PUBLISHED_FAMILY))
+                   & summary["receiver"].isin(["low", "high"])]
+    rows = rows[is_default(rows["overrides"].fillna(NO_OVERRIDES))]
+    out = []
+    for (sweep, receiver, scenario, estimator), group in rows.groupby(["sweep", "receiver", "scenario", "estimator"],
+                                                                      dropna=False):
+        ok = group[group["status"] == "ok"]
+        drive = DRIVE_SCENARIOS[scenario]
+        family = PUBLISHED_FAMILY[estimator]
+        published = DRIVE_MEDIANS_M[(receiver, drive)][family]
+        median = _mean_ci_ref(ok["horizontal_median_ref"].to_numpy(float))[0] if len(ok) else np.nan
+        out.append({"sweep": sweep, "receiver": receiver, "drive": drive, "estimator": estimator,
+                    "published_as": family, "n_seeds": len(ok),
+                    "availability": float(ok["availability"].mean()) if len(ok) else np.nan,
+                    "median_ref": median, "published": published, "ratio": median / published})
+    return pd.DataFrame(out, columns=columns).sort_values(["sweep", "receiver", "drive", "estimator"],
+                                                          ignore_index=True)

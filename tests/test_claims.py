@@ -235,3 +235,56 @@ def test_convergence_statistics_use_the_first_15_minutes_only() -> None:
     assert table.loc["slow", "error_3d_max"] == 3.0 and table.loc["slow", "n_seeds"] == 3
     short = pd.concat(rows).query("t < 1200")
     assert convergence_statistics(short).empty
+
+
+def _on(world: str, rows: pd.DataFrame) -> pd.DataFrame:
+    return rows.assign(scenario=world)
+
+
+def test_each_claim_gets_one_verdict_per_world_from_that_worlds_rows_alone() -> None:
+    from simbench.claims import NOT_RUN, claims_by_world
+
+    summary = pd.concat([_on("urban", _rows("ch5_bce", _scaled(bce=0.7, l2=1.0, dcs=1.1, mm=0.9))),
+                         _on("morgantown1", _rows("ch5_bce", _scaled(bce=1.2, l2=1.0, dcs=1.1, mm=0.9))),
+                         _on("flight", _rows("ch4_convergence", _scaled(isam2_ppp=1.05, ekf_ppp=1.0),
+                                             "error_3d_median", overrides={"ionosphere_free": True}))],
+                        ignore_index=True)
+    epochs = _convergence_epochs(0.25, 1.0).assign(scenario="flight")
+    table = claims_table(summary, epochs, {}).set_index(["claim_id", "world"])
+    assert table.loc[("ch5_bce_low", "urban"), "holds"] == "holds"
+    assert table.loc[("ch5_bce_low", "urban"), "measured"] == pytest.approx(0.7 / 0.9)
+    assert table.loc[("ch5_bce_low", "morgantown1"), "holds"] == "does not hold"
+    assert table.loc[("ch5_bce_low", "morgantown1"), "measured"] == pytest.approx(1.2 / 0.9)
+    assert table.loc[("ch5_bce_low", "urban"), "n_seeds"] == len(BASE)  # not pooled with the other world
+    assert table.loc[("ch4_convergence", "flight"), "measured"] == pytest.approx(0.25)
+    # the high receiver did not run: measured nowhere, but the world is named
+    assert table.loc[("ch5_high_comparable", "urban"), "holds"] == "not measured"
+    assert table.loc[("ch7_ice_low", ""), "holds"] == "not measured"  # its sweep ran on no world
+
+    wide = claims_by_world(claims_table(summary, epochs, {})).set_index("claim_id")
+    assert list(wide.columns) == ["published", "flight", "morgantown1", "urban"]
+    assert wide.loc["ch5_bce_low", "urban"].startswith("0.778 [") and wide.loc["ch5_bce_low", "urban"].endswith(
+        "] holds")
+    assert wide.loc["ch5_bce_low", "morgantown1"].endswith("does not hold")
+    assert wide.loc["ch5_bce_low", "flight"] == NOT_RUN and wide.loc["ch4_overall_median", "urban"] == NOT_RUN
+    assert wide.loc["ch4_overall_median", "flight"] == "1.05 [1.05, 1.05] holds"
+    assert (wide.loc["ch7_ice_low", ["flight", "morgantown1", "urban"]] == NOT_RUN).all()
+
+
+def test_diagnostics_and_prior_scales_are_split_by_world() -> None:
+    def jobs(world: str, adaptations: int, naive: int) -> list[dict]:
+        diag = {"n_adaptations": adaptations, "naive_adaptations": naive}
+        return [{"job": {"sweep": "ch7_ice", "scenario": world}, "diagnostics": diag}] * 2
+
+    flat = _on("urban", _sensitivity({"bce": [5.0, 5.0, 5.0], "l2": [4.0, 5.0, 8.0], "dcs": [5.0, 6.0, 7.0],
+                                      "mm": [5.0, 5.5, 6.0]}))
+    steep = _on("urban_deep", _sensitivity({"bce": [3.0, 5.0, 9.0], "l2": [4.0, 5.0, 8.0],
+                                            "dcs": [5.0, 6.0, 7.0], "mm": [5.0, 5.5, 6.0]}))
+    ice = pd.concat([_on(w, _rows("ch7_ice", _scaled(ice=1.0))) for w in ("urban", "urban_deep")])
+    table = claims_table(pd.concat([flat, steep, ice], ignore_index=True), NO_EPOCHS,
+                         {"ice": jobs("urban", 3, 12) + jobs("urban_deep", 12, 12)}).set_index(["claim_id", "world"])
+    assert table.loc[("ch5_sensitivity", "urban"), "measured"] == pytest.approx(1.0 / 1.2)
+    assert table.loc[("ch5_sensitivity", "urban_deep"), "measured"] == pytest.approx(3.0 / 1.2)
+    assert table.loc[("ch7_adaptations", "urban"), "measured"] == pytest.approx(0.25)
+    assert table.loc[("ch7_adaptations", "urban"), "holds"] == "holds"
+    assert table.loc[("ch7_adaptations", "urban_deep"), "holds"] == "does not hold"

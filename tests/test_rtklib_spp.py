@@ -9,12 +9,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from estimators.rtklib_spp import (EXECUTABLE, RtklibSpp, RtklibSppConfig, match_to_epochs, rnx2rtkp_options,
+from estimators.rtklib_spp import (EXECUTABLE, RtklibSpp, RtklibSppConfig, rnx2rtkp_options,
                                    run_rnx2rtkp)
 from simbench.contract import (IMU_COLUMNS, MISSING_NEED_REASONS, OBSERVATION_COLUMNS, TRUTH_COLUMNS, NavInfo, Need,
                                RinexFiles, Scenario, available_needs)
 from simbench.data.rinex import load_rinex
 from simbench.data.rtklib_pos import parse_rtklib_pos
+from simbench.data.solution_times import match_to_epochs
 from simbench.errors import SimbenchError
 from simbench.runner import run_estimators
 

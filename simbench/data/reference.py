@@ -1,8 +1,9 @@
 """Reference trajectories of real logs: reading, time matching, the truth table.
 
 Two file layouts are read: ``week,TOW,lat,lon,h`` CSV (degrees, ellipsoidal
-metres; the Hong Kong UrbanNav-style ground truth) and whitespace ``SOW X Y Z``
-(ECEF metres; the WVU drives). Epochs are matched by linear interpolation in
+metres; the Hong Kong UrbanNav-style ground truth) and ``SOW X Y Z``
+(whitespace or commas, ECEF metres; the WVU drives), where a time column of
+more than a week's seconds is continuous GPS seconds (``t,x,y,z``) instead. Epochs are matched by linear interpolation in
 time; an epoch further than ``max_gap_s`` from reference samples on either
 side gets no truth row: its observations stay in the scenario (estimators
 use them), but :func:`simbench.metrics.enu_errors` merges solutions with
@@ -47,22 +48,26 @@ class Reference:
     path: str
 
 
-def _ref_error(path: str, problem: str) -> SimbenchError:
-    return SimbenchError(f"scenario.truth '{path}'", problem,
-                         "pass a 'week,TOW,lat,lon,h' CSV or a 'SOW X Y Z' file (GPS time, ECEF metres)")
+def _ref_error(field: str, path: str, problem: str) -> SimbenchError:
+    return SimbenchError(f"{field} '{path}'", problem,
+                         "pass a 'week,TOW,lat,lon,h' CSV or a 'SOW X Y Z' or 't,X,Y,Z' file "
+                         "(GPS time, ECEF metres)")
 
 
-def read_reference(path: str | os.PathLike[str], week_hint: int | None = None) -> Reference:
+def read_reference(path: str | os.PathLike[str], week_hint: int | None = None,
+                   field: str = "scenario.truth") -> Reference:
     """Read a reference trajectory file.
 
     Parameters
     ----------
     path : str or PathLike
-        ``week,TOW,lat,lon,h`` CSV (a header line is allowed) or whitespace
-        ``SOW X Y Z``.
+        ``week,TOW,lat,lon,h`` CSV (a header line is allowed) or ``SOW X Y Z``;
+        with 4 columns, times above a week's seconds are continuous GPS seconds.
     week_hint : int, optional
         GPS week for ``SOW X Y Z`` files, which carry none (e.g. the week of
         the observations).
+    field : str
+        The setting that named the file, for error messages.
 
     Returns
     -------
@@ -76,30 +81,31 @@ def read_reference(path: str | os.PathLike[str], week_hint: int | None = None) -
     """
     p = os.fspath(path)
     if not os.path.isfile(p):
-        raise _ref_error(p, "file does not exist")
+        raise _ref_error(field, p, "file does not exist")
     with open(p, errors="replace") as fh:
         first = next((ln for ln in fh if ln.strip() and not ln.lstrip().startswith("#")), "")
     comma = "," in first
     try:
         df = pd.read_csv(p, sep="," if comma else r"\s+", header=None, comment="#", engine="c" if comma else "python")
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
-        raise _ref_error(p, f"cannot be parsed ({str(exc).splitlines()[0][:60]})") from None
+        raise _ref_error(field, p, f"cannot be parsed ({str(exc).splitlines()[0][:60]})") from None
     df = df.apply(pd.to_numeric, errors="coerce").dropna(how="any")  # drops a header line
     if df.empty:
-        raise _ref_error(p, "contains no numeric rows")
+        raise _ref_error(field, p, "contains no numeric rows")
     a = df.to_numpy(float)
     if a.shape[1] == 5:
         t = a[:, 0] * SECONDS_PER_WEEK + a[:, 1]
         xyz = ecef_from_geodetic(a[:, 2] * DEG, a[:, 3] * DEG, a[:, 4])
     elif a.shape[1] == 4:
-        if week_hint is None:
-            raise _ref_error(p, "has seconds of week but no week is known")
-        t = week_hint * SECONDS_PER_WEEK + a[:, 0]
+        continuous = bool(np.all(a[:, 0] >= SECONDS_PER_WEEK))  # no second of week is that large
+        if week_hint is None and not continuous:
+            raise _ref_error(field, p, "has seconds of week but no week is known")
+        t = a[:, 0] if continuous else week_hint * SECONDS_PER_WEEK + a[:, 0]
         xyz = a[:, 1:4]
         if np.any(np.linalg.norm(xyz, axis=1) < 6.0e6):
-            raise _ref_error(p, "has 4 columns but they are not SOW X Y Z in ECEF metres")
+            raise _ref_error(field, p, "has 4 columns but they are not SOW X Y Z in ECEF metres")
     else:
-        raise _ref_error(p, f"has {a.shape[1]} columns")
+        raise _ref_error(field, p, f"has {a.shape[1]} columns")
     t, first_idx = np.unique(t, return_index=True)
     return Reference(t_gps=t, xyz=np.asarray(xyz)[first_idx], path=p)
 

@@ -22,7 +22,8 @@ raw observables as the simulator's does, the header's Klobuchar coefficients
 go into :class:`~simbench.contract.NavInfo`, and the shared measurement model
 (:func:`estimators.measurement.prepare_ppp`) applies both.
 
-GPS (``G``, L1 C/A), GLONASS (``R``, L1 C/A FDMA: the wavelength of each
+GPS (``G``, L1 C/A; L2 into the ``*_l2`` columns when the file has one of
+:data:`L2_SIGNALS`), GLONASS (``R``, L1 C/A FDMA: the wavelength of each
 satellite from the frequency channel of its navigation record; orbits by
 numerical integration, :mod:`simbench.sim.glonass_orbits`), Galileo (``E``,
 E1; clock minus BGD(E1,E5b), :mod:`simbench.sim.galileo_orbits`) and BeiDou
@@ -53,20 +54,22 @@ from simbench.data.glonass import read_glonass_navigation
 from simbench.data.navigation import SYSTEM_NAMES, read_gps_navigation
 from simbench.data.reference import Reference, match_reference, read_reference, truth_table
 from simbench.errors import SimbenchError
-from simbench.sim.constants import C_LIGHT, F_L1, SECONDS_PER_WEEK
+from simbench.sim.constants import C_LIGHT, F_L1, LAMBDA_L2, SECONDS_PER_WEEK
 from simbench.gnss.geometry import elevation_azimuth
 from simbench.gnss.spp import ROUGH_FIX_MAX_RMS_M, solve_epochs
 from simbench.sim.gpstime import datetime64_to_gps, format_gps_time
 from simbench.sim.glonass_orbits import GLO_F1_BASE_HZ, GlonassEphemeris, glonass_l1_frequency
 from simbench.sim.orbits import BroadcastEphemeris
 
-__all__ = ["RinexObs", "read_rinex_obs", "load_rinex", "SIGNALS", "NAV_SETTINGS"]
+__all__ = ["RinexObs", "read_rinex_obs", "load_rinex", "SIGNALS", "L2_SIGNALS", "NAV_SETTINGS"]
 
 #: Observation code (band + attribute) used per system and the carrier frequency [Hz]:
 #: GPS L1 C/A, GLONASS L1 C/A (channel 0; each satellite's channel k adds k * 0.5625 MHz),
 #: Galileo E1 (RINEX 3 code 1C: E1-C pilot) and BeiDou B1I (RINEX 3 band 2).
 SIGNALS: dict[str, tuple[str, float]] = {"G": ("1C", F_L1), "R": ("1C", GLO_F1_BASE_HZ), "E": ("1C", F_L1),
                                          "C": ("2I", 1_561.098e6)}
+#: GPS L2 signals read into the ``*_l2`` columns, first present wins (P(Y) semi-codeless, L2C M+L, M, L).
+L2_SIGNALS: tuple[str, ...] = ("2W", "2X", "2L", "2S", "2P")
 #: Config setting of each system's own navigation file (``nav`` serves GPS and, mixed, the others).
 NAV_SETTINGS: dict[str, str] = {"G": "nav", "R": "nav_glo", "E": "nav_gal", "C": "nav_bds"}
 #: Transit time used when no pseudorange is available for a satellite (keeps arrays finite) [s].
@@ -91,6 +94,11 @@ class RinexObs:
         Pseudorange [m], carrier phase [cycles], Doppler [Hz], C/N0 [dB-Hz]; NaN when blank.
     lli : np.ndarray of bool, shape (N,)
         Bit 0 of the phase observation's loss-of-lock digit.
+    code_l2, phase_l2_cycles : np.ndarray, shape (N,)
+        GPS L2 pseudorange [m] and carrier phase [cycles] (first of :data:`L2_SIGNALS` in the file);
+        NaN when blank, for other systems or when the file has no L2.
+    lli_l2 : np.ndarray of bool, shape (N,)
+        Bit 0 of the L2 phase's loss-of-lock digit.
     approx_position : np.ndarray, shape (3,)
         ``APPROX POSITION XYZ`` of the header (zeros when absent) [m].
     interval_s : float
@@ -110,6 +118,9 @@ class RinexObs:
     approx_position: np.ndarray
     interval_s: float
     path: str
+    code_l2: np.ndarray | None = None
+    phase_l2_cycles: np.ndarray | None = None
+    lli_l2: np.ndarray | None = None
 
 
 def _obs_error(path: str, problem: str, fix: str = "pass a RINEX 3 observation file (.obs, .yyo, .rnx)") -> SimbenchError:
@@ -183,13 +194,15 @@ def read_rinex_obs(path: str | os.PathLike[str], systems: str = "G") -> RinexObs
         raise _obs_error(p, "has no END OF HEADER line")
 
     # Column of each wanted observable per system (16 characters per field after the 3-char sat id).
-    cols: dict[str, tuple[int, int, int, int]] = {}
+    cols: dict[str, tuple[int, int, int, int, int, int]] = {}
     for s in systems:
         band = SIGNALS[s][0]
         have = types.get(s, [])
         if f"C{band}" not in have:
             continue
-        cols[s] = tuple(have.index(f"{o}{band}") if f"{o}{band}" in have else -1 for o in "CLDS")  # type: ignore[assignment]
+        l2 = next((b for b in L2_SIGNALS if f"C{b}" in have), None) if s == "G" else None
+        cols[s] = tuple(have.index(f"{o}{b}") if b is not None and f"{o}{b}" in have else -1  # type: ignore[assignment]
+                        for o, b in (("C", band), ("L", band), ("D", band), ("S", band), ("C", l2), ("L", l2)))
     if not cols:
         wanted = ", ".join(f"{s}: C{SIGNALS[s][0]}" for s in systems)
         raise _obs_error(p, f"has no pseudorange observable for the requested systems ({wanted})",
@@ -199,7 +212,7 @@ def read_rinex_obs(path: str | os.PathLike[str], systems: str = "G") -> RinexObs
     fracs: list[float] = []
     r_epoch: list[int] = []
     r_sat: list[str] = []
-    r_val: list[tuple[float, float, float, float, bool]] = []
+    r_val: list[tuple[float, float, float, float, float, float, bool, bool]] = []
     i, n_lines = body, len(lines)
     while i < n_lines:  # text parsing: one Python step per line is unavoidable
         ln = lines[i]
@@ -229,14 +242,15 @@ def read_rinex_obs(path: str | os.PathLike[str], systems: str = "G") -> RinexObs
             except ValueError:
                 raise _obs_error(p, f"has a malformed observation line after epoch {stamps[-1]}: "
                                     f"'{ln[:40].strip()}'") from None
-            lli_digit = ln[17 + 16 * c[1]:18 + 16 * c[1]].strip() if c[1] >= 0 else ""
+            lli_digits = [ln[17 + 16 * k:18 + 16 * k].strip() if k >= 0 else "" for k in (c[1], c[5])]
             r_epoch.append(e)
             r_sat.append(ln[:3].replace(" ", "0"))
-            r_val.append((*vals, bool(int(lli_digit) & 1) if lli_digit.isdigit() else False))
+            r_val.append((*vals, *(bool(int(d) & 1) if d.isdigit() else False for d in lli_digits)))
         i += count
     if not r_epoch:
         raise _obs_error(p, f"contains no observations of systems '{systems}'")
-    vals = np.array([v[:4] for v in r_val], dtype=float)
+    vals = np.array([v[:6] for v in r_val], dtype=float)
+    flags = np.array([v[6:] for v in r_val], dtype=bool)
     code = vals[:, 0]
     if not np.isfinite(code).any():
         raise _obs_error(p, "has no pseudorange values (all code fields are blank)",
@@ -249,7 +263,8 @@ def read_rinex_obs(path: str | os.PathLike[str], systems: str = "G") -> RinexObs
     return RinexObs(
         epoch_t_int=t_int, epoch_t_frac=t_frac, row_epoch=np.array(r_epoch, dtype=np.int64),
         sat=np.array(r_sat), code=code, phase_cycles=vals[:, 1], doppler_hz=vals[:, 2], cn0_dbhz=vals[:, 3],
-        lli=np.array([v[4] for v in r_val], dtype=bool), approx_position=approx, interval_s=float(interval), path=p)
+        lli=flags[:, 0], approx_position=approx, interval_s=float(interval), path=p, code_l2=vals[:, 4],
+        phase_l2_cycles=vals[:, 5], lli_l2=flags[:, 1])
 
 
 Ephemeris = BroadcastEphemeris | GlonassEphemeris
@@ -390,6 +405,10 @@ def load_rinex(obs_path: str | os.PathLike[str], nav_path: str | os.PathLike[str
     rx = solve_epochs(re, sat_pos, corrected, n_epochs=obs.epoch_t_int.size, system_index=system_index, x0=x0,
                       max_rms_m=ROUGH_FIX_MAX_RMS_M, fill_untrusted=True).pos
     el, az = elevation_azimuth(rx[re], sat_pos[:, None, :])
+    no_l2 = np.full(obs.sat.size, np.nan)
+    code_l2 = obs.code_l2 if obs.code_l2 is not None else no_l2
+    phase_l2 = obs.phase_l2_cycles if obs.phase_l2_cycles is not None else no_l2
+    lli_l2 = obs.lli_l2 if obs.lli_l2 is not None else np.zeros(obs.sat.size, bool)
     freq = np.array([SIGNALS[s[0]][1] for s in obs.sat[keep].tolist()])
     glo = ephs.get("R")
     if isinstance(glo, GlonassEphemeris):  # FDMA: each satellite's own L1 carrier
@@ -400,7 +419,7 @@ def load_rinex(obs_path: str | os.PathLike[str], nav_path: str | os.PathLike[str
         "epoch": grid[re], "t": t_rel_epoch[re], "sat": obs.sat[keep],
         "code_l1": obs.code[keep], "phase_l1": obs.phase_cycles[keep] * (C_LIGHT / freq),
         "doppler_l1": obs.doppler_hz[keep], "cn0_l1": obs.cn0_dbhz[keep], "lli_l1": obs.lli[keep],
-        "code_l2": np.nan, "phase_l2": np.nan, "lli_l2": False,
+        "code_l2": code_l2[keep], "phase_l2": phase_l2[keep] * LAMBDA_L2, "lli_l2": lli_l2[keep],
         "sat_x": sat_pos[:, 0], "sat_y": sat_pos[:, 1], "sat_z": sat_pos[:, 2],
         "sat_vx": st["vx"][keep], "sat_vy": st["vy"][keep], "sat_vz": st["vz"][keep],
         "sat_clock": st["clock"][keep], "sat_clock_drift": st["drift"][keep],
@@ -424,7 +443,8 @@ def load_rinex(obs_path: str | os.PathLike[str], nav_path: str | os.PathLike[str
     alpha = klob.iono_alpha if klob is not None and klob.iono_alpha is not None else np.zeros(4)
     beta = klob.iono_beta if klob is not None and klob.iono_beta is not None else np.zeros(4)
     nav = NavInfo(gps_week=week, start_sow_s=t0_gps - week * SECONDS_PER_WEEK,
-                  iono_alpha=tuple(map(float, alpha)), iono_beta=tuple(map(float, beta)), dual_frequency=False)
+                  iono_alpha=tuple(map(float, alpha)), iono_beta=tuple(map(float, beta)),
+                  dual_frequency=bool(np.isfinite(code_l2[keep]).any()))
     meta = {
         "name": name, "seed": 0, "source": "rinex",
         "files": {"obs": str(Path(obs_path)), "nav": paths["G"], "nav_bds": paths["C"], "nav_glo": paths["R"],

@@ -8,7 +8,7 @@ estimator's availability, below 1 when it left epochs unsolved.
 from __future__ import annotations
 
 import textwrap
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 
 import matplotlib
@@ -21,6 +21,7 @@ import pandas as pd  # noqa: E402
 
 from simbench.errors import SimbenchError  # noqa: E402
 from simbench.metrics import reference_ecdf, reference_percentile  # noqa: E402
+from simbench.validation import ValidationSample, cn0_by_elevation  # noqa: E402
 
 METRIC_LABELS = {"horizontal": "horizontal error [m]", "error_3d": "3-D error [m]"}
 #: After the ten colours of tab10 the line style changes, so 40 estimators get distinct lines.
@@ -236,4 +237,46 @@ def mixture_evolution_figure(history: list[dict], path: str | Path, title: str, 
         ax.set_ylabel(label)
         ax.grid(True, which="both", alpha=0.3)
     fig.suptitle(_wrap(fig, title + " (marker area ~ component weight)", 10), fontsize=10)
+    return _save(fig, path)
+
+
+def validation_figure(samples: Sequence[ValidationSample], path: str | Path, title: str,
+                      bin_deg: float = 10.0) -> Path:
+    """Sim-vs-real panels (:mod:`simbench.validation`): ECDF of the |code residual|, C/N0 median
+    (and 10-90 % band) against elevation, and the distribution of tracked satellites per epoch.
+
+    Each world keeps one colour and line style (:func:`estimator_styles` on the world names); a
+    real log is drawn thicker. The fourth panel holds the legend.
+    """
+    styles = estimator_styles(s.name for s in samples)
+    fig, grid = plt.subplots(2, 2, figsize=(11.0, 8.0), dpi=150)
+    ecdf_ax, cn0_ax, sats_ax, legend_ax = grid.ravel()
+    for sample in samples:
+        style = {**styles[sample.name], "linewidth": 2.4 if sample.real else 1.4}
+        res = np.sort(sample.abs_residual)
+        if len(res):
+            ecdf_ax.plot(res, np.arange(1, len(res) + 1) / len(res), **style)
+        bins = cn0_by_elevation(sample, bin_deg)
+        centre = 0.5 * (bins["el_low"] + bins["el_high"])
+        cn0_ax.plot(centre, bins["cn0_p50"], marker="o", markersize=3, **style)
+        cn0_ax.fill_between(centre, bins["cn0_p10"], bins["cn0_p90"], color=style["color"], alpha=0.12)
+        counts = np.bincount(sample.tracked_per_epoch)
+        sats_ax.plot(np.arange(len(counts)), counts / max(counts.sum(), 1), marker="o", markersize=4,
+                     label=sample.name, **style)
+    ecdf_ax.set_xscale("log")
+    # the median satellite of an epoch has residual 0 exactly: those rows sit left of the axis
+    ecdf_ax.set_xlim(left=1e-2)
+    ecdf_ax.set_xlabel("|code residual| [m] (per-epoch, per-system median clock)")
+    ecdf_ax.set_ylabel("ECDF")
+    cn0_ax.set_xlabel(f"elevation [deg] ({bin_deg:g} deg bins)")
+    cn0_ax.set_ylabel("C/N0 [dB-Hz] (median, 10-90 % band)")
+    sats_ax.set_xlabel("tracked satellites per reference epoch")
+    sats_ax.set_ylabel("share of epochs")
+    sats_ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    for ax in (ecdf_ax, cn0_ax, sats_ax):
+        ax.grid(True, which="both", alpha=0.3)
+    legend_ax.axis("off")
+    legend_ax.legend(*sats_ax.get_legend_handles_labels(), loc="center", fontsize=9, frameon=False,
+                     ncols=1 if len(samples) <= 12 else 2)
+    fig.suptitle(_wrap(fig, title, 11), fontsize=11)
     return _save(fig, path)

@@ -10,13 +10,23 @@ Measurement model (metres; ``rho`` geometric range with Earth rotation)::
     code_l1  = rho + c dt_r - c dt_s + T + I1 + MP + NLOS + e_code
     phase_l1 = rho + c dt_r - c dt_s + T - I1 + lambda1 N1 + mp + NLOS + e_phase
 
+In a street canyon, NLOS is the extra path of the ray the loop locks to (the
+strongest when the direct one is masked; labelled NLOS when it is a reflection) and MP adds, to the Gauss-Markov
+diffuse multipath, what the preset's early-minus-late DLL makes of all rays
+(:func:`~simbench.sim.tracking.dll_tracking_point`); mp likewise gets the
+phase of the composite prompt correlator. C/N0 follows the prompt amplitude,
+and a channel is tracked from ``reacquisition_s`` after C/N0 first holds the
+acquisition threshold until it falls below the lock threshold or the DLL rule
+``3 sigma_DLL <= D / 2`` fails (Kaplan & Hegarty, 2nd ed., sec. 5.6).
+
 L2 likewise with ``I2 = (f1/f2)^2 I1``. The receiver is handed the product
 satellite position and clock (truth plus orbit/clock error), the elevation and
 azimuth, C/N0 and loss-of-lock flags.
 """
 from __future__ import annotations
 
-from dataclasses import asdict
+import os
+from dataclasses import asdict, replace
 
 import numpy as np
 import pandas as pd
@@ -27,8 +37,9 @@ from simbench.contract import NavInfo, Scenario, empty_odometry
 from simbench.data.navigation import read_gps_navigation
 from simbench.errors import SimbenchError
 from simbench.sim import atmosphere, tracking
-from simbench.sim.canyon import canyon_visibility
-from simbench.sim.constants import C_LIGHT, DEG, IONO_L2_SCALE, LAMBDA_L1, LAMBDA_L2, SECONDS_PER_WEEK, WGS84_A
+from simbench.sim.canyon import CanyonRays, canyon_rays
+from simbench.sim.constants import (C_LIGHT, CHIP_LENGTH_CA, DEG, IONO_L2_SCALE, LAMBDA_L1, LAMBDA_L2,
+                                     SECONDS_PER_WEEK, WGS84_A)
 from simbench.sim.frames import dcm_body_to_ned
 from simbench.sim.geometry import line_of_sight
 from simbench.sim.gpstime import day_of_year
@@ -37,7 +48,7 @@ from simbench.sim.odometry import simulate_odometry
 from simbench.sim.orbits import NominalConstellation
 from simbench.sim.processes import gauss_markov, random_walk, receiver_clock, stream
 from simbench.sim.slips import phase_arcs
-from simbench.sim.trajectory import Trajectory, flight, replay, urban_drive
+from simbench.sim.trajectory import Trajectory, flight, replay, roadside_street, urban_drive
 
 #: Ionospheric shell height of the obliquity factor [m].
 IONO_SHELL_M = 350e3
@@ -84,33 +95,51 @@ def generate(cfg: SimConfig) -> Scenario:
     el, az = los.el_rad, los.az_rad
     above = los.valid & (el > sc.constellation.elevation_mask_deg * DEG)
 
-    # ------------------------------------------------------------------ antenna, canyon, C/N0
+    # ------------------------------------------------------------------ antenna, canyon rays, C/N0
     off_boresight = _off_boresight(el, az, att)
-    tracked = above.copy()
+    in_view = above.copy()
     if err.attitude_masking.enabled:
-        tracked &= off_boresight < err.attitude_masking.max_off_boresight_deg * DEG
+        in_view &= off_boresight < err.attitude_masking.max_off_boresight_deg * DEG
     else:
         off_boresight = np.pi / 2 - el  # an antenna that always points up
-    nlos = np.zeros((n, m), bool)
-    nlos_delay = np.zeros((n, m))
+    fe_bw = rx.front_end_bw_mhz * 1e6
+    spacing = tracking.effective_spacing_chips(rx.correlator_spacing_chips, rx.sampling_mhz * 1e6)
+    reflected = np.zeros((n, m), bool)
+    nlos_delay = canyon_code = canyon_phase = canyon_sigma = prompt_db = np.zeros((n, m))
     if err.nlos.enabled and traj.street is not None:
         st = traj.street
-        canyon = canyon_visibility(el, az, st.road_heading_rad[idx], st.wall_left_m[idx], st.wall_right_m[idx],
-                                   st.height_left_m[idx], st.height_right_m[idx], err.nlos, dt,
-                                   stream(seed, "nlos"))
-        tracked &= ~canyon.blocked | canyon.nlos
-        nlos, nlos_delay = canyon.nlos & tracked, np.where(tracked, canyon.nlos_delay_m, 0.0)
+        speed = np.linalg.norm(vel, axis=1)
+        travelled = np.concatenate(([0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]) * np.diff(t))))
+        rays = canyon_rays(el, az, st.road_heading_rad[idx], st.wall_left_m[idx], st.wall_right_m[idx],
+                           st.height_left_m[idx], st.height_right_m[idx], travelled, err.nlos, dt,
+                           stream(seed, "nlos"))
+        reflected = rays.reference > 0  # locked to a bounce; a ray diffracted over the roof is nearly direct
+        nlos_delay, canyon_code, canyon_phase, prompt_db, canyon_sigma = _track_rays(rays, in_view, spacing, fe_bw)
+        # The DLL (time constant 1/(4 B)) averages reflections that fade faster than it: a first-order
+        # filter passes tau_c / (tau_c + tau_dll) of the variance of a fading with correlation time
+        # tau_c = relief length / speed (first order in the reflection amplitude, where the mean over
+        # the carrier phase is 0).
+        tau_c = err.nlos.facade_relief_length_m / np.maximum(speed, 1e-6)
+        averaging = np.sqrt(tau_c / (tau_c + 0.25 / rx.dll_bw_hz))[:, None]
+        canyon_code, canyon_sigma = canyon_code * averaging, canyon_sigma * averaging
 
     c0 = err.cn0
     cn0 = (tracking.cn0_mean_dbhz(off_boresight, c0.received_power_dbw, c0.constant_db)
            + gauss_markov(n, m, c0.fade_sigma_db, c0.fade_tau_s, dt, stream(seed, "cn0_fade"))
            + c0.noise_db * stream(seed, "cn0_noise").standard_normal((n, m))
-           - np.where(nlos, err.nlos.reflection_loss_db, 0.0))
+           + prompt_db)
 
-    # ------------------------------------------------------------------ tracking noise
-    fe_bw = rx.front_end_bw_mhz * 1e6
-    sig_code = tracking.dll_jitter_m(cn0, rx.dll_bw_hz, rx.correlator_spacing_chips, fe_bw, rx.integration_s)
+    # ------------------------------------------------------------------ tracking noise, lock
+    sig_code = tracking.dll_jitter_m(cn0, rx.dll_bw_hz, spacing, fe_bw, rx.integration_s)
     pll_rad = tracking.pll_jitter_rad(cn0, rx.pll_bw_hz, rx.integration_s)
+    in_lock = in_view & (cn0 >= rx.lock_threshold_dbhz) & (3.0 * sig_code <= 0.5 * spacing * CHIP_LENGTH_CA)
+    tracked = tracking.channel_lock_states(cn0 >= rx.acquisition_threshold_dbhz, in_lock,
+                                           1 + int(round(rx.reacquisition_s / dt)))
+    nlos = reflected & tracked
+    nlos_delay = np.where(tracked, nlos_delay, 0.0)
+    # Kaplan's PLL rule of thumb 3 sigma_j + theta_e <= 45 deg, in the 1-sigma form the slip model tests.
+    jerk = np.einsum("nk,nmk->nm", np.gradient(traj.acc, traj.t, axis=0)[idx], los.los_unit)
+    pll_stress_rad = pll_rad + np.radians(tracking.pll_dynamic_stress_deg(jerk, rx.pll_bw_hz)) / 3.0
     sig_phase = pll_rad * LAMBDA_L1 / (2 * np.pi)
     noise_rng = stream(seed, "tracking")
     gain = 1.0 if err.tracking_noise else 0.0
@@ -181,10 +210,13 @@ def generate(cfg: SimConfig) -> Scenario:
         mp_phase = gauss_markov(n, m, mp.phase_sigma_m, mp.tau_s, dt, mrng)
     else:
         sigma_mp = mp_code = mp_code_l2 = mp_phase = np.zeros((n, m))
+    # Specular canyon rays on top of the diffuse process; L2 sees the same ray geometry.
+    mp_code, mp_code_l2, mp_phase = mp_code + canyon_code, mp_code_l2 + canyon_code, mp_phase + canyon_phase
+    sigma_mp = np.hypot(sigma_mp, canyon_sigma)
 
     # ------------------------------------------------------------------ phase arcs and slips
     n_freq = 2 if sc.dual_frequency else 1
-    arcs = phase_arcs(tracked, cn0, pll_rad, err.cycle_slips, dt, stream(seed, "cycle_slips"), n_freq)
+    arcs = phase_arcs(tracked, cn0, pll_stress_rad, err.cycle_slips, dt, stream(seed, "cycle_slips"), n_freq)
 
     # ------------------------------------------------------------------ observables
     common = los.range_m + rx_clock_m[:, None] - sat_clock_true_m + tropo + nlos_delay
@@ -195,8 +227,7 @@ def generate(cfg: SimConfig) -> Scenario:
     if sc.dual_frequency:
         l2rng = stream(seed, "tracking_l2")
         cn0_l2 = cn0 - L2_CN0_LOSS_DB
-        sig2 = gain * tracking.dll_jitter_m(cn0_l2, rx.dll_bw_hz, rx.correlator_spacing_chips, fe_bw,
-                                            rx.integration_s)
+        sig2 = gain * tracking.dll_jitter_m(cn0_l2, rx.dll_bw_hz, spacing, fe_bw, rx.integration_s)
         sig2p = gain * tracking.pll_jitter_m(cn0_l2, rx.pll_bw_hz, rx.integration_s)
         code_l2 = common + IONO_L2_SCALE * iono + mp_code_l2 + sig2 * l2rng.standard_normal((n, m))
         phase_l2 = (common - IONO_L2_SCALE * iono + LAMBDA_L2 * arcs[1].ambiguity + mp_phase
@@ -244,8 +275,11 @@ def generate(cfg: SimConfig) -> Scenario:
     imu = simulate_imu(traj, cfg.imu, stream(seed, "imu"))
     imu_table = pd.DataFrame({"t": imu.t, "ax": imu.accel[:, 0], "ay": imu.accel[:, 1], "az": imu.accel[:, 2],
                               "gx": imu.gyro[:, 0], "gy": imu.gyro[:, 1], "gz": imu.gyro[:, 2]})
+    # absolute: a cached scenario is read from other working directories
+    ephemeris = "nominal" if sc.constellation.kind == ConstellationKind.nominal \
+        else os.path.abspath(sc.constellation.nav_path)
     nav = NavInfo(gps_week=sc.gps_week, start_sow_s=float(start_sow), iono_alpha=tuple(map(float, alpha)),
-                  iono_beta=tuple(map(float, beta)), dual_frequency=sc.dual_frequency)
+                  iono_beta=tuple(map(float, beta)), dual_frequency=sc.dual_frequency, ephemeris=ephemeris)
     meta = {"name": sc.name, "seed": seed, "config": asdict(cfg)}
     odometry = empty_odometry()
     if sc.odometry.enabled:
@@ -256,6 +290,41 @@ def generate(cfg: SimConfig) -> Scenario:
                     odometry=odometry)
 
 
+def _track_rays(rays: CanyonRays, in_view: np.ndarray, spacing_chips: float,
+                front_end_bw_hz: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """What the DLL and PLL make of the canyon rays, per (epoch, satellite).
+
+    Returns the extra path of the ray the loops lock to [m], the code error of
+    the early-minus-late DLL relative to that ray [m], the carrier error of the
+    composite prompt relative to its phase [m], the prompt power relative
+    to an unobstructed direct ray [dB] (-200 dB where nothing arrives), and the
+    RMS code error over carrier phase of the strongest other ray [m]
+    (:func:`~simbench.sim.tracking.multipath_error_envelope_chips` over sqrt 2).
+    """
+    ref = rays.reference[..., None]
+    ref_delay = np.take_along_axis(rays.delay_m, ref, -1)[..., 0]
+    ref_amp = np.take_along_axis(rays.amplitude, ref, -1)[..., 0]
+    code, carrier = np.zeros_like(ref_delay), np.zeros_like(ref_delay)
+    prompt = ref_amp.copy()
+    # A lone ray is tracked without error; only mixtures need the discriminator.
+    mixed = in_view & (np.count_nonzero(rays.amplitude, axis=-1) > 1)
+    if mixed.any():
+        start = ref_delay[mixed] / CHIP_LENGTH_CA
+        tau, prompt[mixed], prompt_phase = tracking.dll_tracking_point(
+            rays.amplitude[mixed], rays.delay_m[mixed] / CHIP_LENGTH_CA, rays.phase_rad[mixed], start,
+            spacing_chips, front_end_bw_hz)
+        code[mixed] = (tau - start) * CHIP_LENGTH_CA
+        # The phase observable grows with path length: a lag of psi radians reads as +psi lambda / 2 pi.
+        lag = np.take_along_axis(rays.phase_rad, ref, -1)[..., 0][mixed] - prompt_phase
+        carrier[mixed] = np.angle(np.exp(1j * lag)) * (LAMBDA_L1 / (2.0 * np.pi))
+    others = np.where(np.arange(rays.amplitude.shape[-1]) == ref, 0.0, rays.amplitude)
+    second = np.argmax(others, axis=-1)[..., None]
+    alpha = np.take_along_axis(others, second, -1)[..., 0] / np.maximum(ref_amp, 1e-10)
+    offset = (np.take_along_axis(rays.delay_m, second, -1)[..., 0] - ref_delay) / CHIP_LENGTH_CA
+    sigma = tracking.multipath_error_envelope_chips(alpha, offset, spacing_chips) * (CHIP_LENGTH_CA / np.sqrt(2.0))
+    return ref_delay, code, carrier, 20.0 * np.log10(np.maximum(prompt, 1e-10)), sigma
+
+
 def _trajectory(cfg: SimConfig) -> tuple[Trajectory, float]:
     sc = cfg.scenario
     rng = stream(cfg.seed, "trajectory")
@@ -264,7 +333,10 @@ def _trajectory(cfg: SimConfig) -> tuple[Trajectory, float]:
         return urban_drive(sc.trajectory, sc.errors.nlos, sc.duration_s, cfg.imu.rate_hz, rng), sc.start_sow_s
     if kind == TrajectoryKind.flight:
         return flight(sc.trajectory, sc.duration_s, cfg.imu.rate_hz, rng), sc.start_sow_s
-    return replay(sc.trajectory.replay, cfg.imu.rate_hz, sc.duration_s)
+    traj, t0_sow = replay(sc.trajectory.replay, cfg.imu.rate_hz, sc.duration_s)
+    if sc.errors.nlos.enabled:
+        traj = replace(traj, street=roadside_street(traj, sc.errors.nlos, rng))
+    return traj, t0_sow
 
 
 def _constellation(cfg: SimConfig):

@@ -2,17 +2,21 @@
 
 Jitter formulas follow Kaplan & Hegarty, *Understanding GPS*, 2nd ed., ch. 5
 (Betz & Kolodziejski noncoherent early-minus-late power DLL; PLL thermal
-noise), as quoted in the dissertation's eqs. 5.13-5.15. Only thermal noise is
-modelled: no dynamic stress, oscillator phase noise or multipath. All
-functions are vectorised over C/N0 (any shape); receiver parameters are
+noise), as quoted in the dissertation's eqs. 5.13-5.15. Only thermal noise enters the
+jitter formulas. The correlator-level functions (band-limited C/A
+correlation, the early-minus-late DLL settling on a sum of rays, PLL dynamic
+stress) turn multipath rays and vehicle dynamics into tracking errors. All
+functions are vectorised over their array arguments; receiver parameters are
 scalars that select the formula.
 """
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+from scipy.special import sici
 
 from simbench.errors import SimbenchError
 from simbench.sim.constants import CHIP_LENGTH_CA, CHIP_RATE_CA, DEG, LAMBDA_L1
@@ -24,6 +28,12 @@ __all__ = [
     "pll_jitter_m",
     "antenna_gain_dbi",
     "cn0_mean_dbhz",
+    "effective_spacing_chips",
+    "band_limited_correlation",
+    "dll_tracking_point",
+    "multipath_error_envelope_chips",
+    "pll_dynamic_stress_deg",
+    "channel_lock_states",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -274,3 +284,285 @@ def cn0_mean_dbhz(
         Mean C/N0 [dB-Hz], before any random fading or noise.
     """
     return antenna_gain_dbi(off_boresight_rad) + (np.asarray(received_power_dbw, dtype=float) + constant_db)
+
+
+# =========================================================================== correlator-level multipath
+
+#: Tabulation of the band-limited correlation function: half-width [chip] and step [chip].
+#: Beyond 2.5 chips from the peak the ripple of a >= 2 MHz front end is below 1e-3 of the peak.
+_CORR_HALF_WIDTH_CHIPS = 2.5
+_CORR_STEP_CHIPS = 5e-4
+
+
+def effective_spacing_chips(spacing_chips: float, sampling_hz: float) -> float:
+    """Early-late spacing a sampled correlator can realise: a whole number of samples.
+
+    A software receiver forms early and late replicas by shifting the sampled
+    code by whole samples, so the spacing is ``round(D f_s / R_c)`` samples
+    (at least one). This is where the preset's sampling rate enters the noise
+    and the multipath error: 16.368 MHz gives 16 samples per chip, so a nominal
+    0.2-chip spacing is realised as 3 samples = 0.1875 chip.
+
+    Parameters
+    ----------
+    spacing_chips : float
+        Nominal early-late spacing ``D`` [chip].
+    sampling_hz : float
+        Sampling rate ``f_s`` [Hz].
+
+    Returns
+    -------
+    float
+        Realised spacing [chip].
+
+    Raises
+    ------
+    SimbenchError
+        If a parameter is not a positive number.
+    """
+    d = _positive_scalar(spacing_chips, "receiver.correlator_spacing_chips", unit=" chip")
+    fs = _positive_scalar(sampling_hz, "receiver.sampling_mhz", 1e6, " MHz")
+    samples_per_chip = fs / CHIP_RATE_CA
+    return max(1, round(d * samples_per_chip)) / samples_per_chip
+
+
+@lru_cache(maxsize=8)
+def _correlation_table(front_end_bw_hz: float) -> tuple[FloatArray, FloatArray]:
+    """Band-limited C/A correlation and its slope on the uniform grid, see :func:`band_limited_correlation`."""
+    b = front_end_bw_hz / CHIP_RATE_CA
+    x = np.arange(-_CORR_HALF_WIDTH_CHIPS, _CORR_HALF_WIDTH_CHIPS + 0.5 * _CORR_STEP_CHIPS, _CORR_STEP_CHIPS)
+
+    def ramp_filtered(u: FloatArray) -> FloatArray:
+        si, _ = sici(math.pi * b * u)
+        return u * (0.5 + si / math.pi) + np.cos(math.pi * b * u) / (math.pi**2 * b)
+
+    r = ramp_filtered(x + 1.0) - 2.0 * ramp_filtered(x) + ramp_filtered(x - 1.0)
+    r[0] = r[-1] = 0.0  # the lookup returns the end values outside the grid
+    return r, np.diff(r) / _CORR_STEP_CHIPS
+
+
+def band_limited_correlation(tau_chips: ArrayLike, front_end_bw_hz: float) -> tuple[FloatArray, FloatArray]:
+    """C/A code autocorrelation after an ideal (rectangular) front-end filter, and its slope.
+
+    The ideal-code correlation is the triangle ``Lambda(tau) = r(tau+1) - 2 r(tau) + r(tau-1)``
+    (``r`` the unit ramp, ``tau`` in chips). Filtering with a brick-wall
+    low-pass of double-sided bandwidth ``b = B_fe / R_c`` (impulse response
+    ``b sinc(b t)``) turns each ramp into the closed form
+    ``g(u) = u (1/2 + Si(pi b u) / pi) + cos(pi b u) / (pi^2 b)``, with ``Si``
+    the sine integral, so ``R_b(tau) = g(tau+1) - 2 g(tau) + g(tau-1)`` (Betz,
+    *Engineering Satellite-Based Navigation and Timing*, 2016, ch. 19: the
+    band-limited triangle; ``R_b -> Lambda`` as ``b -> inf``). The function is
+    tabulated once per bandwidth (step 5e-4 chip) and interpolated linearly; the
+    slope is that of the interpolant, so Newton steps on it are exact within a
+    table cell. Outside +-2.5 chips it is 0.
+
+    Parameters
+    ----------
+    tau_chips : array_like
+        Lag between replica and signal [chip], any shape.
+    front_end_bw_hz : float
+        Double-sided front-end bandwidth ``B_fe`` [Hz].
+
+    Returns
+    -------
+    r, slope : numpy.ndarray
+        ``R_b(tau)`` (unitless, 1 at the peak for an infinite bandwidth) and ``dR_b/dtau`` [1/chip].
+    """
+    bfe = _positive_scalar(front_end_bw_hz, "receiver.front_end_bw_mhz", 1e6, " MHz")
+    table, slope = _correlation_table(bfe)
+    u = (np.asarray(tau_chips, dtype=float) + _CORR_HALF_WIDTH_CHIPS) * (1.0 / _CORR_STEP_CHIPS)
+    i = np.clip(u.astype(np.intp), 0, len(slope) - 1)  # astype truncates; clipped below the grid anyway
+    frac = np.clip(u - i, 0.0, 1.0)
+    s = slope[i]
+    return table[i] + frac * (s * _CORR_STEP_CHIPS), np.where((u > 0.0) & (u < len(slope)), s, 0.0)
+
+
+def _composite(x: FloatArray, gain_re: FloatArray, gain_im: FloatArray, delay: FloatArray,
+               bfe: float) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Sum over rays (last axis) of ``a e^{j theta} R(x - tau)`` and its slope, as real and imaginary parts."""
+    r, dr = band_limited_correlation(x[..., None] - delay, bfe)
+    return ((gain_re * r).sum(-1), (gain_im * r).sum(-1), (gain_re * dr).sum(-1), (gain_im * dr).sum(-1))
+
+
+def dll_tracking_point(
+    amplitude: ArrayLike,
+    delay_chips: ArrayLike,
+    phase_rad: ArrayLike,
+    start_chips: ArrayLike,
+    spacing_chips: float,
+    front_end_bw_hz: float,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Where a noncoherent early-minus-late power DLL settles on a sum of rays.
+
+    The received correlation is ``C(x) = sum_k a_k e^{j theta_k} R_b(x - tau_k)``
+    (:func:`band_limited_correlation`). The DLL drives its replica delay ``x`` to
+    a zero of ``f(x) = |C(x - D/2)|^2 - |C(x + D/2)|^2`` (Kaplan & Hegarty, 2nd ed.,
+    Table 5.5, noncoherent early-minus-late power; the same zero as the
+    normalised envelope ``(|E| - |L|)/(|E| + |L|)`` of GNSS-SDR) where ``f``
+    rises through 0 (a stable lock). The loop was locked to one ray
+    (``start_chips``) and follows its discriminator from there: the search
+    steps by ``D/4`` in the direction the discriminator pulls until ``f``
+    changes sign (at most 3 chips), then bisects the bracket and finishes with a
+    Newton step inside it. With an infinite bandwidth and one in-phase
+    reflection of relative amplitude ``alpha < 1`` and delay ``tau``, the error
+    is :func:`multipath_error_envelope_chips` (the classic envelope).
+
+    Parameters
+    ----------
+    amplitude, delay_chips, phase_rad : array_like, shape (..., k)
+        Per ray: amplitude relative to an unobstructed direct signal [-], delay
+        relative to the direct path [chip] and carrier phase [rad]; a ray with
+        amplitude 0 is absent.
+    start_chips : array_like, shape (...)
+        Delay of the ray the loop is locked to [chip].
+    spacing_chips : float
+        Early-late spacing ``D`` [chip] (see :func:`effective_spacing_chips`).
+    front_end_bw_hz : float
+        Double-sided front-end bandwidth [Hz].
+
+    Returns
+    -------
+    tau_hat : numpy.ndarray, shape (...)
+        Tracked code delay [chip], relative to the direct path.
+    prompt_amplitude : numpy.ndarray, shape (...)
+        ``|C(tau_hat)| / R_b(0)``: the prompt correlator amplitude relative to an
+        unobstructed direct signal (its square scales C/N0).
+    prompt_phase : numpy.ndarray, shape (...)
+        ``arg C(tau_hat)`` [rad]: the phase the PLL tracks.
+    """
+    bfe = _positive_scalar(front_end_bw_hz, "receiver.front_end_bw_mhz", 1e6, " MHz")
+    half = 0.5 * _positive_scalar(spacing_chips, "receiver.correlator_spacing_chips", unit=" chip")
+    a = np.asarray(amplitude, dtype=float)
+    theta = np.asarray(phase_rad, dtype=float)
+    delay = np.asarray(delay_chips, dtype=float)
+    g_re, g_im = a * np.cos(theta), a * np.sin(theta)
+
+    def discriminator(x: FloatArray) -> tuple[FloatArray, FloatArray]:
+        e_re, e_im, de_re, de_im = _composite(x - half, g_re, g_im, delay, bfe)
+        l_re, l_im, dl_re, dl_im = _composite(x + half, g_re, g_im, delay, bfe)
+        return (e_re**2 + e_im**2 - l_re**2 - l_im**2,
+                2.0 * (e_re * de_re + e_im * de_im - l_re * dl_re - l_im * dl_im))
+
+    x0 = np.array(start_chips, dtype=float, copy=True)
+    f0, _ = discriminator(x0)
+    direction = np.where(f0 > 0.0, -1.0, 1.0)  # f < 0: the late arm is stronger, the signal is later
+    step = 0.5 * half
+    lo, hi = x0.copy(), x0.copy()  # the bracket, in the search direction
+    open_ = f0 != 0.0
+    for _ in range(int(np.ceil(3.0 / step))):
+        if not open_.any():
+            break
+        probe = hi + direction * step
+        f, _ = discriminator(probe)
+        lo = np.where(open_, hi, lo)
+        hi = np.where(open_, probe, hi)
+        open_ &= np.sign(f) == np.sign(f0)
+    for _ in range(6):
+        mid = 0.5 * (lo + hi)
+        f, _ = discriminator(mid)
+        same = np.sign(f) == np.sign(f0)
+        lo, hi = np.where(same, mid, lo), np.where(same, hi, mid)
+    x = 0.5 * (lo + hi)
+    f, df = discriminator(x)
+    newton = x - f / np.where(np.abs(df) > 1e-12, df, 1e-12)
+    x = np.clip(newton, np.minimum(lo, hi), np.maximum(lo, hi))
+    p_re, p_im, _, _ = _composite(x, g_re, g_im, delay, bfe)
+    peak = band_limited_correlation(0.0, bfe)[0]
+    return x, np.hypot(p_re, p_im) / peak, np.arctan2(p_im, p_re)
+
+
+def multipath_error_envelope_chips(alpha: ArrayLike, delay_chips: ArrayLike, spacing_chips: float) -> FloatArray:
+    """Upper multipath error envelope of an early-minus-late DLL, one reflection, infinite bandwidth.
+
+    The error when the reflection (relative amplitude ``alpha < 1``, delay ``tau``)
+    is in phase with the direct signal, from the triangle correlation and
+    spacing ``D < 1`` (Braasch, in Parkinson & Spilker, *GPS: Theory and
+    Applications* vol. I, 1996, ch. 14)::
+
+        alpha tau / (1 + alpha)                 tau <= (1 + alpha) D / 2
+        alpha D / 2                             ... <= 1 - (1 - alpha) D / 2
+        alpha (1 + D / 2 - tau) / (2 - alpha)   ... <  1 + D / 2
+        0                                       beyond
+
+    The error over the reflection's carrier phase swings between this and the
+    (smaller) out-of-phase envelope, so ``envelope / sqrt(2)`` approximates its RMS.
+
+    Parameters
+    ----------
+    alpha : array_like
+        Reflection amplitude relative to the tracked ray [-], clipped to 0..1.
+    delay_chips : array_like
+        Reflection delay relative to the tracked ray [chip] (sign ignored).
+    spacing_chips : float
+        Early-late spacing ``D`` [chip], below 1.
+
+    Returns
+    -------
+    numpy.ndarray
+        Envelope [chip], >= 0.
+    """
+    a = np.clip(np.asarray(alpha, dtype=float), 0.0, 1.0)
+    tau = np.abs(np.asarray(delay_chips, dtype=float))
+    half = 0.5 * spacing_chips
+    rise = a * tau / (1.0 + a)
+    fall = a * np.maximum(1.0 + half - tau, 0.0) / (2.0 - a)
+    return np.minimum(np.minimum(rise, a * half), fall)
+
+
+def pll_dynamic_stress_deg(los_jerk_mps3: ArrayLike, pll_bw_hz: float) -> FloatArray:
+    """Steady-state dynamic stress error of a third-order PLL.
+
+    ``theta_e = 0.4828 (d^3 R / dt^3) / B_n^3`` with the line-of-sight jerk in
+    degrees of L1 carrier per s^3 (Kaplan & Hegarty, 2nd ed., eq. 5.11 and
+    Table 5.6: ``omega_0 = B_n / 0.7845``). Enters Kaplan's rule of thumb for
+    phase lock, ``3 sigma_PLL = 3 sigma_j + theta_e <= 45 deg``.
+
+    Parameters
+    ----------
+    los_jerk_mps3 : array_like
+        Line-of-sight jerk [m/s^3] (sign ignored).
+    pll_bw_hz : float
+        PLL noise bandwidth ``B_n`` [Hz].
+
+    Returns
+    -------
+    numpy.ndarray
+        Dynamic stress error [deg].
+    """
+    bw = _positive_scalar(pll_bw_hz, "receiver.pll_bw_hz", unit=" Hz")
+    return 0.4828 * np.abs(np.asarray(los_jerk_mps3, dtype=float)) * (360.0 / LAMBDA_L1) / bw**3
+
+
+def channel_lock_states(acquirable: NDArray[np.bool_], in_lock: NDArray[np.bool_],
+                        acquisition_epochs: int) -> NDArray[np.bool_]:
+    """Which channels are tracked: hysteresis between acquisition and loss of lock, vectorised.
+
+    Along axis 0 (epochs), a channel enters tracking once ``acquirable`` has
+    held for ``acquisition_epochs`` consecutive epochs (or since the first
+    epoch: the receiver was running before the scenario starts) and leaves it
+    at the first epoch that is not ``in_lock``. Between the two it keeps its
+    state, so a signal that fades below the acquisition threshold but stays
+    above the lock threshold is kept.
+
+    Parameters
+    ----------
+    acquirable : ndarray of bool, shape (n, ...)
+        Signal strong enough to be acquired (implies ``in_lock``).
+    in_lock : ndarray of bool, shape (n, ...)
+        Signal strong enough to be kept.
+    acquisition_epochs : int
+        Consecutive acquirable epochs needed to (re)acquire, >= 1.
+
+    Returns
+    -------
+    ndarray of bool, shape (n, ...)
+        Tracked.
+    """
+    acq = np.asarray(acquirable, dtype=bool) & np.asarray(in_lock, dtype=bool)
+    n = acq.shape[0]
+    rows = np.arange(n).reshape((n,) + (1,) * (acq.ndim - 1))
+    count = np.cumsum(acq, axis=0)
+    run = count - np.maximum.accumulate(np.where(acq, 0, count), axis=0)
+    enter = acq & ((run >= max(int(acquisition_epochs), 1)) | (run == rows + 1))
+    last = np.maximum.accumulate(np.where(enter | ~np.asarray(in_lock, dtype=bool), rows, -1), axis=0)
+    return (last >= 0) & np.take_along_axis(enter, np.maximum(last, 0), axis=0)

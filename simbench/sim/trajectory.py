@@ -30,7 +30,8 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.special import fresnel
 
-from simbench.config import FlightConfig, NlosConfig, ReplayConfig, TrajectoryConfig, UrbanDriveConfig
+from simbench.config import (FlightConfig, HeightDistribution, NlosConfig, ReplayConfig, TrajectoryConfig,
+                             UrbanDriveConfig)
 from simbench.data.trajectory_file import REPLAY_PATH_FIELD, read_xyz_trajectory
 from simbench.errors import SimbenchError
 from simbench.sim.constants import DEG, G0_STD, WGS84_A, WGS84_E2
@@ -411,9 +412,7 @@ def urban_drive(cfg: TrajectoryConfig, nlos: NlosConfig, duration_s: float, rate
     if min(u.stop_duration_s) < 0.0 or u.start_static_s < 0.0:
         raise SimbenchError(f"{where}.stop_duration_s", "durations must be non-negative",
                             "give e.g. stop_duration_s=[5, 30] and start_static_s=30")
-    if min(nlos.wall_distance_m) <= 0.0 or min(nlos.building_height_m) < 0.0:
-        raise SimbenchError("scenario.errors.nlos.wall_distance_m", "facade distances must be positive "
-                            "and heights non-negative", "give e.g. wall_distance_m=[8, 20]")
+    _check_buildings(nlos)
 
     L, R = u.block_length_m, u.turn_radius_m
     clothoid = 2.0 * R * _URBAN_CLOTHOID_TURN_RAD
@@ -432,10 +431,7 @@ def urban_drive(cfg: TrajectoryConfig, nlos: NlosConfig, duration_s: float, rate
     ne, nn = u.n_blocks_east, u.n_blocks_north
     sides = {}
     for kind, shape in (("ew", (ne, nn + 1, 2)), ("ns", (ne + 1, nn, 2))):
-        height = rng.uniform(*nlos.building_height_m, size=shape)
-        dist = rng.uniform(*nlos.wall_distance_m, size=shape)
-        height[rng.random(shape) < nlos.open_fraction] = 0.0
-        sides[kind] = (dist, height)
+        sides[kind] = block_sides(nlos, shape, rng)
 
     def edge(i: int, j: int, d: int) -> tuple[float, float, float, float]:
         """(left distance, right distance, left height, right height) leaving node (i, j) along d."""
@@ -515,6 +511,83 @@ def urban_drive(cfg: TrajectoryConfig, nlos: NlosConfig, duration_s: float, rate
         height_right_m=np.where(to_crossing < dr, 0.0, hr))
     zero = np.zeros_like(t)
     return _assemble_local(cfg, t, z, zero, heading, v, a, kappa, zero, zero, zero, zero, zero, zero, street)
+
+
+def block_sides(nlos: NlosConfig, shape: tuple[int, ...], rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Facade distance and building height of block sides drawn from the canyon's distributions.
+
+    Heights are uniform over ``building_height_m`` or, with
+    ``height_distribution: rayleigh``, Rayleigh with scale
+    ``building_height_scale_m`` (the statistical built-up area of
+    ITU-R P.1410-5; median 1.18 times the scale); distances are uniform over
+    ``wall_distance_m``; a side is open (height 0) with ``open_fraction``.
+
+    Parameters
+    ----------
+    nlos : NlosConfig
+    shape : tuple of int
+        Shape of the arrays (block sides).
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    distance_m, height_m : ndarray
+        Road axis to facade [m] and building height above the antenna [m].
+    """
+    if nlos.height_distribution == HeightDistribution.rayleigh:
+        height = rng.rayleigh(nlos.building_height_scale_m, size=shape)
+    else:
+        height = rng.uniform(*nlos.building_height_m, size=shape)
+    dist = rng.uniform(*nlos.wall_distance_m, size=shape)
+    height[rng.random(shape) < nlos.open_fraction] = 0.0
+    return dist, height
+
+
+def _check_buildings(nlos: NlosConfig) -> None:
+    if min(nlos.wall_distance_m) <= 0.0 or min(nlos.building_height_m) < 0.0:
+        raise SimbenchError("scenario.errors.nlos.wall_distance_m", "facade distances must be positive "
+                            "and heights non-negative", "give e.g. wall_distance_m=[8, 20]")
+    if nlos.height_distribution == HeightDistribution.rayleigh:
+        _positive(nlos.building_height_scale_m, "scenario.errors.nlos.building_height_scale_m",
+                  "set e.g. building_height_scale_m=50 (ITU-R P.1410 high-rise)")
+    low, high = nlos.reflector_beyond_m
+    if not 0.0 <= low <= high:
+        raise SimbenchError("scenario.errors.nlos.reflector_beyond_m", f"needs 0 <= low <= high, got [{low}, {high}]",
+                            "give e.g. reflector_beyond_m=[0, 100], or [0, 0] for the far facade")
+
+
+def roadside_street(traj: Trajectory, nlos: NlosConfig, rng: np.random.Generator) -> StreetGeometry:
+    """Buildings along a replayed route: a new pair of block sides every ``roadside_segment_m`` of road.
+
+    A recorded route carries no map, so the street is drawn from the same
+    distributions as the synthetic grid (``building_height_m``,
+    ``wall_distance_m``, ``open_fraction``), one draw per side and segment of
+    travelled distance, with the road axis along the vehicle's heading (held
+    while it stands). The antenna is on the road axis.
+
+    Parameters
+    ----------
+    traj : Trajectory
+        Replayed motion; ``att[:, 2]`` is the course [rad].
+    nlos : NlosConfig
+        Building distributions and ``roadside_segment_m`` [m].
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    StreetGeometry
+        One entry per trajectory sample.
+    """
+    _check_buildings(nlos)
+    _positive(nlos.roadside_segment_m, "scenario.errors.nlos.roadside_segment_m", "set e.g. roadside_segment_m=60")
+    step = np.linalg.norm(np.diff(traj.pos, axis=0), axis=1)
+    travelled = np.r_[0.0, np.cumsum(np.where(traj.valid[1:] & traj.valid[:-1], step, 0.0))]
+    segment = (travelled // nlos.roadside_segment_m).astype(np.int64)
+    n_seg = int(segment[-1]) + 1
+    dist, height = block_sides(nlos, (n_seg, 2), rng)
+    return StreetGeometry(road_heading_rad=traj.att[:, 2] % (2 * np.pi),
+                          wall_left_m=dist[segment, 0], wall_right_m=dist[segment, 1],
+                          height_left_m=height[segment, 0], height_right_m=height[segment, 1])
 
 
 # =========================================================================== flight

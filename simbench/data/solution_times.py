@@ -1,0 +1,70 @@
+"""Pairing the time tags of a solution file (RTKLIB, another program) with a receiver's epochs."""
+from __future__ import annotations
+
+import numpy as np
+
+from simbench.contract import ReceiverData
+from simbench.sim.constants import SECONDS_PER_WEEK
+
+__all__ = ["match_to_epochs", "match_receiver_epochs"]
+
+
+def match_to_epochs(t_solution: np.ndarray, t_epoch: np.ndarray, max_offset_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Pair solutions with the epochs nearest in time, at most one solution per epoch.
+
+    Parameters
+    ----------
+    t_solution : np.ndarray, shape (m,)
+        Solution times [s] (any origin shared with ``t_epoch``).
+    t_epoch : np.ndarray, shape (n,)
+        Time of epoch index 0..n-1 [s]; NaN for epochs without observations.
+    max_offset_s : float
+        Solutions further than this from every epoch are left unpaired [s].
+
+    Returns
+    -------
+    solution_index, epoch_index : np.ndarray of int, shape (k,)
+        Matched pairs, increasing in epoch; where several solutions are nearest
+        to one epoch, the closest is kept.
+    """
+    valid = np.flatnonzero(np.isfinite(t_epoch))
+    if valid.size == 0 or t_solution.size == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    order = valid[np.argsort(t_epoch[valid], kind="stable")]
+    ts = t_epoch[order]
+    right = np.clip(np.searchsorted(ts, t_solution), 1, ts.size - 1) if ts.size > 1 else np.zeros(t_solution.size, int)
+    left = np.maximum(right - 1, 0)
+    pick = np.where(np.abs(t_solution - ts[left]) <= np.abs(ts[right] - t_solution), left, right)
+    offset = np.abs(t_solution - ts[pick])
+    sol = np.flatnonzero(offset <= max_offset_s)
+    epoch = order[pick[sol]]
+    # closest first, then the first occurrence of each epoch
+    by_offset = np.lexsort((offset[sol], epoch))
+    sol, epoch = sol[by_offset], epoch[by_offset]
+    first = np.ones(epoch.size, dtype=bool)
+    first[1:] = np.diff(epoch) != 0
+    return sol[first].astype(np.int64), epoch[first].astype(np.int64)
+
+
+def match_receiver_epochs(data: ReceiverData, t_gps: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """Pair solutions tagged in continuous GPS time with the receiver's epochs, within half an epoch interval.
+
+    Parameters
+    ----------
+    data : ReceiverData
+        The receiver view whose epochs are matched.
+    t_gps : np.ndarray, shape (m,)
+        Solution times, GPS seconds since 1980-01-06 [s].
+
+    Returns
+    -------
+    solution_index, epoch_index : np.ndarray of int, shape (k,)
+        Matched pairs (see :func:`match_to_epochs`).
+    max_offset_s : float
+        Half the median epoch interval, the largest offset accepted [s].
+    """
+    t_epoch = data.nav.gps_week * SECONDS_PER_WEEK + data.nav.start_sow_s + data.epoch_times
+    steps = np.diff(np.sort(t_epoch[np.isfinite(t_epoch)]))
+    max_offset = 0.5 * (float(np.median(steps)) if steps.size else 1.0)
+    si, ei = match_to_epochs(np.asarray(t_gps, float), t_epoch, max_offset)
+    return si, ei, max_offset

@@ -1,0 +1,180 @@
+"""Plug-in estimators: entry-point discovery, their config, one-line errors, and a run through the CLI.
+
+The installed example (``examples/simbench-example-estimator``, estimator
+``huber_spp``; ``.ci/run`` installs it) is the real plug-in; broken packages are
+simulated with entry points handed to :func:`estimators.discover` or patched in
+for the CLI, so nothing else is installed.
+"""
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import subprocess
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+import pandas as pd
+import pytest
+from omegaconf import OmegaConf
+
+import estimators
+from conftest import one_line_error
+from simbench import cli
+from simbench.compose import compose_config, plugin_config_node, register_schemas
+from simbench.config import to_typed
+
+ROOT = Path(__file__).resolve().parent.parent
+EXAMPLE = "huber_spp"
+EXAMPLE_PACKAGE = "simbench-example-estimator"
+
+
+@dataclasses.dataclass
+class FakeEntryPoint:
+    """What :func:`estimators.discover` reads of an ``importlib.metadata.EntryPoint``."""
+
+    name: str
+    target: Any  #: what ``load()`` returns, or the exception it raises
+    package: str = "fake-estimators"
+
+    @property
+    def value(self) -> str:
+        return f"fake_estimators:{getattr(self.target, '__name__', 'Broken')}"
+
+    @property
+    def dist(self) -> SimpleNamespace:
+        return SimpleNamespace(name=self.package)
+
+    def load(self) -> Any:
+        if isinstance(self.target, Exception):
+            raise self.target
+        return self.target
+
+
+def fake_estimator(name: str, config: Any = "dataclass") -> type[estimators.Estimator]:
+    """An Estimator subclass called ``name``; ``config`` None leaves out ``Config``."""
+    body: dict[str, Any] = {"name": name, "_estimate": lambda self, data: (pd.DataFrame(), {})}
+    if config == "dataclass":
+        body["Config"] = dataclasses.make_dataclass(f"{name}_config", [("k", float, 1.0)])
+    elif config is not None:
+        body["Config"] = config
+    return type(f"Fake_{name}", (estimators.Estimator,), body)
+
+
+@pytest.fixture
+def fresh_discovery():
+    """Discovery and the ConfigStore registration run again in the test, and again after it."""
+    estimators.plugins.cache_clear()
+    register_schemas.cache_clear()
+    yield
+    estimators.plugins.cache_clear()
+    register_schemas.cache_clear()
+
+
+def test_installed_example_is_listed_and_configured_from_its_dataclass() -> None:
+    assert EXAMPLE in estimators.plugins(), \
+        "the example plug-in is not installed: pip install -e examples/simbench-example-estimator (.ci/run does)"
+    assert estimators.source(EXAMPLE) == EXAMPLE_PACKAGE and estimators.source("l2") == estimators.BUILT_IN
+    table = cli.estimator_table().set_index("name")
+    assert table.loc[EXAMPLE, "source"] == EXAMPLE_PACKAGE
+    assert table.loc[EXAMPLE, "family"] == "simbench_example_estimator"
+    assert (table.drop(EXAMPLE)["source"] == estimators.BUILT_IN).all()
+    config = estimators.get(EXAMPLE).Config
+    # in the default run and the smoke sweep, with the dataclass defaults (its shipped YAML overrides none)
+    for overrides in ([], ["+sweep=smoke"]):
+        composed = compose_config(overrides).estimator
+        assert set(composed) == set(estimators.registered())
+        typed = to_typed(OmegaConf.to_container(composed[EXAMPLE]), config, EXAMPLE)
+        assert typed == config() and typed.huber_k == 1.345
+    chosen = compose_config([f"estimator=[l2,{EXAMPLE}]", f"estimator.{EXAMPLE}.huber_k=2"]).estimator
+    assert list(chosen) == ["l2", EXAMPLE] and chosen[EXAMPLE].huber_k == 2.0
+
+
+@pytest.mark.parametrize("entries, fragments", [
+    ([FakeEntryPoint("l2", fake_estimator("l2"))], ["name 'l2' of a built-in estimator"]),
+    ([FakeEntryPoint("twin", fake_estimator("twin"), "first-pkg"), FakeEntryPoint("twin", fake_estimator("twin"))],
+     ["name 'twin' of package 'first-pkg'"]),
+    ([FakeEntryPoint("bare", fake_estimator("bare", config=None))], ["Fake_bare has no Config dataclass"]),
+    ([FakeEntryPoint("plain", fake_estimator("plain", config=dict))], ["Fake_plain has no Config dataclass"]),
+    ([FakeEntryPoint("alias", fake_estimator("other"))], ["Fake_other.name is 'other'"]),
+    ([FakeEntryPoint("all", fake_estimator("all"))], ["reserved name 'all'"]),
+    ([FakeEntryPoint("gone", ImportError("No module named 'fake_estimators'"))], ["cannot load", "ImportError"]),
+    ([FakeEntryPoint("func", len)], ["not an Estimator subclass"]),
+])
+def test_a_broken_plugin_is_one_line_naming_its_package(entries: list[FakeEntryPoint], fragments: list[str]) -> None:
+    message = one_line_error(estimators.discover, entries, estimators.built_in())
+    assert message.startswith(f"estimator plug-in '{entries[-1].name}': package 'fake-estimators'")
+    for fragment in fragments:
+        assert fragment in message
+
+
+def test_the_same_class_from_two_entry_points_is_no_clash() -> None:
+    cls = fake_estimator("once")
+    found = estimators.discover([FakeEntryPoint("once", cls), FakeEntryPoint("once", cls)], estimators.built_in())
+    assert found == {"once": estimators.Plugin(cls=cls, package="fake-estimators")}
+
+
+def test_cli_stops_on_a_clashing_plugin_in_one_line(fresh_discovery, monkeypatch, capsys) -> None:
+    monkeypatch.setattr(estimators, "entry_points", lambda group: [FakeEntryPoint("dcs", fake_estimator("dcs"))])
+    monkeypatch.setattr(sys, "argv", ["simbench", "--estimators"])
+    with pytest.raises(SystemExit) as info:
+        cli.main()
+    assert info.value.code == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: estimator plug-in 'dcs': package 'fake-estimators'")
+
+
+def _plugin_module(tmp_path: Path, monkeypatch, yaml_text: str | None) -> estimators.Plugin:
+    """A plug-in class in a module file of its own, with ``yaml_est.yaml`` beside it when given."""
+    module = f"plugin_{tmp_path.name}"  # one module per test: imports are cached by name
+    (tmp_path / f"{module}.py").write_text(
+        "import dataclasses\nfrom estimators.base import Estimator\n\n"
+        "@dataclasses.dataclass\nclass YamlConfig:\n    k: float = 1.0\n    mode: str = 'fast'\n\n"
+        "class YamlEst(Estimator):\n    name = 'yaml_est'\n    Config = YamlConfig\n\n"
+        "    def _estimate(self, data):\n        raise NotImplementedError\n")
+    if yaml_text is not None:
+        (tmp_path / "yaml_est.yaml").write_text(yaml_text)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    return estimators.Plugin(cls=importlib.import_module(module).YamlEst, package="yaml-pkg")
+
+
+HEAD = "defaults:\n  - yaml_est_schema\n  - _self_\n"
+
+
+@pytest.mark.parametrize("yaml_text, node", [
+    (None, {}),
+    (HEAD + "yaml_est:\n  k: 2.5  # override: shipped\n", {"k": 2.5}),
+    ("yaml_est:\n  mode: slow  # override: shipped\n", {"mode": "slow"}),
+])
+def test_shipped_yaml_overrides_the_dataclass(tmp_path: Path, monkeypatch, yaml_text: str | None,
+                                             node: dict[str, Any]) -> None:
+    plugin = _plugin_module(tmp_path, monkeypatch, yaml_text)
+    assert plugin_config_node(plugin) == {"defaults": ["yaml_est_schema", "_self_"], "yaml_est": node}
+
+
+@pytest.mark.parametrize("yaml_text, fragment", [
+    ("yaml_est:\n  k: soft\n", "estimator.yaml_est.k"),
+    ("yaml_est: {}\nother: 1\n", "must hold only"),
+    ("defaults: [l2_schema, _self_]\nyaml_est: {}\n", "must hold only"),
+    ("yaml_est: [unclosed\n", "is not YAML"),
+])
+def test_a_bad_shipped_yaml_is_one_line_naming_the_package(tmp_path: Path, monkeypatch, yaml_text: str,
+                                                           fragment: str) -> None:
+    plugin = _plugin_module(tmp_path, monkeypatch, yaml_text)
+    message = one_line_error(plugin_config_node, plugin)
+    assert message.startswith("estimator plug-in 'yaml_est': package 'yaml-pkg'") and fragment in message
+
+
+def test_the_example_runs_in_a_sweep_through_the_cli(tmp_path: Path) -> None:
+    out = tmp_path / "sweep"
+    proc = subprocess.run([sys.executable, "-m", "simbench", "-m", "scenario=open_sky", "scenario.duration_s=30",
+                           "seed=0", f"estimator=[{EXAMPLE}]", f"results_dir={out}", "progress=false"],
+                          cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    summary = pd.read_parquet(out / "summary.parquet")
+    assert list(summary["estimator"]) == [EXAMPLE] and (summary["status"] == "ok").all()
+    assert (summary["availability"] == 1.0).all()
+    # open sky, single-point code with Klobuchar: about a metre horizontally (1.0 m when written)
+    assert (summary["horizontal_median"] < 3.0).all()
+    assert EXAMPLE in (out / "report" / "README.md").read_text()
