@@ -53,12 +53,16 @@ class HuberSpp(Estimator):
                     system_index=obs.system_index, el=obs.el, doy=obs.doy)
         sol = solve_epochs(sigma=obs.sigma_code, **rows)
         for _ in range(cfg.reweightings):
-            at = sol.pos[obs.epoch]  # NaN on untrusted epochs: their rows drop out of the next fit
+            # rows of epochs without a trusted fit (position NaN) keep their plain weight
+            ok = sol.trusted[obs.epoch]
+            at = sol.pos[obs.epoch[ok]]
             lat, _, h = geodetic_from_ecef(at)
-            residual = (obs.code - sagnac_range(obs.sat_pos, at) - sol.clock_m[obs.epoch, obs.system_index]
-                        - troposphere_terms(obs.el, lat, h, obs.doy)[0])
+            residual = (obs.code[ok] - sagnac_range(obs.sat_pos[ok], at)
+                        - sol.clock_m[obs.epoch[ok], obs.system_index[ok]]
+                        - troposphere_terms(obs.el[ok], lat, h, obs.doy)[0])
             # Huber weight min(1, k/|z|) as an inflated sigma: sigma / sqrt(weight)
-            sigma = obs.sigma_code * np.sqrt(np.maximum(1.0, np.abs(residual) / obs.sigma_code / cfg.huber_k))
+            sigma = obs.sigma_code.copy()
+            sigma[ok] *= np.sqrt(np.maximum(1.0, np.abs(residual) / obs.sigma_code[ok] / cfg.huber_k))
             sol = solve_epochs(sigma=sigma, x0=np.nan_to_num(sol.pos), **rows)
         solved = np.flatnonzero(sol.trusted)
         t = pd.Series(obs.epoch_t, index=obs.epoch_ids).loc[solved].to_numpy()
