@@ -46,10 +46,9 @@ def simulate(scenario: str = "urban", receiver: str = "low", seed: int = 0, imu:
     Scenario
     """
     from simbench.compose import compose_config, overrides_from_kwargs
-    from simbench.config import SimConfig, to_typed
+    from simbench.scenarios import sim_config
     from simbench.sim.generator import generate
 
     cfg = compose_config([f"scenario={scenario}", f"receiver={receiver}", f"imu={imu}", f"seed={seed}",
                           *overrides_from_kwargs(overrides)])
-    sim = to_typed({k: cfg[k] for k in ("scenario", "receiver", "imu", "seed")}, SimConfig, "config")
-    return generate(sim)
+    return generate(sim_config(cfg))

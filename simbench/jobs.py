@@ -18,11 +18,11 @@ from omegaconf import DictConfig, OmegaConf
 from threadpoolctl import threadpool_limits
 
 import estimators
-from simbench.config import SimConfig, to_typed, validate_sim
+from simbench.config import to_typed, validate_sim
 from simbench.errors import SimbenchError
 from simbench.provenance import provenance
 from simbench.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS, one_line, run_estimators
-from simbench.scenarios import build_scenario
+from simbench.scenarios import build_scenario, sim_config
 from simbench.store import cached_scenario, config_key, is_finished, result_stem, write_result
 from simbench.variants import overrides_json, overrides_of, variant_label
 
@@ -63,7 +63,7 @@ def run_job(cfg: DictConfig, *, fail_fast: bool = True) -> pd.DataFrame:
 
 
 def _run_job(cfg: DictConfig, opts: RunOptions, *, fail_fast: bool) -> pd.DataFrame:
-    sim = to_typed({k: cfg[k] for k in ("scenario", "receiver", "imu", "seed")}, SimConfig, "config")
+    sim = sim_config(cfg)
     root = Path(opts.results_dir)
     scenario_key = config_key(dataclasses.asdict(sim))
     estimator_cfgs: dict[str, Any] = OmegaConf.to_container(cfg.estimator, resolve=True, enum_to_str=True) or {}

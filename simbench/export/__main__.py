@@ -12,10 +12,9 @@ from __future__ import annotations
 import sys
 
 from simbench.compose import compose_config
-from simbench.config import SimConfig, to_typed
 from simbench.errors import SimbenchError
 from simbench.export import ExportFormat, export_scenario
-from simbench.scenarios import build_scenario
+from simbench.scenarios import build_scenario, sim_config
 
 _USAGE = "python -m simbench.export scenario=urban receiver=low seed=0 format=rinex|librsf out=DIR"
 
@@ -36,7 +35,7 @@ def main(argv: list[str] | None = None) -> int:
             raise SimbenchError("format", f"unknown export format '{fmt}'",
                                 f"choose from {', '.join(f.value for f in ExportFormat)}")
         cfg = compose_config(overrides)
-        sim = to_typed({k: cfg[k] for k in ("scenario", "receiver", "imu", "seed")}, SimConfig, "config")
+        sim = sim_config(cfg)
         scenario = build_scenario(sim)
         stem = f"{sim.scenario.name}_{sim.receiver.name}_{sim.seed}"
         files = export_scenario(scenario, fmt, own["out"], stem, receiver=sim.receiver.name)
