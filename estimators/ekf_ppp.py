@@ -39,7 +39,7 @@ Doppler only (the graph keeps the drift apart from the clock in both cases, for
 receivers whose clock jumps by milliseconds). Each epoch's Doppler rows give
 range-rate updates ``rr = rdot(p, v) + drift``
 (:func:`simbench.gnss.doppler.range_rate`, vectorised over the epoch's rows;
-sigma ``doppler_sigma_mps / sin(el)``; rows without a Doppler are skipped).
+sigma ``doppler_sigma_mps`` times the row's ``sigma_scale``; rows without a Doppler are skipped).
 With ``use_odometry`` and odometry samples since the previous epoch, their
 mean wheel speed updates the horizontal velocity halfway through the time
 update, where a mean over the interval applies for a steady acceleration
@@ -192,7 +192,7 @@ class EkfPpp(Estimator):
         if doppler:
             # the drift of a receiver clock can be anything up to km/s: start at the first Doppler fix
             _, drift_fix = doppler_velocities(row_k, obs.sat_pos[rows], obs.sat_vel[rows], fix.pos[row_k],
-                                              obs.range_rate[rows], cfg.doppler_sigma_mps / np.sin(obs.el[rows]))
+                                              obs.range_rate[rows], cfg.doppler_sigma_mps * obs.sigma_scale[rows])
             known = np.isfinite(drift_fix)
             x[drift] = drift_fix[np.argmax(known)] if known.any() else 0.0
         p_diag = np.full(nx, cfg.ambiguity_sigma_m**2)
@@ -359,7 +359,7 @@ class EkfPpp(Estimator):
         rdot, d_pos, d_vel = range_rate(obs.sat_pos[rows][use], obs.sat_vel[rows][use], pos, vel)
         H = np.zeros((int(use.sum()), kf.dim_x))
         H[:, _POS], H[:, vel0:drift], H[:, drift] = d_pos, d_vel, 1.0
-        sigma = self.config.doppler_sigma_mps / np.sin(obs.el[rows][use])
+        sigma = self.config.doppler_sigma_mps * obs.sigma_scale[rows][use]
         kf.update(rr[use], _const(H), _const(rdot + kf.x[drift]), R=np.diag(sigma**2))
         return int(use.sum())
 

@@ -13,7 +13,6 @@ from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
-import pandas as pd
 
 from estimators.gnss_ins_config import GnssInsConfig
 from estimators.measurement import prepare_ppp
@@ -78,9 +77,7 @@ def prepare_gnss_ins(data: ReceiverData, cfg: GnssInsConfig) -> GnssInsData:
     obs = prepare_ppp(data, ionosphere_free=False, code_sigma_m=cfg.code_sigma_m, phase_sigma_m=1.0,
                       elevation_mask_deg=cfg.elevation_mask_deg, min_satellites=4, max_gap_epochs=1,
                       measurements=MeasurementMode.code)  # code and Doppler only: code-only logs run
-    cn0 = (data.observations.set_index(["epoch", "sat"])["cn0_l1"]
-           .reindex(pd.MultiIndex.from_arrays([obs.epoch, obs.sat])).to_numpy(float))
-    sig_rr = cfg.doppler_sigma_mps * 10.0 ** ((cfg.doppler_ref_cn0_dbhz - cn0) / 20.0)
+    sig_rr = cfg.doppler_sigma_mps * 10.0 ** ((cfg.doppler_ref_cn0_dbhz - obs.cn0) / 20.0)
     # range rates as prepare_ppp forms them (NaN where unusable, e.g. GLONASS FDMA rows)
     ok_rr = np.isfinite(obs.range_rate) & np.isfinite(sig_rr)
     w_rr = np.where(ok_rr, 1.0 / np.where(ok_rr, sig_rr, 1.0), 0.0)

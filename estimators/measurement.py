@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from estimators.ppp_config import MeasurementMode
+from estimators.ppp_config import MeasurementMode, SigmaModel
 from simbench.contract import ReceiverData
 from simbench.errors import SimbenchError
 from simbench.sim import atmosphere
@@ -42,7 +42,8 @@ from simbench.sim.constants import DEG, IF_A1, IF_A2
 from simbench.sim.frames import geodetic_from_ecef
 from simbench.sim.gpstime import day_of_year
 
-__all__ = ["PppObservations", "arc_ids", "prepare_ppp", "predict", "predict_given_troposphere", "N_BASE_STATES"]
+__all__ = ["PppObservations", "arc_ids", "prepare_ppp", "predict", "predict_given_troposphere", "sigma_factor",
+           "N_BASE_STATES"]
 
 #: Number of non-ambiguity states in :func:`predict`'s Jacobian: x, y, z, clock, zwd.
 N_BASE_STATES = 5
@@ -105,6 +106,36 @@ def predict(sat_pos: np.ndarray, rx_pos: np.ndarray, clock_m: float, zwd_m: floa
 # --------------------------------------------------------------------------- preparation
 
 
+def sigma_factor(el: np.ndarray, cn0: np.ndarray, model: SigmaModel, cn0_ref_dbhz: float = 45.0) -> np.ndarray:
+    """Per-row factor on the zenith sigmas of code, phase and Doppler.
+
+    Parameters
+    ----------
+    el : ndarray
+        Elevation [rad].
+    cn0 : ndarray
+        C/N0 [dB-Hz]; NaN where the receiver reports none.
+    model : SigmaModel
+        ``elevation``: ``1 / sin(el)``; ``cn0``: ``10^((cn0_ref_dbhz - cn0) / 20)`` (``1 / sin(el)``
+        where ``cn0`` is NaN); ``elevation_cn0``: the product (the C/N0 part 1 where NaN).
+    cn0_ref_dbhz : float
+        C/N0 at which the C/N0 part is 1 [dB-Hz].
+
+    Returns
+    -------
+    ndarray
+        Dimensionless factor, shape of ``el``.
+    """
+    by_elevation = 1.0 / np.sin(el)
+    if model == SigmaModel.elevation:
+        return by_elevation
+    by_cn0 = 10.0 ** ((cn0_ref_dbhz - np.asarray(cn0, float)) / 20.0)
+    if model == SigmaModel.cn0:
+        return np.where(np.isfinite(by_cn0), by_cn0, by_elevation)
+    return by_elevation * np.where(np.isfinite(by_cn0), by_cn0, 1.0)
+
+
+
 @dataclass(frozen=True)
 class PppObservations:
     """Usable, corrected observations as flat arrays sorted by (epoch, satellite).
@@ -124,8 +155,11 @@ class PppObservations:
     el: np.ndarray  #: rad, elevation
     az: np.ndarray  #: rad, azimuth
     arc: np.ndarray  #: int, phase arc id 0..n_arcs-1, numbered in order of arc start; -1 on rows without phase
-    sigma_code: np.ndarray  #: m, code sigma / sin(el)
-    sigma_phase: np.ndarray  #: m, phase sigma / sin(el)
+    sigma_code: np.ndarray  #: m, zenith code sigma times ``sigma_scale``
+    sigma_phase: np.ndarray  #: m, zenith phase sigma times ``sigma_scale``
+    #: per row: the sigma model's factor on every zenith sigma (code, phase, Doppler; :func:`sigma_factor`)
+    sigma_scale: np.ndarray
+    cn0: np.ndarray  #: dB-Hz, L1 C/N0 (NaN where the receiver reports none)
     epoch_ids: np.ndarray  #: int, (n_epochs,) GNSS epoch index of each solved epoch
     epoch_t: np.ndarray  #: s, (n_epochs,) time of each solved epoch
     epoch_start: np.ndarray  #: int, (n_epochs,) first row of each solved epoch
@@ -178,7 +212,8 @@ class PppObservations:
 
 def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: float, phase_sigma_m: float,
                 elevation_mask_deg: float, min_satellites: int = 4, max_gap_epochs: int = 1,
-                measurements: MeasurementMode = MeasurementMode.code_phase) -> PppObservations:
+                measurements: MeasurementMode = MeasurementMode.code_phase,
+                sigma_model: SigmaModel = SigmaModel.elevation, cn0_ref_dbhz: float = 45.0) -> PppObservations:
     """Select, correct and weight the observations for PPP.
 
     Rows with missing values in the columns used, or below the elevation mask,
@@ -195,7 +230,8 @@ def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: floa
         Form the L1/L2 ionosphere-free combination (needs dual-frequency data);
         otherwise use L1 with the broadcast Klobuchar delay removed.
     code_sigma_m, phase_sigma_m : float
-        Zenith standard deviations [m] of the (combined) code and phase; scaled by 1/sin(el).
+        Zenith standard deviations [m] of the (combined) code and phase; scaled per row by
+        :func:`sigma_factor`.
     elevation_mask_deg : float
         Elevation mask [deg].
     min_satellites : int
@@ -207,6 +243,8 @@ def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: floa
         them as code-only rows (real receivers often report code without phase);
         ``code`` ignores the phase everywhere. A code-only row has ``phase`` NaN
         and ``arc`` -1.
+    sigma_model, cn0_ref_dbhz : SigmaModel, float
+        How the sigmas follow elevation and C/N0 (:func:`sigma_factor`).
 
     Raises
     ------
@@ -287,7 +325,8 @@ def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: floa
 
     epoch_ids, epoch_start, n_per = np.unique(epoch, return_index=True, return_counts=True)
     epoch_stop = epoch_start + n_per
-    sigma_scale = 1.0 / np.sin(el)
+    cn0 = sub["cn0_l1"].to_numpy(float) if "cn0_l1" in sub.columns else np.full(len(sub), np.nan)
+    sigma_scale = sigma_factor(el, cn0, sigma_model, cn0_ref_dbhz)
 
     sat_names, sat_index = np.unique(sat, return_inverse=True)
     letters = np.array([str(s)[:1] for s in sat_names])
@@ -305,7 +344,7 @@ def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: floa
     return PppObservations(
         epoch=epoch, t=t, sat=sat, sat_index=sat_index.astype(np.int64), sat_pos=sat_pos, code=code,
         phase=phase, el=el, az=az, arc=arc.astype(np.int64), sigma_code=code_sigma_m * sigma_scale,
-        sigma_phase=phase_sigma_m * sigma_scale, epoch_ids=epoch_ids, epoch_t=t[epoch_start],
+        sigma_phase=phase_sigma_m * sigma_scale, sigma_scale=sigma_scale, cn0=cn0, epoch_ids=epoch_ids, epoch_t=t[epoch_start],
         epoch_start=epoch_start, epoch_stop=epoch_stop, sat_names=tuple(str(s) for s in sat_names),
         n_arcs=int(arc.max(initial=-1)) + 1, ionosphere_free=ionosphere_free, doy=doy, systems=systems,
         system_index=system_index, range_rate=range_rate, sat_vel=sat_vel,

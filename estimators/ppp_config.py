@@ -16,8 +16,8 @@ from simbench.config import Choice, check_choices
 from simbench.contract import Need
 from simbench.errors import SimbenchError, require_at_least, require_positive
 
-__all__ = ["DIRECTION_MIN_SPEED_MPS", "STANDSTILL_MPS", "ClockModel", "MeasurementMode", "MotionModel",
-           "MotionModelConfig", "StochasticModelConfig"]
+__all__ = ["DIRECTION_MIN_SPEED_MPS", "STANDSTILL_MPS", "ClockModel", "GnssModelConfig", "MeasurementMode",
+           "MotionModel", "MotionModelConfig", "SigmaModel", "StochasticModelConfig"]
 
 
 class ClockModel(Choice):
@@ -36,6 +36,21 @@ class MeasurementMode(Choice):
     code_phase = "code_phase"  #: rows without carrier phase are dropped (needs phase)
 
 
+class SigmaModel(Choice):
+    """How a row's a-priori sigma follows its signal (member names are the YAML words).
+
+    The zenith sigmas (``code_sigma_m``, ``phase_sigma_m``, ``doppler_sigma_mps``) are
+    multiplied by a per-row factor (:func:`estimators.measurement.sigma_factor`).
+    """
+
+    elevation = "elevation"  #: ``1 / sin(el)`` (Table 4.4.2)
+    #: ``10^((cn0_ref_dbhz - C/N0) / 20)``: the variance grows as 1/(C/N0), as the thermal DLL and
+    #: PLL jitter do (dissertation eqs. 5.13-5.15); a weak, reflected or diffracted signal is
+    #: trusted less whatever its elevation. Rows without a C/N0 fall back to ``1 / sin(el)``.
+    cn0 = "cn0"
+    elevation_cn0 = "elevation_cn0"  #: the product of the two
+
+
 @dataclass
 class StochasticModelConfig:
     """Stochastic model and observation selection of PPP; defaults are Table 4.4.2 and Sec. 4.4."""
@@ -48,8 +63,12 @@ class StochasticModelConfig:
     clock_noise_m_rts: float = 2000.0  #: receiver clock process noise [m/sqrt(s)] (random_walk only)
     clock_model: ClockModel = ClockModel.white  #: white (each epoch free, Table 4.4.2) | random_walk
     ambiguity_sigma_m: float = 100.0  #: a priori phase bias sigma [m]; biases are constant within an arc
-    code_sigma_m: float = 2.5  #: zenith code sigma [m], scaled by 1/sin(el)
-    phase_sigma_m: float = 0.025  #: zenith phase sigma [m], scaled by 1/sin(el)
+    code_sigma_m: float = 2.5  #: zenith code sigma [m], scaled per row by ``sigma_model``
+    phase_sigma_m: float = 0.025  #: zenith phase sigma [m], scaled per row by ``sigma_model``
+    #: per-row scaling of the sigmas: elevation (1/sin(el)) | cn0 | elevation_cn0
+    sigma_model: SigmaModel = SigmaModel.elevation
+    #: C/N0 at which the ``cn0`` factor is 1 [dB-Hz]
+    cn0_ref_dbhz: float = 45.0
     elevation_mask_deg: float = 7.0
     min_satellites: int = 4  #: epochs with fewer usable satellites are skipped
     max_gap_epochs: int = 1  #: a larger epoch step within a satellite's rows starts a new phase arc
@@ -84,6 +103,7 @@ class StochasticModelConfig:
         if not 0.0 <= self.elevation_mask_deg < 90.0:
             raise SimbenchError(f"{where}.elevation_mask_deg", f"must be within [0, 90) deg, got "
                                 f"{self.elevation_mask_deg}", "give an elevation mask in degrees, e.g. 7")
+        require_positive(f"{where}.cn0_ref_dbhz", self.cn0_ref_dbhz, "give a reference C/N0 in dB-Hz, e.g. 45")
         require_at_least(f"{where}.min_satellites", self.min_satellites, 4,
                          "4 unknowns (position, clock) need 4 satellites")
         require_at_least(f"{where}.max_gap_epochs", self.max_gap_epochs, 1,
@@ -101,7 +121,8 @@ class StochasticModelConfig:
         return {"ionosphere_free": self.ionosphere_free, "code_sigma_m": self.code_sigma_m,
                 "phase_sigma_m": self.phase_sigma_m, "elevation_mask_deg": self.elevation_mask_deg,
                 "min_satellites": self.min_satellites, "max_gap_epochs": self.max_gap_epochs,
-                "measurements": self.measurements}
+                "measurements": self.measurements, "sigma_model": self.sigma_model,
+                "cn0_ref_dbhz": self.cn0_ref_dbhz}
 
 
 class MotionModel(Choice):
@@ -133,7 +154,7 @@ class MotionModelConfig(StochasticModelConfig):
     #: white-acceleration density of the constant-velocity model per axis [m/s^2/sqrt(s)] (a car in town)
     accel_sigma_mps2_rts: float = 2.0
     vel_sigma_mps: float = 30.0  #: a priori velocity sigma per axis at the first epoch [m/s]
-    #: zenith range-rate sigma of a Doppler measurement [m/s], scaled by 1/sin(el)
+    #: zenith range-rate sigma of a Doppler measurement [m/s], scaled per row by ``sigma_model``
     doppler_sigma_mps: float = 0.3
     drift_sigma_mps: float = 1000.0  #: a priori receiver clock drift sigma [m/s] around the first epoch's fit
     drift_rw_mps_rts: float = 0.5  #: receiver clock drift random walk [m/s/sqrt(s)]
@@ -148,3 +169,19 @@ class MotionModelConfig(StochasticModelConfig):
         for name in ("accel_sigma_mps2_rts", "vel_sigma_mps", "doppler_sigma_mps", "drift_sigma_mps",
                      "drift_rw_mps_rts", "nhc_sigma_mps"):
             require_positive(f"{where}.{name}", getattr(self, name), "give a positive sigma or density")
+
+
+@dataclass
+class GnssModelConfig:
+    """The model choices every GNSS estimator takes from the ``gnss_model`` config group.
+
+    ``conf/gnss_model/`` holds the profiles (``dissertation``: Table 4.4.2's random
+    walk and ``1/sin(el)`` weights, pinned by the thesis sweeps; ``urban``: C/N0
+    weights and constant velocity, the default run's). :func:`simbench.compose.register_schemas`
+    makes each of these fields of every estimator config that has it default to
+    ``${gnss_model.<field>}``, so one setting reaches every estimator and
+    ``estimator.<name>.<field>`` still overrides it for one.
+    """
+
+    motion_model: MotionModel = MotionModel.random_walk
+    sigma_model: SigmaModel = SigmaModel.elevation

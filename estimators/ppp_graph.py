@@ -264,7 +264,7 @@ class PppGraph:
             # one Doppler fix per epoch: the drift's start values and the odometry's direction of travel
             doppler_vel, drift = doppler_velocities(self.row_epoch, obs.sat_pos, obs.sat_vel,
                                                     self.spp_pos[self.row_epoch], obs.range_rate,
-                                                    cfg.doppler_sigma_mps / np.sin(obs.el), nk)
+                                                    cfg.doppler_sigma_mps * obs.sigma_scale, nk)
             self.drift0 = _carry_forward(drift)
             if self.with_odometry:
                 self.enu = enu_basis(self.spp_pos)
@@ -467,7 +467,7 @@ class PppGraph:
             return g
         pos = np.broadcast_to(self.spp_pos[k], (use.size, 3))
         rdot0, _, d_vel = range_rate(obs.sat_pos[use], obs.sat_vel[use], pos, np.zeros((use.size, 3)))
-        sigma = self.cfg.doppler_sigma_mps / np.sin(obs.el[use])
+        sigma = self.cfg.doppler_sigma_mps * obs.sigma_scale[use]
         linear = gtsam.JacobianFactor(vel_key(k), d_vel, drift_key(k), np.ones((use.size, 1)),
                                       obs.range_rate[use] - rdot0, gtsam.noiseModel.Diagonal.Sigmas(sigma))
         g.add(_linear(linear, {vel_key(k): gtsam.Point3(0.0, 0.0, 0.0), drift_key(k): 0.0}))

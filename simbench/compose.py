@@ -1,6 +1,7 @@
 """Compose configurations from ``conf/`` outside a Hydra app (notebooks, tests)."""
 from __future__ import annotations
 
+import dataclasses
 import functools
 import inspect
 import re
@@ -17,6 +18,7 @@ from omegaconf.errors import OmegaConfBaseException
 import yaml
 
 import estimators
+from estimators.ppp_config import GnssModelConfig
 from simbench.config import ImuConfig, ReceiverConfig, ScenarioConfig, to_typed
 from simbench.errors import SimbenchError
 
@@ -44,13 +46,24 @@ def register_schemas() -> None:
         For a broken plug-in, naming its package (:func:`estimators.discover`).
     """
     cs = ConfigStore.instance()
-    for group, node in (("scenario", ScenarioConfig), ("receiver", ReceiverConfig), ("imu", ImuConfig)):
+    for group, node in (("scenario", ScenarioConfig), ("receiver", ReceiverConfig), ("imu", ImuConfig),
+                        ("gnss_model", GnssModelConfig)):
         cs.store(group=group, name="schema", node=node)
     for name, cls in estimators.registered().items():
-        cs.store(group="estimator", name=f"{name}_schema", node={name: cls.Config})
+        cs.store(group="estimator", name=f"{name}_schema", node={name: estimator_schema(cls.Config)})
     for name, plugin in estimators.plugins().items():
         cs.store(group="estimator", name=name, node=plugin_config_node(plugin))
     cs.store(group="estimator", name=estimators.ALL, node={"defaults": list(estimators.registered())})
+
+
+def estimator_schema(config: type) -> DictConfig:
+    """The typed node of an estimator ``Config`` dataclass, its :class:`GnssModelConfig` fields
+    defaulting to the ``gnss_model`` group's choice (``${gnss_model.<field>}``)."""
+    node = OmegaConf.structured(config)
+    for f in dataclasses.fields(GnssModelConfig):
+        if f.name in node:
+            node[f.name] = f"${{gnss_model.{f.name}}}"
+    return node
 
 
 def plugin_config_node(plugin: estimators.Plugin) -> dict[str, Any]:

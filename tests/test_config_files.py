@@ -22,6 +22,7 @@ import yaml
 from omegaconf import OmegaConf
 
 import estimators
+from estimators.ppp_config import GnssModelConfig, MotionModel, SigmaModel
 from simbench.compose import CONF_DIR, available, compose_config, estimator_yaml
 from simbench.config import ScenarioSource, SimConfig, TrajectoryKind, check_choices, to_typed, validate_sim
 from simbench.errors import SimbenchError
@@ -110,12 +111,25 @@ def test_the_yaml_rule_catches_each_kind_of_violation() -> None:
     assert len(no_schema) == 2 and "defaults" in no_schema[1]
 
 
-def test_composed_estimator_configs_are_the_dataclass_defaults() -> None:
-    cfg = compose_config([])
+def test_composed_estimator_configs_are_the_dataclass_defaults_but_for_the_gnss_model() -> None:
+    """``gnss_model=dissertation`` gives the dataclass defaults; the default ``urban`` differs from them
+    exactly in the :class:`GnssModelConfig` fields, and an estimator's own setting still wins."""
+    dissertation = compose_config(["gnss_model=dissertation"])
+    urban = compose_config([])
+    profile = {f.name: getattr(to_typed(OmegaConf.to_container(urban.gnss_model), GnssModelConfig, "gnss_model"),
+                               f.name) for f in dataclasses.fields(GnssModelConfig)}
+    assert profile == {"motion_model": MotionModel.constant_velocity, "sigma_model": SigmaModel.cn0}
+    shared = 0
     for name in NAMES:
         cls = estimators.get(name).Config
-        node = OmegaConf.to_container(cfg.estimator[name], resolve=True)
-        assert to_typed(node, cls, name) == cls(), name
+        assert to_typed(OmegaConf.to_container(dissertation.estimator[name], resolve=True), cls, name) == cls(), name
+        mine = {k: v for k, v in profile.items() if k in {f.name for f in dataclasses.fields(cls)}}
+        shared += bool(mine)
+        got = to_typed(OmegaConf.to_container(urban.estimator[name], resolve=True), cls, name)
+        assert got == dataclasses.replace(cls(), **mine), name
+    assert shared >= 11  # every GNSS estimator
+    one = compose_config(["estimator.dcs.sigma_model=elevation"]).estimator
+    assert one.dcs.sigma_model == "elevation" and one.l2.sigma_model == "cn0"
 
 
 @pytest.mark.parametrize("sweep", available("sweep"))

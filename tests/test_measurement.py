@@ -11,7 +11,8 @@ import pandas as pd
 import pymap3d
 import pytest
 
-from estimators.measurement import arc_ids, predict, prepare_ppp
+from estimators.measurement import arc_ids, predict, prepare_ppp, sigma_factor
+from estimators.ppp_config import SigmaModel
 from simbench.contract import NavInfo, ReceiverData
 from simbench.errors import SimbenchError
 from simbench.sim import atmosphere
@@ -227,3 +228,25 @@ def test_prepare_ppp_errors() -> None:
         prepare_ppp(broken, ionosphere_free=False, **kw)
     with pytest.raises(SimbenchError, match="code_sigma_m"):
         prepare_ppp(single, ionosphere_free=False, **{**kw, "code_sigma_m": 0.0})
+
+
+def test_sigma_models_follow_elevation_and_cn0() -> None:
+    """Each model's per-row factor against its formula; rows without a C/N0 fall back to the elevation."""
+    data, _ = synthetic_data(3, dual=False)
+    o = data.observations
+    cn0 = np.where(np.arange(len(o)) % 4 == 0, np.nan, 25.0 + (np.arange(len(o)) % 25))
+    data = ReceiverData(o.assign(cn0_l1=cn0), data.imu, data.nav)
+    kw = dict(ionosphere_free=False, code_sigma_m=2.5, phase_sigma_m=0.025, elevation_mask_deg=7.0)
+    by_el = prepare_ppp(data, **kw)
+    np.testing.assert_allclose(by_el.sigma_code, 2.5 / np.sin(by_el.el))
+    with_cn0 = by_el.cn0
+    assert np.isnan(with_cn0).any() and np.isfinite(with_cn0).any()
+    ratio = np.where(np.isfinite(with_cn0), 10.0 ** ((40.0 - with_cn0) / 20.0), np.nan)
+    by_cn0 = prepare_ppp(data, **kw, sigma_model=SigmaModel.cn0, cn0_ref_dbhz=40.0)
+    np.testing.assert_allclose(by_cn0.sigma_code, np.where(np.isfinite(ratio), 2.5 * ratio, by_el.sigma_code))
+    np.testing.assert_allclose(by_cn0.sigma_phase / by_cn0.sigma_code, 0.01)
+    # 20 dB below the reference: ten times the sigma (a hundred times the variance)
+    assert sigma_factor(np.array([0.3]), np.array([20.0]), SigmaModel.cn0, 40.0) == pytest.approx(10.0)
+    both = prepare_ppp(data, **kw, sigma_model=SigmaModel.elevation_cn0, cn0_ref_dbhz=40.0)
+    np.testing.assert_allclose(both.sigma_code, by_el.sigma_code * np.where(np.isfinite(ratio), ratio, 1.0))
+    np.testing.assert_allclose(both.sigma_scale, both.sigma_code / 2.5)

@@ -69,7 +69,8 @@ def test_failing_job_leaves_a_status_row_and_the_report_builds(tmp_path: Path) -
     out = tmp_path / "failing"
     # a mask no satellite clears: the estimator raises inside its run, the sweep goes on;
     # ionosphere-free processing of single-frequency data is an unmet need: skipped, not failed
-    proc = _simbench("-m", "estimator.ekf_ppp.elevation_mask_deg=10,89", f"results_dir={out}", *SHORT)
+    proc = _simbench("-m", "estimator.ekf_ppp.elevation_mask_deg=10,89", "gnss_model=dissertation",
+                     f"results_dir={out}", *SHORT)
     assert proc.returncode == 0, proc.stderr[-2000:]
     summary = pd.read_parquet(out / "summary.parquet").set_index("status")
     assert set(summary.index) == {"ok", "failed"}

@@ -1,0 +1,104 @@
+"""Robust estimators on code-only data (issue 13): they must pay off in a canyon and cost nothing in the open.
+
+Simulated, tuning seeds only (>= 1000), every estimator as the default run composes
+it (``conf/gnss_model/urban.yaml``) with ``measurements=code`` (a libRSF-like log:
+pseudoranges, Doppler where the receiver gives it, no carrier phase):
+
+* ``urban_deep`` (NLOS on about a third of the rows, as in the Hong Kong log):
+  DCS, MM and BCE each beat batch L2 in the mean over seeds of the per-seed
+  median horizontal error; ICE does not (a strict xfail with the numbers);
+* the same drive without wheel odometry has a larger DCS p95;
+* ``open_sky`` (no NLOS): each estimator's median is within 10 % of a plain
+  weighted least-squares single-point solution's, or better.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import estimators
+import simbench
+from estimators.measurement import prepare_ppp
+from simbench.compose import compose_config
+from simbench.config import to_typed
+from simbench.gnss.spp import solve_epochs
+from simbench.metrics import enu_errors
+
+TUNING_SEEDS = (1000, 1001, 1002)
+ROBUST = ("dcs", "mm", "bce")
+DURATION_S = 300.0
+
+
+def _config(name: str, **changes: object) -> object:
+    """Estimator ``name``'s config as the default run composes it, code only, with ``changes``."""
+    node = compose_config([f"estimator=[{name}]"]).estimator[name]
+    cls = estimators.get(name)
+    return to_typed({**node, "measurements": "code", **changes}, cls.Config, f"estimator.{name}")
+
+
+def _horizontal(name: str, scenario: simbench.Scenario, **changes: object) -> np.ndarray:
+    sol = estimators.get(name)(_config(name, **changes)).estimate(scenario.receiver_view())
+    return enu_errors(sol.epochs, scenario.truth)["horizontal"].to_numpy()
+
+
+def _median_horizontal(name: str, scenario: simbench.Scenario) -> float:
+    return float(np.median(_horizontal(name, scenario)))
+
+
+def _wls_median(scenario: simbench.Scenario) -> float:
+    """Per-epoch weighted least squares on the same prepared code rows and sigmas as the estimators."""
+    cfg = _config("l2")
+    obs = prepare_ppp(scenario.receiver_view(), **cfg.prepare_kwargs())
+    k = np.repeat(np.arange(obs.n_epochs), obs.epoch_stop - obs.epoch_start)
+    sol = solve_epochs(k, obs.sat_pos, obs.code, n_epochs=obs.n_epochs, sigma=obs.sigma_code,
+                       system_index=obs.system_index, el=obs.el, doy=obs.doy)
+    frame = pd.DataFrame({"epoch": obs.epoch_ids, "x": sol.pos[:, 0], "y": sol.pos[:, 1], "z": sol.pos[:, 2]})
+    return float(np.median(enu_errors(frame, scenario.truth)["horizontal"]))
+
+
+@pytest.fixture(scope="module")
+def canyons() -> list[simbench.Scenario]:
+    return [simbench.simulate("urban_deep", "low", seed=seed, **{"scenario.duration_s": DURATION_S})
+            for seed in TUNING_SEEDS]
+
+
+@pytest.fixture(scope="module")
+def canyon_medians(canyons: list[simbench.Scenario]) -> pd.DataFrame:
+    rows = [(sc.meta["seed"], name, _median_horizontal(name, sc)) for sc in canyons for name in ("l2", *ROBUST, "ice")]
+    return pd.DataFrame(rows, columns=["seed", "estimator", "median"])
+
+
+def _beats_l2(name: str, medians: pd.DataFrame) -> None:
+    mean = medians.groupby("estimator")["median"].mean()
+    assert mean[name] < mean["l2"], f"{name} {mean[name]:.2f} m against l2 {mean['l2']:.2f} m\n{medians}"
+
+
+@pytest.mark.parametrize("name", ROBUST)
+def test_robust_beats_l2_on_code_only_canyon_data(name: str, canyon_medians: pd.DataFrame) -> None:
+    _beats_l2(name, canyon_medians)
+
+
+@pytest.mark.xfail(strict=True, reason="incremental ICE drops its outliers from the graph (Ch.7); with 5 "
+                   "satellites and a third of them NLOS it often has fewer than 4 inliers and coasts: about "
+                   "16 m against batch L2's 9 m on these seeds")
+def test_ice_beats_l2_on_code_only_canyon_data(canyon_medians: pd.DataFrame) -> None:
+    _beats_l2("ice", canyon_medians)
+
+
+def test_odometry_lowers_the_dcs_p95_in_the_canyon(canyons: list[simbench.Scenario]) -> None:
+    with_odo = np.mean([np.percentile(_horizontal("dcs", sc), 95) for sc in canyons])
+    without = np.mean([np.percentile(_horizontal("dcs", sc, use_odometry=False), 95) for sc in canyons])
+    assert with_odo < 0.95 * without, f"DCS p95 {with_odo:.2f} m with odometry, {without:.2f} m without"
+
+
+@pytest.fixture(scope="module")
+def open_sky() -> simbench.Scenario:
+    return simbench.simulate("open_sky", "low", seed=TUNING_SEEDS[0], **{"scenario.duration_s": DURATION_S})
+
+
+@pytest.mark.parametrize("name", ("l2", *ROBUST, "ice"))
+def test_code_only_open_sky_costs_nothing_against_wls(name: str, open_sky: simbench.Scenario) -> None:
+    wls = _wls_median(open_sky)
+    ours = _median_horizontal(name, open_sky)
+    assert ours <= 1.10 * wls, f"{name} {ours:.2f} m against plain WLS {wls:.2f} m"
