@@ -8,13 +8,16 @@ produces them. The mechanisation
     p' = v,   v' = C_b^e f_b + g^e(p) - 2 Omega_ie v,   C_b^e' = C_b^e [w_ib^b x] - Omega_ie C_b^e
 
 is integrated between GNSS epochs by GTSAM's IMU preintegration
-(:class:`gtsam.PreintegratedCombinedMeasurements`) with the navigation-frame
-gravity set to the WGS-84 gravity (gravitation plus centrifugal,
-:func:`simbench.sim.imu.gravity_ecef`) at the start of the interval and the
-Earth rate as GTSAM's "Coriolis" rate; GTSAM's second-order (centrifugal) term
-stays off because ``g^e`` already contains it. Over one second of driving the
-gravity vector changes by < 1e-4 m/s^2, well under a consumer accelerometer's
-noise.
+(:class:`gtsam.PreintegratedCombinedMeasurements`) with the Earth rate as
+GTSAM's "Coriolis" rate. GTSAM's prediction then adds the Coriolis term and
+also the centrifugal one, ``-Omega_ie Omega_ie p`` (its second-order Coriolis
+term, on in the Python wheel, which has no setter for it), so its
+navigation-frame "gravity" is the WGS-84 gravitation alone
+(:func:`gravitation_ecef`: :func:`simbench.sim.imu.gravity_ecef` minus the
+centrifugal acceleration) at the start of the interval; passing the full
+``g^e`` counts the centrifugal term twice, a 0.026 m/s^2 acceleration error
+at 40 deg latitude. Over one second of driving the gravitation changes by
+< 1e-4 m/s^2, well under a consumer accelerometer's noise.
 
 Also here: coarse levelling from a static accelerometer mean, the heading
 reset about the local vertical and the course over ground. The Doppler
@@ -42,6 +45,7 @@ __all__ = [
     "ImuNoise",
     "attitude_ecef",
     "course_over_ground",
+    "gravitation_ecef",
     "level_roll_pitch",
     "preintegration_params",
     "rotate_about_vertical",
@@ -89,6 +93,23 @@ class ImuNoise:
                    gyro_bias_rw=gyro_bias_instability_dph * DEG_PER_HOUR * root)
 
 
+def gravitation_ecef(pos: np.ndarray) -> np.ndarray:
+    """WGS-84 gravitation (gravity without the centrifugal acceleration) in ECEF.
+
+    Parameters
+    ----------
+    pos : ndarray, shape (3,)
+        ECEF position [m].
+
+    Returns
+    -------
+    ndarray, shape (3,)
+        Gravitational acceleration [m/s^2].
+    """
+    pos = np.asarray(pos, float)
+    return gravity_ecef(pos) - OMEGA_EARTH**2 * np.array([pos[0], pos[1], 0.0])
+
+
 def preintegration_params(noise: ImuNoise, pos: np.ndarray) -> gtsam.PreintegrationCombinedParams:
     """GTSAM preintegration parameters for an ECEF navigation frame near ``pos``.
 
@@ -102,7 +123,7 @@ def preintegration_params(noise: ImuNoise, pos: np.ndarray) -> gtsam.Preintegrat
     -------
     gtsam.PreintegrationCombinedParams
     """
-    p = gtsam.PreintegrationCombinedParams(gravity_ecef(np.asarray(pos, float)))
+    p = gtsam.PreintegrationCombinedParams(gravitation_ecef(pos))  # GTSAM adds the centrifugal term
     p.setOmegaCoriolis(np.array([0.0, 0.0, OMEGA_EARTH]))
     eye = np.eye(3)
     p.setAccelerometerCovariance(noise.accel_noise**2 * eye)

@@ -27,7 +27,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.interpolate import CubicSpline
+from scipy.interpolate import BSpline, CubicSpline, make_smoothing_spline
 from scipy.special import fresnel
 
 from simbench.config import (FlightConfig, HeightDistribution, NlosConfig, ReplayConfig, TrajectoryConfig,
@@ -62,6 +62,19 @@ LEVEL_OFF_MARGIN_S = 5.0
 HOLD_HEADING_SPEED_MPS = 0.5
 #: Faster motion lasting less than this is treated as noise of a standing vehicle (RTK jumps) [s].
 MIN_MOVING_S = 1.0
+#: Scatter of a recorded reference position about the path it measures [m]: centimetres
+#: while RTK is fixed, decimetres (WVU drive 2: half a metre) while it floats.
+REPLAY_POSITION_SIGMA_M = 0.2
+#: Power spectral density of a car's acceleration, the smoothness prior of a replayed path [m^2/s^3].
+#: With 10 Hz positions of REPLAY_POSITION_SIGMA_M scatter the spline passes motion slower than
+#: about 0.2 Hz (half power where (2 pi f)^4 = q dt / sigma^2): a car's turns and stops, not the jumps.
+REPLAY_ACCEL_PSD = 1.0
+#: A reference epoch farther than this from the smoothed path is an outlier (wrong fix) and dropped [m].
+REPLAY_OUTLIER_M = 1.0
+#: Rounds of smoothing and outlier rejection per segment (stops earlier when no epoch is dropped).
+_REPLAY_OUTLIER_ROUNDS = 5
+#: A smoothing spline needs this many epochs; shorter segments are interpolated.
+_MIN_SMOOTHED_EPOCHS = 5
 #: Facade distances are never closer than this to the antenna [m].
 _MIN_WALL_DISTANCE_M = 0.5
 
@@ -689,16 +702,23 @@ def flight(cfg: TrajectoryConfig, duration_s: float, rate_hz: float, rng: np.ran
 
 
 def replay(cfg: ReplayConfig, rate_hz: float, duration_s: float | None = None) -> tuple[Trajectory, float]:
-    """Recorded trajectory, interpolated to ``rate_hz`` with a cubic spline per continuous segment.
+    """Recorded trajectory, smoothed and resampled to ``rate_hz`` per continuous segment.
 
     Epoch gaps longer than ``cfg.max_gap_s`` split the record into segments.
-    Samples inside such gaps are a cubic Hermite bridge (continuous position and
-    velocity) and flagged ``valid = False``. Samples fall on whole multiples of
-    1 / rate_hz in GPS time, so they coincide with a receiver's regular epochs.
-    Attitude follows the velocity: yaw is the local NED course, pitch the climb
-    angle, roll 0; both are held below ``HOLD_HEADING_SPEED_MPS`` (a standing car
-    keeps its heading). A heading change made while that slow appears as a step
-    in attitude that ``omega_eb_b`` does not contain.
+    Each segment is a robust cubic smoothing spline (:func:`_smooth_segment`),
+    not an interpolation: a reference receiver's positions scatter by
+    centimetres and jump by decimetres to metres between fixes, and the second
+    derivative of a path through them reaches hundreds of m/s^2 and its course
+    thousands of deg/s -- an IMU synthesised from that is no car's, and no
+    strapdown mechanisation sampled at the IMU rate can follow it. The smoothed
+    path is the truth the scenario is simulated on. Samples inside gaps (and
+    beyond the first and last epoch a segment keeps) are a cubic Hermite bridge
+    (continuous position and velocity) and flagged ``valid = False``. Samples
+    fall on whole multiples of 1 / rate_hz in GPS time, so they coincide with a
+    receiver's regular epochs. Attitude follows the velocity
+    (:func:`_attitude_from_velocity`): roll 0, yaw and pitch along the direction
+    of travel (opposite to it while reversing), turning smoothly while the car
+    is slower than ``HOLD_HEADING_SPEED_MPS``; ``omega_eb_b`` is its exact rate.
 
     Parameters
     ----------
@@ -745,19 +765,61 @@ def replay(cfg: ReplayConfig, rate_hz: float, duration_s: float | None = None) -
     for lo, hi in zip(cuts[:-1], cuts[1:]):
         if hi - lo < 2:
             continue  # a lone epoch between gaps: nothing to interpolate
-        sel = (t >= t_ep[lo] - tol) & (t <= t_ep[hi - 1] + tol)
+        spline, first, last = _smooth_segment(t_ep[lo:hi], xyz[lo:hi])
+        sel = (t >= first - tol) & (t <= last + tol)
         if not sel.any():
             continue
-        spline = CubicSpline(t_ep[lo:hi], xyz[lo:hi], axis=0)
-        ts = np.clip(t[sel], t_ep[lo], t_ep[hi - 1])
+        ts = np.clip(t[sel], first, last)
         pos[sel], vel[sel], acc[sel] = spline(ts), spline(ts, 1), spline(ts, 2)
         valid[sel] = True
     if not valid.any():
         raise SimbenchError(REPLAY_PATH_FIELD, f"'{cfg.path}' has no two epochs closer than max_gap_s",
                             "raise scenario.trajectory.replay.max_gap_s")
     _bridge_gaps(t, pos, vel, acc, valid)
-    att, omega = _attitude_from_velocity(pos, vel, acc, int(math.ceil(MIN_MOVING_S * rate_hz)))
+    att, omega = _attitude_from_velocity(t, pos, vel, acc, int(math.ceil(MIN_MOVING_S * rate_hz)))
     return Trajectory(t=t, pos=pos, vel=vel, acc=acc, att=att, omega_eb_b=omega, valid=valid), t0_sow
+
+
+def _smooth_segment(t: np.ndarray, xyz: np.ndarray) -> tuple[BSpline | CubicSpline, float, float]:
+    """Robust cubic smoothing spline through one continuous segment of reference epochs.
+
+    The spline minimises ``sum |y_i - f(t_i)|^2 / sigma^2 + integral |f''|^2 / q``
+    (``sigma = REPLAY_POSITION_SIGMA_M``, ``q = REPLAY_ACCEL_PSD``): the MAP path
+    of a vehicle whose acceleration is white noise of density ``q``, seen through
+    positions of scatter ``sigma``. Epochs farther than ``REPLAY_OUTLIER_M`` from
+    it are dropped and the fit repeated, so an isolated wrong fix does not drag
+    the path (a level shift between fixes stays, as a smooth move).
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Epoch times [s], strictly increasing, n >= 2.
+    xyz : ndarray, shape (n, 3)
+        ECEF positions [m].
+
+    Returns
+    -------
+    spline : BSpline or CubicSpline
+        Position [m] as a function of time [s]; ``spline(t, 1)``, ``spline(t, 2)``
+        are velocity and acceleration. Fewer than ``_MIN_SMOOTHED_EPOCHS`` epochs
+        cannot separate noise from motion and are interpolated.
+    first, last : float
+        Time span [s] of the epochs kept.
+    """
+    if len(t) < _MIN_SMOOTHED_EPOCHS:
+        return CubicSpline(t, xyz, axis=0), float(t[0]), float(t[-1])
+    keep = np.ones(len(t), dtype=bool)
+    w = np.full(len(t), REPLAY_POSITION_SIGMA_M**-2)
+    for _ in range(_REPLAY_OUTLIER_ROUNDS):
+        spline = make_smoothing_spline(t[keep], xyz[keep], w=w[keep], lam=1.0 / REPLAY_ACCEL_PSD)
+        inlier = np.linalg.norm(spline(t) - xyz, axis=1) <= REPLAY_OUTLIER_M
+        if np.count_nonzero(inlier) < _MIN_SMOOTHED_EPOCHS or np.array_equal(inlier, keep):
+            break
+        keep, fitted = inlier, keep
+    else:
+        keep = fitted  # out of rounds: the span of the epochs the last spline was fitted to
+    kept = t[keep]
+    return spline, float(kept[0]), float(kept[-1])
 
 
 def _bridge_gaps(t: np.ndarray, pos: np.ndarray, vel: np.ndarray, acc: np.ndarray, valid: np.ndarray) -> None:
@@ -783,13 +845,19 @@ def _bridge_gaps(t: np.ndarray, pos: np.ndarray, vel: np.ndarray, acc: np.ndarra
     pos[tail], vel[tail], acc[tail] = pos[prev[tail]], 0.0, 0.0
 
 
-def _attitude_from_velocity(pos: np.ndarray, vel: np.ndarray, acc: np.ndarray,
+def _attitude_from_velocity(t: np.ndarray, pos: np.ndarray, vel: np.ndarray, acc: np.ndarray,
                             min_moving: int) -> tuple[np.ndarray, np.ndarray]:
-    """Roll 0, yaw = course, pitch = climb angle in local NED, and the exact omega_eb_b.
+    """Roll 0, yaw and pitch along the direction of travel in local NED, and the exact omega_eb_b.
 
     The course is followed only within runs of at least ``min_moving`` samples
-    faster than ``HOLD_HEADING_SPEED_MPS``; elsewhere the last course is held
-    (before the first run: the course the vehicle starts off with).
+    faster than ``HOLD_HEADING_SPEED_MPS``. Between two runs the car is nearly
+    standing and its course is noise, so yaw and pitch turn smoothly from the
+    end of one run to the start of the next; before the first and after the
+    last run they are held. A car's heading is continuous, so a run whose
+    course starts more than 90 deg from where the previous one ended is driven
+    the other way (backing out of a parking space, a three-point turn): the
+    body points against the velocity there. Which way is forward is decided by
+    distance: a car drives forward over most of its route.
     """
     lat, lon, h = geodetic_from_ecef(pos)
     c_n_e = dcm_ned_to_ecef(lat, lon)
@@ -805,31 +873,86 @@ def _attitude_from_velocity(pos: np.ndarray, vel: np.ndarray, acc: np.ndarray,
     vn, ve, vd = v_n.T
     an, ae, ad = a_n.T
     vh = np.hypot(vn, ve)
-    moving = vh > HOLD_HEADING_SPEED_MPS
-    # drop short bursts: position jumps and noise of a standing vehicle would set a random heading
-    edges = np.diff(np.r_[0, moving.astype(np.int8), 0])
-    starts, ends = np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]
-    short = ends - starts < min_moving
-    mark = np.zeros(len(vh) + 1, dtype=np.int64)
-    np.add.at(mark, starts[short], 1)
-    np.add.at(mark, ends[short], -1)
-    moving &= np.cumsum(mark[:-1]) == 0
-    vh_safe = np.where(moving, vh, 1.0)
-    yaw = np.arctan2(ve, vn)
-    pitch = np.arctan2(-vd, vh)
-    yaw_dot = np.where(moving, (vn * ae - ve * an) / vh_safe**2, 0.0)
-    ah = (vn * an + ve * ae) / vh_safe
-    pitch_dot = np.where(moving, (-vh * ad + vd * ah) / (vh_safe**2 + vd * vd), 0.0)
-    idx = np.arange(len(vh))
-    last = np.maximum.accumulate(np.where(moving, idx, -1))
-    if moving.any():
-        last = np.where(last < 0, np.argmax(moving), last)  # before the first move: its heading
-        yaw, pitch = yaw[last], pitch[last]
-    else:
-        yaw, pitch = np.zeros_like(vh), np.zeros_like(vh)
+    starts, ends = _moving_runs(vh > HOLD_HEADING_SPEED_MPS, min_moving)
+    yaw, pitch, yaw_dot, pitch_dot = np.zeros((4, len(vh)))
+    if len(starts):
+        run = np.cumsum(np.bincount(starts, minlength=len(vh))) - 1  # the latest run started, -1 before the first
+        moving = (run >= 0) & (np.arange(len(vh)) < ends[np.maximum(run, 0)])
+        sign = np.where(moving, _run_directions(np.arctan2(ve, vn), vh, starts, ends)[np.maximum(run, 0)], 1.0)
+        vh_safe = np.where(moving, vh, 1.0)
+        ah = (vn * an + ve * ae) / vh_safe
+        yaw, yaw_dot = _turn_between_runs(t, moving, np.arctan2(sign * ve, sign * vn),
+                                          np.where(moving, (vn * ae - ve * an) / vh_safe**2, 0.0), wrap=True)
+        pitch, pitch_dot = _turn_between_runs(t, moving, np.arctan2(-sign * vd, vh),
+                                              np.where(moving, sign * (-vh * ad + vd * ah) / (vh_safe**2 + vd * vd),
+                                                       0.0), wrap=False)
     att = np.stack([np.zeros_like(yaw), pitch, yaw], axis=-1)
     c_b_n = dcm_body_to_ned(att)
     zero, one = np.zeros_like(yaw), np.ones_like(yaw)
     omega = np.einsum("kji,kj->ki", c_b_n, w_en) + _euler_rates_to_body(zero, one, np.sin(pitch), np.cos(pitch),
                                                                          zero, pitch_dot, yaw_dot)
     return att, omega
+
+
+def _moving_runs(fast: np.ndarray, min_moving: int) -> tuple[np.ndarray, np.ndarray]:
+    """Start and stop indices of the runs of ``fast`` samples at least ``min_moving`` long.
+
+    Shorter bursts are position jumps and noise of a standing vehicle; they would set a random heading.
+    """
+    edges = np.diff(np.r_[0, fast.astype(np.int8), 0])
+    starts, ends = np.nonzero(edges == 1)[0], np.nonzero(edges == -1)[0]
+    long = ends - starts >= min_moving
+    return starts[long], ends[long]
+
+
+def _run_directions(course: np.ndarray, speed: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """+1 for each run driven forward, -1 for one driven in reverse.
+
+    Consecutive runs change direction when the course jumps by more than 90 deg
+    across the stop between them; the direction covering the longer distance
+    (sum of speeds over the run's samples) is forward.
+    """
+    jump = np.angle(np.exp(1j * (course[starts[1:]] - course[ends[:-1] - 1])))
+    flipped = np.r_[0, np.cumsum(np.abs(jump) > 0.5 * math.pi)] % 2 == 1
+    travelled = np.r_[0.0, np.cumsum(speed)]
+    dist = travelled[ends] - travelled[starts]
+    reverse = flipped if dist[flipped].sum() < dist[~flipped].sum() else ~flipped
+    return np.where(reverse, -1.0, 1.0)
+
+
+def _turn_between_runs(t: np.ndarray, moving: np.ndarray, angle: np.ndarray, rate: np.ndarray,
+                       wrap: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Fill the samples outside the runs: a smoothstep turn between runs, held before the first and after the last.
+
+    Parameters
+    ----------
+    t : ndarray, shape (k,)
+        Sample times [s].
+    moving : ndarray of bool, shape (k,)
+        Samples inside a run (at least one); only there are ``angle`` and ``rate`` used.
+    angle, rate : ndarray, shape (k,)
+        Angle [rad] and its time derivative [rad/s].
+    wrap : bool
+        Turn the short way round and return angles in (-pi, pi] (a heading).
+
+    Returns
+    -------
+    angle, rate : ndarray, shape (k,)
+    """
+    idx = np.arange(len(t))
+    last = np.maximum.accumulate(np.where(moving, idx, -1))
+    nxt = np.minimum.accumulate(np.where(moving, idx, len(t))[::-1])[::-1]
+    angle, rate = angle.copy(), rate.copy()
+    both = ~moving & (last >= 0) & (nxt < len(t))
+    i0, i1 = last[both], nxt[both]
+    span = t[i1] - t[i0]
+    x = (t[both] - t[i0]) / span
+    turn = angle[i1] - angle[i0]
+    if wrap:
+        turn = np.angle(np.exp(1j * turn))
+    angle[both] = angle[i0] + turn * (3.0 - 2.0 * x) * x * x
+    rate[both] = turn * 6.0 * x * (1.0 - x) / span
+    lead, tail = ~moving & (last < 0), ~moving & (nxt >= len(t))
+    angle[lead], rate[lead] = angle[nxt[lead]], 0.0
+    angle[tail], rate[tail] = angle[last[tail]], 0.0
+    return (np.angle(np.exp(1j * angle)) if wrap else angle), rate
