@@ -92,6 +92,7 @@ from estimators.ppp_config import (
     MotionModelConfig,
 )
 from simbench.contract import ReceiverData
+from simbench.errors import SimbenchError
 from simbench.gnss.doppler import doppler_velocities, range_rate
 from simbench.gnss.geometry import enu_basis
 from simbench.gnss.spp import solve_epochs, system_clock_offsets
@@ -177,12 +178,20 @@ class EkfPpp(Estimator):
         odometry = cv and cfg.use_odometry and obs.odometry is not None
         kf = ExtendedKalmanFilter(dim_x=nx, dim_z=1)
 
-        # ---- initialisation from a single point solution at the first epoch (or the nearest
-        # trusted one among the first few, when the first is an NLOS-ridden fix)
-        rows = slice(0, int(obs.epoch_stop[min(obs.n_epochs, _INIT_EPOCHS) - 1]))
-        row_k = np.repeat(np.arange(obs.n_epochs), obs.epoch_stop - obs.epoch_start)[rows]
-        fix = solve_epochs(row_k, obs.sat_pos[rows], obs.code[rows], sigma=obs.sigma_code[rows], el=obs.el[rows],
-                           doy=obs.doy, system_index=obs.system_index[rows], fill_untrusted=True)
+        # ---- initialisation from a single point solution at the first epoch, or the nearest
+        # trusted one among the first few (an NLOS-ridden fix, or fewer than 4 satellites), or
+        # among all when none of those is
+        all_k = np.repeat(np.arange(obs.n_epochs), obs.epoch_stop - obs.epoch_start)
+        for rows in (slice(0, int(obs.epoch_stop[min(obs.n_epochs, _INIT_EPOCHS) - 1])), slice(None)):
+            row_k = all_k[rows]
+            try:
+                fix = solve_epochs(row_k, obs.sat_pos[rows], obs.code[rows], sigma=obs.sigma_code[rows],
+                                   el=obs.el[rows], doy=obs.doy, system_index=obs.system_index[rows],
+                                   fill_untrusted=True)
+                break
+            except SimbenchError:  # no trusted fix among the first epochs: search them all
+                if rows == slice(None):
+                    raise
         pos0, clock0 = fix.pos[0], float(fix.clock_m[0, 0])
         lat0, _, h0 = geodetic_from_ecef(pos0)
         _, zwd0 = atmosphere.saastamoinen_zenith_m(lat0, h0)

@@ -213,7 +213,8 @@ class PppObservations:
 def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: float, phase_sigma_m: float,
                 elevation_mask_deg: float, min_satellites: int = 4, max_gap_epochs: int = 1,
                 measurements: MeasurementMode = MeasurementMode.code_phase,
-                sigma_model: SigmaModel = SigmaModel.elevation, cn0_ref_dbhz: float = 45.0) -> PppObservations:
+                sigma_model: SigmaModel = SigmaModel.elevation, cn0_ref_dbhz: float = 45.0,
+                doppler_slip_m: float = 0.0) -> PppObservations:
     """Select, correct and weight the observations for PPP.
 
     Rows with missing values in the columns used, or below the elevation mask,
@@ -236,7 +237,7 @@ def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: floa
         Elevation mask [deg].
     min_satellites : int
         Epochs with fewer usable satellites are dropped.
-    max_gap_epochs : int
+    max_gap_epochs, doppler_slip_m : int, float
         See :func:`arc_ids`.
     measurements : MeasurementMode
         ``code_phase`` (default) drops rows without carrier phase; ``auto`` keeps
@@ -264,9 +265,9 @@ def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: floa
     for name, value in (("code_sigma_m", code_sigma_m), ("phase_sigma_m", phase_sigma_m)):
         if not value > 0:
             raise SimbenchError(name, f"must be positive, got {value}", "give a standard deviation in metres")
-    if min_satellites < 4:
-        raise SimbenchError("min_satellites", f"must be at least 4, got {min_satellites}",
-                            "4 unknowns (position, clock) need 4 satellites")
+    if min_satellites < 1:
+        raise SimbenchError("min_satellites", f"must be at least 1, got {min_satellites}",
+                            "give 4 for snapshot-solvable epochs only, or 1 to keep every epoch with a satellite")
 
     require_phase = measurements == MeasurementMode.code_phase
     if require_phase and len(obs) and not np.isfinite(obs["phase_l1"].to_numpy(float)).any():
@@ -283,7 +284,8 @@ def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: floa
     obs = obs.loc[valid]
     with_phase = with_phase[valid]
     arc = np.full(len(obs), -1, np.int64)
-    arc[with_phase] = arc_ids(obs.loc[with_phase], max_gap_epochs, use_l2=ionosphere_free)
+    arc[with_phase] = arc_ids(obs.loc[with_phase], max_gap_epochs, use_l2=ionosphere_free,
+                              doppler_slip_m=doppler_slip_m)
 
     el = obs["el"].to_numpy(float) * DEG
     keep = el > elevation_mask_deg * DEG
@@ -372,17 +374,29 @@ def _rough_lat_lon(sat_pos: np.ndarray, code: np.ndarray, sigma: np.ndarray, el:
 
     Single point solutions every ~60 s (each epoch takes the latest one before
     it, the first one before that); the Klobuchar delay changes by far less
-    than a centimetre over the kilometres a receiver moves in a minute.
+    than a centimetre over the kilometres a receiver moves in a minute. Only
+    epochs with 4 satellites or more are candidates (with ``min_satellites`` below
+    4 many are not); when none of the chosen ones gives a trusted fix, every
+    candidate is solved.
     """
     t_epoch = t[start]
     n = len(start)
-    solve_at = np.unique(np.searchsorted(t_epoch, np.arange(t_epoch[0], t_epoch[-1] + 1e-9,
-                                                            _ROUGH_POSITION_INTERVAL_S)))
-    solve_at = solve_at[solve_at < n]
-    rows = np.concatenate([np.arange(start[k], stop[k]) for k in solve_at])
-    which_rows = np.repeat(np.arange(len(solve_at)), stop[solve_at] - start[solve_at])
-    sol = solve_epochs(which_rows, sat_pos[rows], code[rows], n_epochs=len(solve_at), sigma=sigma[rows],
-                       system_index=system_index[rows], el=el[rows], doy=doy, fill_untrusted=True)
+    candidates = np.flatnonzero(stop - start >= 4)
+    if candidates.size == 0:
+        candidates = np.arange(n)  # solve_epochs then says in one line that nothing is trusted
+    every = candidates[np.unique(np.minimum(np.searchsorted(
+        t_epoch[candidates], np.arange(t_epoch[0], t_epoch[-1] + 1e-9, _ROUGH_POSITION_INTERVAL_S)),
+        candidates.size - 1))]
+    for solve_at in (every, candidates):
+        rows = np.concatenate([np.arange(start[k], stop[k]) for k in solve_at])
+        which_rows = np.repeat(np.arange(len(solve_at)), stop[solve_at] - start[solve_at])
+        try:
+            sol = solve_epochs(which_rows, sat_pos[rows], code[rows], n_epochs=len(solve_at), sigma=sigma[rows],
+                               system_index=system_index[rows], el=el[rows], doy=doy, fill_untrusted=True)
+            break
+        except SimbenchError:
+            if solve_at is candidates:
+                raise
     lats, lons, _ = geodetic_from_ecef(sol.pos)
     which = np.maximum(np.searchsorted(solve_at, np.arange(n), side="right") - 1, 0)
     per_row = np.repeat(which, stop - start)

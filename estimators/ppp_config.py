@@ -70,8 +70,14 @@ class StochasticModelConfig:
     #: C/N0 at which the ``cn0`` factor is 1 [dB-Hz]
     cn0_ref_dbhz: float = 45.0
     elevation_mask_deg: float = 7.0
-    min_satellites: int = 4  #: epochs with fewer usable satellites are skipped
+    #: epochs with fewer usable satellites are skipped (Table 4.4.2: 4, a snapshot fix); below 4 an
+    #: epoch is held by the motion model and its 1-3 rows (what a car in a canyon often has)
+    min_satellites: int = 4
     max_gap_epochs: int = 1  #: a larger epoch step within a satellite's rows starts a new phase arc
+    #: a phase step that disagrees with the Doppler by more than this starts a new arc [m] (an
+    #: unflagged cycle slip or a switch of reflected path; :func:`simbench.gnss.arcs.doppler_phase_jumps`);
+    #: 0: loss-of-lock flags and gaps only (Table 4.4.2's data came with flagged slips)
+    doppler_slip_m: float = 0.0
     ionosphere_free: bool = False  #: L1/L2 ionosphere-free combination (needs dual-frequency data)
     #: L1 only (not in Table 4.4.2): a slant ionosphere residual per satellite arc (code +I, phase -I)
     #: so that code-phase divergence after Klobuchar does not drag the position
@@ -103,9 +109,11 @@ class StochasticModelConfig:
         if not 0.0 <= self.elevation_mask_deg < 90.0:
             raise SimbenchError(f"{where}.elevation_mask_deg", f"must be within [0, 90) deg, got "
                                 f"{self.elevation_mask_deg}", "give an elevation mask in degrees, e.g. 7")
+        require_at_least(f"{where}.doppler_slip_m", self.doppler_slip_m, 0,
+                         "give a threshold in metres, e.g. 1, or 0 to break arcs at flags and gaps only")
         require_positive(f"{where}.cn0_ref_dbhz", self.cn0_ref_dbhz, "give a reference C/N0 in dB-Hz, e.g. 45")
-        require_at_least(f"{where}.min_satellites", self.min_satellites, 4,
-                         "4 unknowns (position, clock) need 4 satellites")
+        require_at_least(f"{where}.min_satellites", self.min_satellites, 1,
+                         "give 4 for snapshot-solvable epochs only, or 1 to keep every epoch with a satellite")
         require_at_least(f"{where}.max_gap_epochs", self.max_gap_epochs, 1,
                          "1 means every epoch must be present within one arc")
 
@@ -122,7 +130,7 @@ class StochasticModelConfig:
                 "phase_sigma_m": self.phase_sigma_m, "elevation_mask_deg": self.elevation_mask_deg,
                 "min_satellites": self.min_satellites, "max_gap_epochs": self.max_gap_epochs,
                 "measurements": self.measurements, "sigma_model": self.sigma_model,
-                "cn0_ref_dbhz": self.cn0_ref_dbhz}
+                "cn0_ref_dbhz": self.cn0_ref_dbhz, "doppler_slip_m": self.doppler_slip_m}
 
 
 class MotionModel(Choice):
@@ -176,8 +184,10 @@ class GnssModelConfig:
     """The model choices every GNSS estimator takes from the ``gnss_model`` config group.
 
     ``conf/gnss_model/`` holds the profiles (``dissertation``: Table 4.4.2's random
-    walk and ``1/sin(el)`` weights, pinned by the thesis sweeps; ``urban``: C/N0
-    weights and constant velocity, the default run's). :func:`simbench.compose.register_schemas`
+    walk, ``1/sin(el)`` weights, arcs broken at flags and gaps, epochs with 4
+    satellites or more, pinned by the thesis sweeps; ``urban``: C/N0 weights,
+    constant velocity, arcs also broken where the phase disagrees with the Doppler,
+    every epoch with a satellite: the default run's). :func:`simbench.compose.register_schemas`
     makes each of these fields of every estimator config that has it default to
     ``${gnss_model.<field>}``, so one setting reaches every estimator and
     ``estimator.<name>.<field>`` still overrides it for one.
@@ -185,3 +195,5 @@ class GnssModelConfig:
 
     motion_model: MotionModel = MotionModel.random_walk
     sigma_model: SigmaModel = SigmaModel.elevation
+    doppler_slip_m: float = 0.0
+    min_satellites: int = 4

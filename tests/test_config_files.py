@@ -118,7 +118,8 @@ def test_composed_estimator_configs_are_the_dataclass_defaults_but_for_the_gnss_
     urban = compose_config([])
     profile = {f.name: getattr(to_typed(OmegaConf.to_container(urban.gnss_model), GnssModelConfig, "gnss_model"),
                                f.name) for f in dataclasses.fields(GnssModelConfig)}
-    assert profile == {"motion_model": MotionModel.constant_velocity, "sigma_model": SigmaModel.cn0}
+    assert profile == {"motion_model": MotionModel.constant_velocity, "sigma_model": SigmaModel.cn0,
+                       "doppler_slip_m": 1.0, "min_satellites": 1}
     shared = 0
     for name in NAMES:
         cls = estimators.get(name).Config

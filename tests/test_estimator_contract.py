@@ -204,7 +204,7 @@ def test_runner_skips_gnss_ins_without_imu_and_phase_estimators_on_code_only_dat
 
 
 def test_invalid_config_fails_at_construction() -> None:
-    for name, field, value in (("ekf_ppp", "code_sigma_m", 0.0), ("l2", "min_satellites", 3),
+    for name, field, value in (("ekf_ppp", "code_sigma_m", 0.0), ("l2", "min_satellites", 0),
                                ("mm", "outlier_weight", 1.5), ("isam2_dcs", "phi", -1.0), ("ice", "alpha", 2.0),
                                ("bce_ad", "n_features", 9), ("isam2_ppp", "lag_s", -1.0),
                                ("isam2_mm", "outlier_weight", 0.0), ("bce", "fit_sample", -1),

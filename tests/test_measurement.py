@@ -12,6 +12,7 @@ import pymap3d
 import pytest
 
 from estimators.measurement import arc_ids, predict, prepare_ppp, sigma_factor
+from simbench.gnss.arcs import doppler_phase_jumps
 from estimators.ppp_config import SigmaModel
 from simbench.contract import NavInfo, ReceiverData
 from simbench.errors import SimbenchError
@@ -250,3 +251,32 @@ def test_sigma_models_follow_elevation_and_cn0() -> None:
     both = prepare_ppp(data, **kw, sigma_model=SigmaModel.elevation_cn0, cn0_ref_dbhz=40.0)
     np.testing.assert_allclose(both.sigma_code, by_el.sigma_code * np.where(np.isfinite(ratio), ratio, 1.0))
     np.testing.assert_allclose(both.sigma_scale, both.sigma_code / 2.5)
+
+
+def test_doppler_breaks_arcs_at_unflagged_slips_but_not_at_clock_jumps() -> None:
+    """Phase steps that follow the Doppler stay one arc, a jump common to every satellite (a receiver
+    clock that keeps within a millisecond by jumps) too; a 1.5 m step on one satellite breaks its arc."""
+    rng = np.random.default_rng(4)
+    sats = ["G01", "G02", "G03", "C11"]
+    n = 20
+    t = np.arange(n) * 1.0
+    rows = []
+    for j, sat in enumerate(sats):
+        lam = 299_792_458.0 / (1_561.098e6 if sat[0] == "C" else 1_575.42e6)
+        rate = -800.0 + 300.0 * j + 0.5 * t  # range rate [m/s], accelerating
+        rng_m = 2.2e7 + np.cumsum(np.r_[0.0, 0.5 * (rate[1:] + rate[:-1])])  # exact trapezoid integral
+        phase = rng_m + 0.003 * rng.standard_normal(n)
+        phase[12:] += 299_792.458  # a 1 ms receiver clock jump at epoch 12, on every satellite
+        if sat == "G02":
+            phase[7:] += 1.5  # an unflagged slip
+        doppler = -rate / lam + 0.2 * rng.standard_normal(n)
+        rows += [(k, t[k], sat, phase[k], doppler[k], False) for k in range(n)]
+    df = pd.DataFrame(rows, columns=["epoch", "t", "sat", "phase_l1", "doppler_l1", "lli_l1"])
+    jumps = doppler_phase_jumps(df)
+    assert np.isnan(jumps[df["epoch"] == 0]).all()
+    slip = (df["sat"] == "G02") & (df["epoch"] == 7)
+    assert jumps[slip][0] == pytest.approx(1.5, abs=0.3)  # the median of four is the clean pair's mean
+    assert np.nanmax(jumps[~slip & (df["epoch"] != 7)]) < 0.3
+    arcs = pd.Series(arc_ids(df, doppler_slip_m=1.0), index=df.index).groupby(df["sat"]).nunique()
+    assert arcs.to_dict() == {"C11": 1, "G01": 1, "G02": 2, "G03": 1}
+    assert (pd.Series(arc_ids(df), index=df.index).groupby(df["sat"]).nunique() == 1).all()  # check off
