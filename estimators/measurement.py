@@ -135,7 +135,6 @@ def sigma_factor(el: np.ndarray, cn0: np.ndarray, model: SigmaModel, cn0_ref_dbh
     return by_elevation * np.where(np.isfinite(by_cn0), by_cn0, 1.0)
 
 
-
 @dataclass(frozen=True)
 class PppObservations:
     """Usable, corrected observations as flat arrays sorted by (epoch, satellite).
@@ -346,8 +345,9 @@ def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: floa
     return PppObservations(
         epoch=epoch, t=t, sat=sat, sat_index=sat_index.astype(np.int64), sat_pos=sat_pos, code=code,
         phase=phase, el=el, az=az, arc=arc.astype(np.int64), sigma_code=code_sigma_m * sigma_scale,
-        sigma_phase=phase_sigma_m * sigma_scale, sigma_scale=sigma_scale, cn0=cn0, epoch_ids=epoch_ids, epoch_t=t[epoch_start],
-        epoch_start=epoch_start, epoch_stop=epoch_stop, sat_names=tuple(str(s) for s in sat_names),
+        sigma_phase=phase_sigma_m * sigma_scale, sigma_scale=sigma_scale, cn0=cn0, epoch_ids=epoch_ids,
+        epoch_t=t[epoch_start], epoch_start=epoch_start, epoch_stop=epoch_stop,
+        sat_names=tuple(str(s) for s in sat_names),
         n_arcs=int(arc.max(initial=-1)) + 1, ionosphere_free=ionosphere_free, doy=doy, systems=systems,
         system_index=system_index, range_rate=range_rate, sat_vel=sat_vel,
         odometry=_odometry_per_epoch(data.odometry, t[epoch_start]) if len(data.odometry) else None)

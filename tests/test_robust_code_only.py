@@ -13,9 +13,12 @@ pseudoranges, Doppler where the receiver gives it, no carrier phase):
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pandas as pd
 import pytest
+from omegaconf import OmegaConf
 
 import estimators
 import simbench
@@ -30,11 +33,16 @@ ROBUST = ("dcs", "mm", "bce")
 DURATION_S = 300.0
 
 
+@functools.cache
+def _composed(name: str) -> dict:
+    """Estimator ``name``'s config node as the default run composes it (composed once per name)."""
+    return OmegaConf.to_container(compose_config([f"estimator=[{name}]"]).estimator[name], resolve=True)
+
+
 def _config(name: str, **changes: object) -> object:
     """Estimator ``name``'s config as the default run composes it, code only, with ``changes``."""
-    node = compose_config([f"estimator=[{name}]"]).estimator[name]
     cls = estimators.get(name)
-    return to_typed({**node, "measurements": "code", **changes}, cls.Config, f"estimator.{name}")
+    return to_typed({**_composed(name), "measurements": "code", **changes}, cls.Config, f"estimator.{name}")
 
 
 def _horizontal(name: str, scenario: simbench.Scenario, **changes: object) -> np.ndarray:
