@@ -15,10 +15,14 @@ then
    adds it (:meth:`estimators.mixture_tests.MixtureModel.adapt`, eqs. 7.4-7.12),
    then clears the buffer.
 
-An epoch with fewer than ``min_inliers`` inlier satellites gets no GNSS update
-(the motion model carries the state). The a-priori model is one zero-mean
-component ``diag(2.5^2, 0.25^2)`` m^2 (REFERENCE.md); like BCE's clusters it is a
-model of the raw residuals, so ICE does not scale it with elevation.
+An epoch with fewer than ``min_satellites`` inlier satellites gets no GNSS
+update (the motion model carries the state; 4 in the dissertation's model). The
+a-priori model is one zero-mean component ``diag(2.5^2, 0.25^2)`` m^2
+(REFERENCE.md); like BCE's clusters it is a model of the raw residuals, so ICE
+does not scale it with elevation. With ``scaled_mixture`` (the ``urban`` GNSS
+model) the mixture is a model of each residual divided by its row's sigma factor
+(C/N0), and a component's covariance is scaled back per row: a weak signal is
+tested and weighted against a wider component.
 
 Choices where the text is silent:
 
@@ -72,8 +76,8 @@ class IceConfig(IncrementalConfig):
     alpha: float = 0.05  #: significance of the W and Hotelling merge tests
     max_components: int = 20  #: components of the model at most
     min_cluster_points: int = 2  #: new clusters with fewer points are dropped
-    #: an epoch with fewer inlier satellites gets no GNSS update (4: position and clock still determined)
-    min_inliers: int = 4
+    #: the mixture models residuals divided by each row's sigma factor (``sigma_model``), not metres
+    scaled_mixture: bool = False
     prior_code_sigma_m: float = 2.5  #: a-priori model code sigma [m] (not elevation-scaled)
     prior_phase_sigma_m: float = 0.25  #: a-priori model phase sigma [m]
     dpgmm_truncation: int = 10  #: stick-breaking truncation of the DP-GMM fit
@@ -85,7 +89,7 @@ class IceConfig(IncrementalConfig):
         super().validate(where)
         checks = (("z_threshold", self.z_threshold > 0), ("cluster_threshold", self.cluster_threshold >= 1),
                   ("alpha", 0 < self.alpha < 1), ("max_components", self.max_components >= 1),
-                  ("min_cluster_points", self.min_cluster_points >= 1), ("min_inliers", self.min_inliers >= 0),
+                  ("min_cluster_points", self.min_cluster_points >= 1),
                   ("prior_code_sigma_m", self.prior_code_sigma_m > 0),
                   ("prior_phase_sigma_m", self.prior_phase_sigma_m > 0),
                   ("dpgmm_truncation", self.dpgmm_truncation >= 1))
@@ -195,16 +199,18 @@ class Ice(IncrementalGraphEstimator):
         if self._noise is None:  # the model's dimension follows the data: code-only logs get a 1-D model
             self._noise = AdaptiveNoiseModel(self.config, code_only=g.obs.n_arcs == 0)
         code_only = self._noise.code_only
+        scale = g.obs.sigma_scale[rows] if self.config.scaled_mixture else np.ones(len(pred.res_code))
         res = pred.res_code[:, None] if code_only else np.column_stack([pred.res_code, pred.res_phase])
-        inlier, comp = self._noise.classify(res)
+        inlier, comp = self._noise.classify(res / scale[:, None])
         # the model used for this epoch's inliers is the one they were tested against
-        means, covs = self._noise.model.means[comp], self._noise.model.covs[comp]
+        means = self._noise.model.means[comp] * scale[:, None]
+        covs = self._noise.model.covs[comp] * np.square(scale)[:, None, None]
         if self.config.record_residuals:
             self._records.append({"epoch": int(k), "code": pred.res_code.tolist(),
                                   "phase": np.nan_to_num(pred.res_phase, nan=0.0).tolist(),
                                   "new_arc": pred.new_arc.tolist(), "inlier": inlier.tolist()})
-        self._noise.observe(res, inlier, comp)
-        if inlier.sum() < self.config.min_inliers:
+        self._noise.observe(res / scale[:, None], inlier, comp)
+        if inlier.sum() < self.config.min_satellites:
             return None
         if code_only:  # the data have no phase rows, so there are no phase factors to weight
             return {"code_sigma": np.sqrt(covs[:, 0, 0]), "code_offset": means[:, 0], "use_code": inlier}

@@ -200,12 +200,16 @@ class IncrementalGraphEstimator(Estimator):
         isb = np.r_[0.0, [isam.calculateEstimateDouble(isb_key(s, k - 1)) if k else g.isb0_m[s - 1]
                           for s in range(1, obs.n_isb + 1)]]
         offset = isb[g.row_system[rows]]
+        prior_pos, prior_root = None, None
         if k == 0:
             pos, clock, zwd = g.spp_pos[0].copy(), float(g.spp_clock_m[0]), g.zwd0
         else:
             pos = np.asarray(isam.calculateEstimatePoint3(pos_key(k - 1)), float).copy()
             zwd = isam.calculateEstimateDouble(zwd_key(k - 1))
             clock = float(g.spp_clock_m[k])
+            if g.constant_velocity:
+                prior_pos, prior_root = self._motion_prior(k, g, isam, pos)
+                pos = prior_pos.copy()
         amb = np.full(m, np.nan)
         iono = np.zeros(m)
         for j in np.flatnonzero(cont):
@@ -225,7 +229,15 @@ class IncrementalGraphEstimator(Estimator):
             A = np.vstack([H[:, :4], H[cont, :4]])
             u = np.abs(res / sig)
             w = np.where(u <= _HUBER_K, 1.0, _HUBER_K / np.maximum(u, 1e-12)) / sig
-            dx, *_ = np.linalg.lstsq(A * w[:, None], res * w, rcond=None)
+            A, b = A * w[:, None], res * w
+            if prior_pos is not None:  # whitened rows root @ (prior_pos - pos - dx) = 0; the clock stays free
+                # Huber-weighted too: when the satellites agree far from it, the prediction is the outlier
+                rp = prior_root @ (prior_pos - pos)
+                u = np.abs(rp)
+                wp = np.where(u <= _HUBER_K, 1.0, _HUBER_K / np.maximum(u, 1e-12))
+                A = np.vstack([A, np.column_stack([prior_root * wp[:, None], np.zeros(3)])])
+                b = np.r_[b, rp * wp]
+            dx, *_ = np.linalg.lstsq(A, b, rcond=None)
             pos += dx[:3]
             clock += dx[3]
             if np.linalg.norm(dx[:3]) < 1e-4:
@@ -235,6 +247,21 @@ class IncrementalGraphEstimator(Estimator):
         res_phase = zp - (p - iono + amb)
         amb_new = np.where(new_arc, zp - (p - iono), np.nan)
         return EpochPrediction(pos, clock, res_code, res_phase, new_arc, amb_new)
+
+    @staticmethod
+    def _motion_prior(k: int, g: PppGraph, isam: _Smoother, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Constant-velocity prediction of epoch ``k``'s position and the whitening root of its covariance.
+
+        ``p = p_{k-1} + v_{k-1} dt`` with ``P = P_p + dt^2 P_v + q^2 dt^3 / 3 I`` from the filtered
+        marginals (their cross-covariance dropped). Without it a snapshot of four or fewer
+        satellites fits them exactly and every residual looks like an inlier.
+        """
+        dt = float(g.obs.epoch_t[k] - g.obs.epoch_t[k - 1])
+        vel = np.asarray(isam.calculateEstimatePoint3(vel_key(k - 1)), float)
+        q = g.cfg.accel_sigma_mps2_rts
+        cov = (isam.marginalCovariance(pos_key(k - 1)) + dt * dt * isam.marginalCovariance(vel_key(k - 1))
+               + (q * q * dt**3 / 3.0) * np.eye(3))
+        return pos + vel * dt, np.linalg.inv(np.linalg.cholesky(cov))
 
     def _initial_values(self, k: int, rows: slice, g: PppGraph, isam: _Smoother,
                         pred: EpochPrediction) -> gtsam.Values:
@@ -301,6 +328,9 @@ class _Smoother:
 
     def calculateEstimateDouble(self, key: int) -> float:
         return self._impl.calculateEstimateDouble(key)
+
+    def marginalCovariance(self, key: int) -> np.ndarray:
+        return np.asarray(self._impl.marginalCovariance(key), float)
 
 
 def isam2_params(cfg: IncrementalConfig) -> gtsam.ISAM2Params:

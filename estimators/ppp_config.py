@@ -187,9 +187,10 @@ class GnssModelConfig:
     walk, ``1/sin(el)`` weights, arcs broken at flags and gaps, epochs with 4
     satellites or more, pinned by the thesis sweeps; ``urban``: C/N0 weights,
     constant velocity, arcs also broken where the phase disagrees with the Doppler,
-    every epoch with a satellite: the default run's). :func:`simbench.compose.register_schemas`
-    makes each of these fields of every estimator config that has it default to
-    ``${gnss_model.<field>}``, so one setting reaches every estimator and
+    every epoch with a satellite, ICE's mixture in units of the C/N0 sigma factor:
+    the default run's). :func:`simbench.compose.register_schemas` makes each of these
+    fields of every estimator config that has it default to ``${gnss_model.<field>}``,
+    so one setting reaches every estimator that has the field and
     ``estimator.<name>.<field>`` still overrides it for one.
     """
 
@@ -197,3 +198,5 @@ class GnssModelConfig:
     sigma_model: SigmaModel = SigmaModel.elevation
     doppler_slip_m: float = 0.0
     min_satellites: int = 4
+    #: ICE's adaptive mixture over residuals in units of each row's sigma factor (False: metres)
+    scaled_mixture: bool = False

@@ -4,9 +4,10 @@ Simulated, tuning seeds only (>= 1000), every estimator as the default run compo
 it (``conf/gnss_model/urban.yaml``) with ``measurements=code`` (a libRSF-like log:
 pseudoranges, Doppler where the receiver gives it, no carrier phase):
 
-* ``urban_deep`` (NLOS on about a third of the rows, as in the Hong Kong log):
-  DCS, MM and BCE each beat batch L2 in the mean over seeds of the per-seed
-  median horizontal error; ICE does not (a strict xfail with the numbers);
+* ``urban_deep`` with the ``consumer`` receiver (the world calibrated on the Hong
+  Kong log: NLOS on about a third of the rows): DCS, BCE and ICE each beat batch
+  L2 in the mean over seeds of the per-seed median horizontal error; MM at its
+  published outlier model does not (a strict xfail with the numbers);
 * the same drive without wheel odometry has a larger DCS p95;
 * ``open_sky`` (no NLOS): each estimator's median is within 10 % of a plain
   weighted least-squares single-point solution's, or better.
@@ -29,7 +30,11 @@ from simbench.gnss.spp import solve_epochs
 from simbench.metrics import enu_errors
 
 TUNING_SEEDS = (1000, 1001, 1002)
-ROBUST = ("dcs", "mm", "bce")
+ROBUST = ("dcs", "mm", "bce", "ice")
+#: MM's equal-weight outlier component of 1e6 times the inlier covariance (the batch code) only
+#: wins beyond about 3.7 sigma, and C/N0 sigmas already widen the NLOS rows: MM keeps them all
+MM_XFAIL = pytest.mark.xfail(strict=True, reason="batch MM at outlier_scale 1e6 equals L2 on these seeds "
+                             "(5.63 m each); outlier_scale 100 gives 4.64 m")
 DURATION_S = 300.0
 
 
@@ -67,31 +72,20 @@ def _wls_median(scenario: simbench.Scenario) -> float:
 
 @pytest.fixture(scope="module")
 def canyons() -> list[simbench.Scenario]:
-    return [simbench.simulate("urban_deep", "low", seed=seed, **{"scenario.duration_s": DURATION_S})
+    return [simbench.simulate("urban_deep", "consumer", seed=seed, **{"scenario.duration_s": DURATION_S})
             for seed in TUNING_SEEDS]
 
 
 @pytest.fixture(scope="module")
 def canyon_medians(canyons: list[simbench.Scenario]) -> pd.DataFrame:
-    rows = [(sc.meta["seed"], name, _median_horizontal(name, sc)) for sc in canyons for name in ("l2", *ROBUST, "ice")]
+    rows = [(sc.meta["seed"], name, _median_horizontal(name, sc)) for sc in canyons for name in ("l2", *ROBUST)]
     return pd.DataFrame(rows, columns=["seed", "estimator", "median"])
 
 
-def _beats_l2(name: str, medians: pd.DataFrame) -> None:
-    mean = medians.groupby("estimator")["median"].mean()
-    assert mean[name] < mean["l2"], f"{name} {mean[name]:.2f} m against l2 {mean['l2']:.2f} m\n{medians}"
-
-
-@pytest.mark.parametrize("name", ROBUST)
+@pytest.mark.parametrize("name", [pytest.param(n, marks=MM_XFAIL) if n == "mm" else n for n in ROBUST])
 def test_robust_beats_l2_on_code_only_canyon_data(name: str, canyon_medians: pd.DataFrame) -> None:
-    _beats_l2(name, canyon_medians)
-
-
-@pytest.mark.xfail(strict=True, reason="incremental ICE drops its outliers from the graph (Ch.7); with 5 "
-                   "satellites and a third of them NLOS it often has fewer than 4 inliers and coasts: about "
-                   "16 m against batch L2's 9 m on these seeds")
-def test_ice_beats_l2_on_code_only_canyon_data(canyon_medians: pd.DataFrame) -> None:
-    _beats_l2("ice", canyon_medians)
+    mean = canyon_medians.groupby("estimator")["median"].mean()
+    assert mean[name] < mean["l2"], f"{name} {mean[name]:.2f} m against l2 {mean['l2']:.2f} m\n{canyon_medians}"
 
 
 def test_odometry_lowers_the_dcs_p95_in_the_canyon(canyons: list[simbench.Scenario]) -> None:
@@ -105,7 +99,7 @@ def open_sky() -> simbench.Scenario:
     return simbench.simulate("open_sky", "low", seed=TUNING_SEEDS[0], **{"scenario.duration_s": DURATION_S})
 
 
-@pytest.mark.parametrize("name", ("l2", *ROBUST, "ice"))
+@pytest.mark.parametrize("name", ("l2", *ROBUST))
 def test_code_only_open_sky_costs_nothing_against_wls(name: str, open_sky: simbench.Scenario) -> None:
     wls = _wls_median(open_sky)
     ours = _median_horizontal(name, open_sky)
