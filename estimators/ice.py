@@ -201,7 +201,8 @@ class Ice(IncrementalGraphEstimator):
         code_only = self._noise.code_only
         scale = g.obs.sigma_scale[rows] if self.config.scaled_mixture else np.ones(len(pred.res_code))
         res = pred.res_code[:, None] if code_only else np.column_stack([pred.res_code, pred.res_phase])
-        inlier, comp = self._noise.classify(res / scale[:, None])
+        res = res / scale[:, None]  # the model's units
+        inlier, comp = self._noise.classify(res)
         # the model used for this epoch's inliers is the one they were tested against
         means = self._noise.model.means[comp] * scale[:, None]
         covs = self._noise.model.covs[comp] * np.square(scale)[:, None, None]
@@ -209,7 +210,7 @@ class Ice(IncrementalGraphEstimator):
             self._records.append({"epoch": int(k), "code": pred.res_code.tolist(),
                                   "phase": np.nan_to_num(pred.res_phase, nan=0.0).tolist(),
                                   "new_arc": pred.new_arc.tolist(), "inlier": inlier.tolist()})
-        self._noise.observe(res / scale[:, None], inlier, comp)
+        self._noise.observe(res, inlier, comp)
         if inlier.sum() < self.config.min_satellites:
             return None
         if code_only:  # the data have no phase rows, so there are no phase factors to weight

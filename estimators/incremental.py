@@ -82,6 +82,12 @@ _HUBER_K = 1.5
 _SNAPSHOT_ITERATIONS = 4
 
 
+def _huber_weight(u: np.ndarray) -> np.ndarray:
+    """IRLS weight of Huber's loss at whitened residuals ``u`` (threshold ``_HUBER_K``)."""
+    a = np.abs(u)
+    return np.where(a <= _HUBER_K, 1.0, _HUBER_K / np.maximum(a, 1e-12))
+
+
 @dataclass
 class IncrementalConfig(PppGraphConfig):
     """iSAM2 settings on top of the graph model (:class:`PppGraphConfig`, Table 4.4.2 defaults)."""
@@ -227,14 +233,12 @@ class IncrementalGraphEstimator(Estimator):
             res = np.r_[zc - (p + iono), (zp - (p - iono + amb))[cont]]
             sig = np.r_[sc, sp[cont]]
             A = np.vstack([H[:, :4], H[cont, :4]])
-            u = np.abs(res / sig)
-            w = np.where(u <= _HUBER_K, 1.0, _HUBER_K / np.maximum(u, 1e-12)) / sig
+            w = _huber_weight(res / sig) / sig
             A, b = A * w[:, None], res * w
             if prior_pos is not None:  # whitened rows root @ (prior_pos - pos - dx) = 0; the clock stays free
                 # Huber-weighted too: when the satellites agree far from it, the prediction is the outlier
                 rp = prior_root @ (prior_pos - pos)
-                u = np.abs(rp)
-                wp = np.where(u <= _HUBER_K, 1.0, _HUBER_K / np.maximum(u, 1e-12))
+                wp = _huber_weight(rp)
                 A = np.vstack([A, np.column_stack([prior_root * wp[:, None], np.zeros(3)])])
                 b = np.r_[b, rp * wp]
             dx, *_ = np.linalg.lstsq(A, b, rcond=None)
