@@ -9,7 +9,9 @@ noise models:
   (kernel width ``phi``, whitened units). GTSAM re-weights at every
   linearisation, so one LM run is the whole estimator.
 * ``mm``: max-mixtures with a static two-component model per measurement (a-priori
-  inlier, outlier with the covariance scaled by ``outlier_scale``, equal weights);
+  inlier, outlier with the covariance scaled by ``outlier_scale``: 1e6 in the batch
+  code, 10 in the ``urban`` GNSS model whose C/N0 sigmas already widen weak rows;
+  equal weights);
   each iteration every code and every phase measurement takes its most likely
   component given the current residual (eq. 3.20), then the graph is re-solved,
   until the relative change of the total error is below ``rel_tol`` or the
@@ -176,8 +178,13 @@ class DcsBatch(BatchGraphEstimator):
 class MmConfig(BatchConfig):
     """Batch max-mixtures with a static inlier/outlier model."""
 
-    outlier_scale: float = 1e6  #: outlier covariance = inlier covariance times this (batch code: 1e6)
+    #: outlier covariance = inlier covariance times this; None: the batch code's 1e6
+    outlier_scale: float | None = None
     outlier_weight: float = 0.5  #: prior weight of the outlier component (equal weights)
+
+    def __post_init__(self) -> None:
+        if self.outlier_scale is None:
+            self.outlier_scale = 1e6
 
     def validate(self, where: str) -> None:
         """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""

@@ -25,8 +25,8 @@ Estimators:
 * ``isam2_dcs``: the same noise wrapped in GTSAM's DCS m-estimator (kernel width
   ``phi`` in whitened units); iSAM2 re-weights whenever it relinearises.
 * ``isam2_mm``: max-mixtures with a static inlier/outlier model per measurement
-  (outlier covariance = inlier times ``outlier_scale``, 10 in the incremental code,
-  equal weights). The component is chosen once, when the measurement enters the
+  (outlier covariance = inlier times ``outlier_scale``, 10 in the incremental code
+  and in the ``urban`` GNSS model, equal weights). The component is chosen once, when the measurement enters the
   graph, from its predicted residual (iSAM2 cannot swap a factor's noise model at
   each relinearisation without removing and re-adding it).
 
@@ -404,8 +404,13 @@ class Isam2Dcs(IncrementalGraphEstimator):
 class Isam2MmConfig(IncrementalConfig):
     """Incremental max-mixtures with a static two-component model."""
 
-    outlier_scale: float = 10.0  #: outlier covariance = inlier covariance times this (incremental code: 10)
+    #: outlier covariance = inlier covariance times this; None: the incremental code's 10
+    outlier_scale: float | None = None
     outlier_weight: float = 0.5  #: prior weight of the outlier component (equal weights)
+
+    def __post_init__(self) -> None:
+        if self.outlier_scale is None:
+            self.outlier_scale = 10.0
 
     def validate(self, where: str) -> None:
         """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""

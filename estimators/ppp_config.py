@@ -187,7 +187,8 @@ class GnssModelConfig:
     walk, ``1/sin(el)`` weights, arcs broken at flags and gaps, epochs with 4
     satellites or more, pinned by the thesis sweeps; ``urban``: C/N0 weights,
     constant velocity, arcs also broken where the phase disagrees with the Doppler,
-    every epoch with a satellite, ICE's mixture in units of the C/N0 sigma factor:
+    every epoch with a satellite, ICE's mixture in units of the C/N0 sigma factor,
+    one max-mixture outlier scale of 10 for batch and incremental MM:
     the default run's). :func:`simbench.compose.register_schemas` makes each of these
     fields of every estimator config that has it default to ``${gnss_model.<field>}``,
     so one setting reaches every estimator that has the field and
@@ -200,3 +201,5 @@ class GnssModelConfig:
     min_satellites: int = 4
     #: ICE's adaptive mixture over residuals in units of each row's sigma factor (False: metres)
     scaled_mixture: bool = False
+    #: max-mixture outlier covariance over the inlier's (MM, iSAM2-MM); None: each one's published value
+    outlier_scale: float | None = None

@@ -119,7 +119,8 @@ def test_composed_estimator_configs_are_the_dataclass_defaults_but_for_the_gnss_
     profile = {f.name: getattr(to_typed(OmegaConf.to_container(urban.gnss_model), GnssModelConfig, "gnss_model"),
                                f.name) for f in dataclasses.fields(GnssModelConfig)}
     assert profile == {"motion_model": MotionModel.constant_velocity, "sigma_model": SigmaModel.cn0,
-                       "doppler_slip_m": 1.0, "min_satellites": 1, "scaled_mixture": True}
+                       "doppler_slip_m": 1.0, "min_satellites": 1, "scaled_mixture": True,
+                       "outlier_scale": 10.0}
     shared = 0
     for name in NAMES:
         cls = estimators.get(name).Config
@@ -132,6 +133,9 @@ def test_composed_estimator_configs_are_the_dataclass_defaults_but_for_the_gnss_
     one = compose_config(["estimator.dcs.sigma_model=elevation"]).estimator
     assert one.dcs.sigma_model == "elevation" and one.l2.sigma_model == "cn0"
     assert urban.estimator.ice.scaled_mixture and "scaled_mixture" not in urban.estimator.l2
+    # one field, two published values: None resolves to each max-mixture's own default
+    assert [to_typed(OmegaConf.to_container(dissertation.estimator[n], resolve=True), estimators.get(n).Config,
+                     n).outlier_scale for n in ("mm", "isam2_mm")] == [1e6, 10.0]
 
 
 @pytest.mark.parametrize("sweep", available("sweep"))

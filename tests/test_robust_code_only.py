@@ -5,9 +5,8 @@ it (``conf/gnss_model/urban.yaml``) with ``measurements=code`` (a libRSF-like lo
 pseudoranges, Doppler where the receiver gives it, no carrier phase):
 
 * ``urban_deep`` with the ``consumer`` receiver (the world calibrated on the Hong
-  Kong log: NLOS on about a third of the rows): DCS, BCE and ICE each beat batch
-  L2 in the mean over seeds of the per-seed median horizontal error; MM at its
-  published outlier model does not (a strict xfail with the numbers);
+  Kong log: NLOS on about a third of the rows): DCS, MM, BCE and ICE each beat
+  batch L2 in the mean over seeds of the per-seed median horizontal error;
 * the same drive without wheel odometry has a larger DCS p95;
 * ``open_sky`` (no NLOS): each estimator's median is within 10 % of a plain
   weighted least-squares single-point solution's, or better.
@@ -31,10 +30,6 @@ from simbench.metrics import enu_errors
 
 TUNING_SEEDS = (1000, 1001, 1002)
 ROBUST = ("dcs", "mm", "bce", "ice")
-#: MM's equal-weight outlier component of 1e6 times the inlier covariance (the batch code) only
-#: wins beyond about 3.7 sigma, and C/N0 sigmas already widen the NLOS rows: MM keeps them all
-MM_XFAIL = pytest.mark.xfail(strict=True, reason="batch MM at outlier_scale 1e6 equals L2 on these seeds "
-                             "(5.63 m each); outlier_scale 100 gives 4.64 m")
 DURATION_S = 300.0
 
 
@@ -82,7 +77,7 @@ def canyon_medians(canyons: list[simbench.Scenario]) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=["seed", "estimator", "median"])
 
 
-@pytest.mark.parametrize("name", [pytest.param(n, marks=MM_XFAIL) if n == "mm" else n for n in ROBUST])
+@pytest.mark.parametrize("name", ROBUST)
 def test_robust_beats_l2_on_code_only_canyon_data(name: str, canyon_medians: pd.DataFrame) -> None:
     mean = canyon_medians.groupby("estimator")["median"].mean()
     assert mean[name] < mean["l2"], f"{name} {mean[name]:.2f} m against l2 {mean['l2']:.2f} m\n{canyon_medians}"
