@@ -4,9 +4,10 @@ The accuracy floor the adaptive estimators are measured against, and the only
 estimator allowed to read the error labels (``requires`` holds ``Need.labels``):
 
 * NLOS observations (label ``nlos``) are removed before preparation;
-* each code measurement gets ``sqrt(sigma_code_l1^2 + sigma_multipath_code_l1^2 + o^2)``
-  (thermal jitter and the stationary multipath std of that observation; no
-  elevation model);
+* each code measurement gets ``sqrt(sigma_code_l1^2 + sigma_multipath_code_l1^2 + g^2 + o^2)``
+  (thermal jitter and the stationary multipath std of that observation, ``g``
+  its sample-grid code error ``sample_grid_code_l1``, a slowly varying bias the
+  oracle knows; no elevation model);
 * each phase measurement gets ``sqrt(sigma_phase_l1^2 + q^2 + o^2)`` with ``q`` the RMS
   of the carrier multipath in the labels of the scenario (no per-observation carrier
   multipath sigma is labelled);
@@ -74,7 +75,8 @@ class Oracle(BatchGraphEstimator):
 
         orbit = rms("orbit_clock_error")
         code = np.sqrt(rows["sigma_code_l1"].to_numpy(float) ** 2
-                       + rows["sigma_multipath_code_l1"].to_numpy(float) ** 2 + orbit**2)
+                       + rows["sigma_multipath_code_l1"].to_numpy(float) ** 2
+                       + rows["sample_grid_code_l1"].to_numpy(float) ** 2 + orbit**2)
         phase = np.sqrt(rows["sigma_phase_l1"].to_numpy(float) ** 2 + rms("multipath_phase_l1") ** 2 + orbit**2)
         s = np.sqrt(self.config.prior_scale)
         return code * s, phase * s

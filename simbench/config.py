@@ -261,6 +261,8 @@ class ErrorsConfig:
     cycle_slips: CycleSlipConfig = field(default_factory=CycleSlipConfig)
     cn0: Cn0Config = field(default_factory=Cn0Config)
     tracking_noise: bool = True  #: DLL/PLL thermal jitter
+    #: code error of a sampling rate commensurate with the chip rate (simbench.sim.tracking)
+    sample_grid: bool = True
 
 
 @dataclass

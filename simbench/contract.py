@@ -100,6 +100,7 @@ LABEL_COLUMNS: dict[str, str] = {
     "slip": "bool, a true cycle slip happened at this epoch",
     "noise_code_l1": "m, the thermal noise sample added to the code",
     "noise_phase_l1": "m, the thermal noise sample added to the phase",
+    "sample_grid_code_l1": "m, code error of the DLL seeing the code phase on the sample grid",
 }
 
 RECEIVER_COLUMNS = frozenset(OBSERVATION_COLUMNS) | frozenset(IMU_COLUMNS) | frozenset(ODOMETRY_COLUMNS)

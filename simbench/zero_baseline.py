@@ -7,9 +7,12 @@ the geodetic one. Here the same scenario and seed are generated once per
 receiver preset: every environment stream (orbits, atmosphere, street, NLOS,
 fading) is drawn from the same named seed streams
 (:func:`simbench.sim.processes.stream`), so only what the receiver does with
-the signals differs. Each is solved epoch by epoch with the project's one
-single-point solver (:func:`simbench.gnss.spp.solve_epochs`) on the shared
-measurement model (:func:`estimators.measurement.prepare_ppp`, code only).
+the signals differs. Each pair (preset, geodetic) is solved epoch by epoch on
+the satellites both receivers track, as the published test's double
+differences are, with the project's one single-point solver
+(:func:`simbench.gnss.spp.solve_epochs`) on the shared measurement model
+(:func:`estimators.measurement.prepare_ppp`, code only): a satellite only one
+receiver keeps would change the geometry, not measure the receiver.
 
 ``python -m simbench.zero_baseline morgantown1 morgantown2 morgantown3 --out DIR``
 writes ``DIR/zero_baseline.csv``; the report of a run folder shows it.
@@ -18,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -45,13 +49,15 @@ COLUMNS = ["scenario", "seed", "receiver", "n_epochs", "mean_3d_diff_m", "median
            "published_mean_3d_diff_m"]
 
 
-def single_point_positions(scenario: Scenario) -> pd.DataFrame:
+def single_point_positions(scenario: Scenario, keep: pd.MultiIndex | None = None) -> pd.DataFrame:
     """Code-only weighted single-point fix of every epoch with four or more satellites.
 
     Parameters
     ----------
     scenario : Scenario
         Only its receiver view is used.
+    keep : pandas.MultiIndex, optional
+        ``(epoch, sat)`` pairs to use; every observation when None.
 
     Returns
     -------
@@ -59,7 +65,11 @@ def single_point_positions(scenario: Scenario) -> pd.DataFrame:
         ``epoch, x, y, z`` [m, ECEF] of the trusted fixes.
     """
     noise = StochasticModelConfig()
-    obs = prepare_ppp(scenario.receiver_view(), ionosphere_free=False, code_sigma_m=noise.code_sigma_m,
+    view = scenario.receiver_view()
+    if keep is not None:
+        rows = pd.MultiIndex.from_frame(view.observations[["epoch", "sat"]]).isin(keep)
+        view = replace(view, observations=view.observations[rows].reset_index(drop=True))
+    obs = prepare_ppp(view, ionosphere_free=False, code_sigma_m=noise.code_sigma_m,
                       phase_sigma_m=noise.phase_sigma_m, elevation_mask_deg=noise.elevation_mask_deg,
                       measurements=MeasurementMode.code)
     k = np.searchsorted(obs.epoch_ids, obs.epoch)
@@ -90,21 +100,20 @@ def zero_baseline(scenario: str, seed: int = 0, **overrides: object) -> pd.DataF
         the preset's mean 3-D error against truth, and the published Table
         5.3.2 value for the dissertation drive the scenario replays (NaN otherwise) [m].
     """
-    fixes = {}
-    truth = None
-    for preset in (REFERENCE_PRESET, *PRESETS):
-        sc = simbench.simulate(scenario, preset, seed=seed, **overrides)
-        fixes[preset] = single_point_positions(sc)
-        truth = sc.truth
-    ref = fixes[REFERENCE_PRESET].set_index("epoch")
+    scenes = {preset: simbench.simulate(scenario, preset, seed=seed, **overrides)
+              for preset in (REFERENCE_PRESET, *PRESETS)}
+    reference = scenes[REFERENCE_PRESET]
+    tracked = pd.MultiIndex.from_frame(reference.observations[["epoch", "sat"]])
     drive = DRIVE_SCENARIOS.get(scenario)
     rows = []
     for preset in PRESETS:
-        fix = fixes[preset].set_index("epoch")
+        both = tracked.intersection(pd.MultiIndex.from_frame(scenes[preset].observations[["epoch", "sat"]]))
+        fix = single_point_positions(scenes[preset], both).set_index("epoch")
+        ref = single_point_positions(reference, both).set_index("epoch")
         common = fix.index.intersection(ref.index)
         diff = np.linalg.norm(fix.loc[common, ["x", "y", "z"]].to_numpy() - ref.loc[common, ["x", "y", "z"]].to_numpy(),
                               axis=1)
-        err = enu_errors(fixes[preset], truth)["error_3d"].to_numpy()
+        err = enu_errors(fix.reset_index(), reference.truth)["error_3d"].to_numpy()
         published = ZERO_BASELINE_MEAN_3D_M.get((preset, drive), np.nan) if drive else np.nan
         rows.append({"scenario": scenario, "seed": seed, "receiver": preset, "n_epochs": len(common),
                      "mean_3d_diff_m": float(diff.mean()) if len(diff) else np.nan,

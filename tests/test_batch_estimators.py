@@ -180,7 +180,9 @@ def _with_injected_nlos(scen: Scenario, fraction: float, seed: int) -> Scenario:
 
 
 def test_robust_estimators_beat_l2_and_the_oracle_is_best() -> None:
-    base = simbench.simulate("open_sky", "low", seed=1000, **{"scenario.duration_s": 90})
+    # the high receiver: the low one's 4.092 MHz sample grid leaves metres of slowly varying code
+    # error on a strong signal (oracle 7.4 m over these 90 s), which is not what this test is about
+    base = simbench.simulate("open_sky", "high", seed=1000, **{"scenario.duration_s": 90})
     scen = _with_injected_nlos(base, 0.1, seed=0)
     data = scen.receiver_view()
     median = {}

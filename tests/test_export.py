@@ -186,7 +186,7 @@ def test_rtklib_recovers_an_error_free_scenario(tmp_path: Path) -> None:
     sc = _scenario("scenario=open_sky", "seed=1000", "scenario.duration_s=20",
                    *(f"scenario.errors.{k}.enabled=false" for k in ("troposphere", "ionosphere", "orbit_clock",
                                                                      "multipath")),
-                   "scenario.errors.tracking_noise=false")
+                   "scenario.errors.tracking_noise=false", "scenario.errors.sample_grid=false")
     row = run_estimators(sc, {"rtklib_spp": {"troposphere": "none", "ionosphere": "none"}},
                          progress=False).summary.iloc[0]
     assert row["status"] == "ok", row["message"]

@@ -78,7 +78,8 @@ def test_observables_close_to_their_model(urban: Scenario) -> None:
     obs, lab = urban.observations, urban.labels
     cmp = (obs["code_l1"] - obs["phase_l1"]).to_numpy()
     model = (2 * lab["iono_l1"] + lab["multipath_code_l1"] - lab["multipath_phase_l1"]
-             - LAMBDA_L1 * lab["ambiguity_l1"] + lab["noise_code_l1"] - lab["noise_phase_l1"]).to_numpy()
+             - LAMBDA_L1 * lab["ambiguity_l1"] + lab["noise_code_l1"] + lab["sample_grid_code_l1"]
+             - lab["noise_phase_l1"]).to_numpy()
     np.testing.assert_allclose(cmp, model, atol=1e-5)
 
 

@@ -6,7 +6,9 @@ pseudoranges, Doppler where the receiver gives it, no carrier phase):
 
 * ``urban_deep`` with the ``consumer`` receiver (the world calibrated on the Hong
   Kong log: NLOS on about a third of the rows): DCS, MM, BCE and ICE each beat
-  batch L2 in the mean over seeds of the per-seed median horizontal error;
+  the L2 estimator of their kind (batch L2; iSAM2's L2, ``isam2_ppp``, for the
+  incremental ICE, as in the dissertation's Ch.7) in the mean over seeds of the
+  per-seed median horizontal error;
 * the same drive without wheel odometry has a larger DCS p95;
 * ``open_sky`` (no NLOS): each estimator's median is within 10 % of a plain
   weighted least-squares single-point solution's, or better.
@@ -30,6 +32,8 @@ from simbench.metrics import enu_errors
 
 TUNING_SEEDS = (1000, 1001, 1002)
 ROBUST = ("dcs", "mm", "bce", "ice")
+#: the L2 estimator each robust one is measured against: a filter is not held to a smoother's standard
+L2_OF_ITS_KIND = {"dcs": "l2", "mm": "l2", "bce": "l2", "ice": "isam2_ppp"}
 DURATION_S = 300.0
 
 
@@ -73,14 +77,16 @@ def canyons() -> list[simbench.Scenario]:
 
 @pytest.fixture(scope="module")
 def canyon_medians(canyons: list[simbench.Scenario]) -> pd.DataFrame:
-    rows = [(sc.meta["seed"], name, _median_horizontal(name, sc)) for sc in canyons for name in ("l2", *ROBUST)]
+    rows = [(sc.meta["seed"], name, _median_horizontal(name, sc)) for sc in canyons
+            for name in ("l2", "isam2_ppp", *ROBUST)]
     return pd.DataFrame(rows, columns=["seed", "estimator", "median"])
 
 
 @pytest.mark.parametrize("name", ROBUST)
 def test_robust_beats_l2_on_code_only_canyon_data(name: str, canyon_medians: pd.DataFrame) -> None:
     mean = canyon_medians.groupby("estimator")["median"].mean()
-    assert mean[name] < mean["l2"], f"{name} {mean[name]:.2f} m against l2 {mean['l2']:.2f} m\n{canyon_medians}"
+    l2 = L2_OF_ITS_KIND[name]
+    assert mean[name] < mean[l2], f"{name} {mean[name]:.2f} m against {l2} {mean[l2]:.2f} m\n{canyon_medians}"
 
 
 def test_odometry_lowers_the_dcs_p95_in_the_canyon(canyons: list[simbench.Scenario]) -> None:

@@ -11,10 +11,12 @@ from simbench.sim.constants import CHIP_LENGTH_CA, CHIP_RATE_CA, LAMBDA_L1
 from simbench.sim.tracking import (
     antenna_gain_dbi,
     cn0_mean_dbhz,
+    code_phase_step_chips,
     dll_jitter_chips,
     dll_jitter_m,
     pll_jitter_m,
     pll_jitter_rad,
+    sample_grid_code_error_chips,
 )
 
 T_1MS = 1e-3
@@ -173,3 +175,65 @@ def test_cn0_link_budget():
     assert cn0_b.shape == (2, 3)
     np.testing.assert_allclose(cn0_b[1] - cn0_b[0], -2.0, atol=1e-12)
     np.testing.assert_allclose(cn0_b[0], cn0[0] - 1.0, atol=1e-12)
+
+
+# --------------------------------------------------------------------------- sample grid
+
+
+@pytest.mark.parametrize(("sampling_hz", "integration_s", "step"), [
+    (4.092e6, T_1MS, 1 / 4), (16.368e6, T_1MS, 1 / 16), (40.92e6, 0.01, 1 / 40),
+    (6.138e6, T_1MS, 1 / 6), (1.5 * CHIP_RATE_CA, T_1MS, 1 / 3),  # 3 samples per 2 chips
+    (5e6, T_1MS, 1 / 5000),  # 5000 / 1023: the pattern spans the whole integration
+])
+def test_code_phase_step_of_the_sampling_rate(sampling_hz, integration_s, step):
+    assert code_phase_step_chips(sampling_hz, integration_s) == pytest.approx(step)
+
+
+def _grid(x, rate, cn0, preset=LOW, fs=4.092e6):
+    return sample_grid_code_error_chips(x, rate, cn0, sampling_hz=fs, **preset)
+
+
+def test_sample_grid_error_without_noise_or_motion_is_the_rounding_error():
+    """At a C/N0 where thermal noise cannot dither the grid, a still code phase is rounded to
+    the nearest quarter chip: a sawtooth of amplitude q/2 and rms q/sqrt(12) (q = 73.3 m)."""
+    x = np.linspace(0.0, 1.0, 4001)
+    e = _grid(x, 0.0, 90.0)
+    q = 0.25
+    away_from_jumps = np.abs((x / q) % 1.0 - 0.5) > 0.05  # the truncated series rings at the jumps
+    np.testing.assert_allclose(e[away_from_jumps], (q * (np.round(x / q) - x / q))[away_from_jumps], atol=5e-4)
+    assert e.std() == pytest.approx(q / math.sqrt(12.0), rel=0.01)
+
+
+def test_sample_grid_error_is_dithered_by_thermal_noise():
+    """At 42 dB-Hz the low preset's grid is dithered to its first harmonic: amplitude
+    (q / pi) exp(-2 pi^2 sigma_T^2 / q^2) with sigma_T = sigma_DLL / sqrt(2 B T)."""
+    x = np.linspace(0.0, 1.0, 4000, endpoint=False)
+    q, cn0 = 0.25, 42.0
+    sigma_t = dll_jitter_chips(cn0, **LOW) / math.sqrt(2.0 * LOW["dll_bw_hz"] * T_1MS)
+    amplitude = q / math.pi * math.exp(-2.0 * math.pi**2 * (sigma_t / q) ** 2)
+    e = _grid(x, 0.0, cn0)
+    assert 0.01 < amplitude < 0.05  # a few metres: the regime the test is about
+    assert np.abs(e).max() == pytest.approx(amplitude, rel=0.02)
+    assert _grid(x, 0.0, 30.0).std() < 1e-6  # a weak signal averages the grid away
+
+
+def test_sample_grid_error_averaged_by_code_doppler_through_the_dll():
+    """A code phase sliding at r chip/s is the first harmonic at f = r / q through the
+    first-order DLL, |H| = 1 / |1 + j pi f / (2 B)|, and the integration's sinc(f T)."""
+    x = np.linspace(0.0, 1.0, 4000, endpoint=False)
+    still = np.abs(_grid(x, 0.0, 42.0)).max()
+    for rate in (0.1, 1.0, 3.0):
+        f = rate / 0.25
+        gain = abs(np.sinc(f * T_1MS) / (1 + 1j * math.pi * f / (2 * LOW["dll_bw_hz"])))
+        assert np.abs(_grid(x, rate, 42.0)).max() == pytest.approx(still * gain, rel=0.02), rate
+
+
+def test_sample_grid_error_of_the_presets_at_high_cn0():
+    """The dissertation's low preset (4.092 MHz, 4 samples per chip) keeps metres of grid error
+    on a strong, slowly sliding signal; high (16.368 MHz) a few centimetres; an incommensurate
+    rate nothing."""
+    x = np.linspace(0.0, 1.0, 4000, endpoint=False)
+    low = CHIP_LENGTH_CA * _grid(x, 0.05, 47.0).std()
+    high = CHIP_LENGTH_CA * _grid(x, 0.05, 47.0, HIGH, 16.368e6).std()
+    odd = CHIP_LENGTH_CA * _grid(x, 0.05, 47.0, LOW, 4.1e6).std()
+    assert low > 5.0 and high < 0.2 and odd < 0.01, (low, high, odd)

@@ -40,7 +40,7 @@ def hk(hk_sample: ValidationSample) -> WorldStatistics:
 @pytest.fixture(scope="module")
 def deep() -> WorldStatistics:
     config = sim_config(compose_config(["scenario=urban_deep", "receiver=consumer"]))
-    return seeds_statistics(config, EVALUATION_SEEDS, "urban_deep low seeds 0-2")
+    return seeds_statistics(config, EVALUATION_SEEDS, "urban_deep consumer seeds 0-2")
 
 
 @pytest.mark.parametrize("tolerance", TOLERANCES, ids=[t.statistic for t in TOLERANCES])

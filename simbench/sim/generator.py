@@ -220,16 +220,30 @@ def generate(cfg: SimConfig) -> Scenario:
 
     # ------------------------------------------------------------------ observables
     common = los.range_m + rx_clock_m[:, None] - sat_clock_true_m + tropo + nlos_delay
-    code_l1 = common + iono + mp_code + e_code
+    pseudorange_rate = los.range_rate_mps + rx_drift_mps[:, None] - C_LIGHT * los.sat_clock_drift
+    # the sample clock's offset from the code epochs: one per receiver, whatever the satellite
+    grid_offset = stream(seed, "sample_grid").uniform()
+
+    def grid_error(pseudorange: np.ndarray, cn0_dbhz: np.ndarray) -> np.ndarray:
+        out = np.zeros((n, m))
+        if err.sample_grid:  # tracked channels only: a fifth of (epoch, satellite) or less
+            out[tracked] = CHIP_LENGTH_CA * tracking.sample_grid_code_error_chips(
+                pseudorange[tracked] / CHIP_LENGTH_CA + grid_offset, pseudorange_rate[tracked] / CHIP_LENGTH_CA,
+                cn0_dbhz[tracked], sampling_hz=rx.sampling_mhz * 1e6, dll_bw_hz=rx.dll_bw_hz,
+                spacing_chips=spacing, front_end_bw_hz=fe_bw, integration_s=rx.integration_s)
+        return out
+
+    e_grid = grid_error(common + iono, cn0)
+    code_l1 = common + iono + mp_code + e_grid + e_code
     phase_l1 = common - iono + LAMBDA_L1 * arcs[0].ambiguity + mp_phase + e_phase
-    doppler_l1 = -(los.range_rate_mps + rx_drift_mps[:, None] - C_LIGHT * los.sat_clock_drift) / LAMBDA_L1 \
-        + e_doppler
+    doppler_l1 = -pseudorange_rate / LAMBDA_L1 + e_doppler
     if sc.dual_frequency:
         l2rng = stream(seed, "tracking_l2")
         cn0_l2 = cn0 - L2_CN0_LOSS_DB
         sig2 = gain * tracking.dll_jitter_m(cn0_l2, rx.dll_bw_hz, spacing, fe_bw, rx.integration_s)
         sig2p = gain * tracking.pll_jitter_m(cn0_l2, rx.pll_bw_hz, rx.integration_s)
-        code_l2 = common + IONO_L2_SCALE * iono + mp_code_l2 + sig2 * l2rng.standard_normal((n, m))
+        code_l2 = (common + IONO_L2_SCALE * iono + mp_code_l2 + grid_error(common + IONO_L2_SCALE * iono, cn0_l2)
+                   + sig2 * l2rng.standard_normal((n, m)))
         phase_l2 = (common - IONO_L2_SCALE * iono + LAMBDA_L2 * arcs[1].ambiguity + mp_phase
                     + sig2p * l2rng.standard_normal((n, m)))
         lli_l2, amb_l2 = arcs[1].lli, arcs[1].ambiguity
@@ -265,6 +279,7 @@ def generate(cfg: SimConfig) -> Scenario:
         "iono_l1": pick(iono), "tropo": pick(tropo), "orbit_clock_error": pick(orbit_clock_error),
         "ambiguity_l1": pick(arcs[0].ambiguity), "ambiguity_l2": pick(amb_l2),
         "slip": pick(arcs[0].slip), "noise_code_l1": pick(e_code), "noise_phase_l1": pick(e_phase),
+        "sample_grid_code_l1": pick(e_grid),
     })
     truth = pd.DataFrame({
         "epoch": np.arange(n, dtype=np.int64), "t": t,
