@@ -31,7 +31,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-
 from estimators import register
 from estimators.gnss_ins_config import LssConfig
 from estimators.gnss_ins_driver import GnssInsEstimator, lss_arguments

@@ -9,13 +9,31 @@ Factors, all whitened:
 
 * a Gaussian prior on ``x_{k-L}`` (the marginal of everything that left the window);
 * GTSAM ``CombinedImuFactor`` between consecutive states (IMU preintegration,
-  see :mod:`estimators.ins_mechanisation`), linearised natively in C++;
+  see :mod:`estimators.ins_mechanisation`), linearised natively in C++ (one
+  call per pair; whitening and assembly are batched over the window,
+  :func:`_pair_terms`);
 * a two-state receiver clock model (bias and drift, Allan h0 / h-2);
 * per satellite an L1 pseudorange (:class:`estimators.gnss_ins_data.GnssEpoch`)
   and a Doppler range rate ``-lambda D + satellite drift = rdot + receiver drift``,
   with Jacobians in numpy, vectorised over the window's satellites
   (:func:`window_gnss_terms`; range and gradient from
   :func:`simbench.gnss.geometry.sagnac_range_gradient`).
+
+Every factor touches one state or two consecutive ones, so the normal
+equations are block tridiagonal: :class:`NormalEquations` keeps the diagonal
+blocks and those above them, and a Gauss-Newton step is a banded Cholesky
+solve, linear in the window length. What does not depend on the states (the
+stacked GNSS measurements, the IMU and clock whitening) is stacked once per
+window (:class:`_WindowFactors`), and the linearisation at the current states
+is kept until they move (:class:`_Linearisation`: the S step and the next X
+step share it).
+
+Arithmetic: the batched products make the BLAS calls of a loop over the pairs
+and nodes, with the same operands in the same memory layout, and sums run in
+factor order (:func:`_mv`, :func:`_sequential_sum`), so results are those of
+a per-factor loop bit for bit. That is worth keeping: the stopping rule, the
+line search and the soft threshold are discontinuous, and a round-off change
+in one step grows into decimetres to metres over a drive.
 
 Cost, with ``b`` the whitened residuals (paper eq. 6)::
 
@@ -42,8 +60,8 @@ Pose3 local-coordinate Jacobian at a small offset from the prior mean).
 """
 from __future__ import annotations
 
-from collections.abc import Iterator
 from dataclasses import dataclass, replace
+from functools import lru_cache
 from typing import Any, NamedTuple
 
 import gtsam
@@ -67,6 +85,7 @@ from simbench.sim.constants import C_LIGHT, DEG
 __all__ = [
     "BA", "BG", "CLK", "DRIFT", "NS", "POS", "ROT", "VEL",
     "GnssTerms",
+    "NormalEquations",
     "WindowNode",
     "WindowSolver",
     "initial_sigmas",
@@ -116,17 +135,21 @@ class WindowNode:
 
     def copy(self) -> WindowNode:
         """A copy whose state arrays and S can change without touching this node (factors are shared)."""
-        return replace(self, pose=gtsam.Pose3(self.pose), vel=self.vel.copy(), bias=self.bias.copy(),
-                       clk=self.clk.copy(), s_code=None if self.s_code is None else self.s_code.copy(),
-                       s_rr=None if self.s_rr is None else self.s_rr.copy())
+        return self._with_state(gtsam.Pose3(self.pose), self.vel.copy(), self.bias.copy(), self.clk.copy())
 
     def retract(self, d: np.ndarray) -> WindowNode:
-        """The node moved by the error-state step ``d`` (shape (17,))."""
-        out = self.copy()
-        out.pose = self.pose.retract(d[:6])
-        out.vel = self.vel + d[VEL:VEL + 3]
-        out.bias = self.bias + d[BA:BG + 3]
-        out.clk = self.clk + d[CLK:]
+        """The node moved by the error-state step ``d`` (shape (17,)), S copied as in :meth:`copy`."""
+        return _retracted([self], d)[0]
+
+    def _with_state(self, pose: gtsam.Pose3, vel: np.ndarray, bias: np.ndarray, clk: np.ndarray) -> WindowNode:
+        """A node with this one's factors, a copy of its S and the given (new, unshared) state."""
+        # a shallow copy by hand: dataclasses.replace (re-running __init__) and copy.copy (generic protocol)
+        # cost more than the pose retraction, once per node and Gauss-Newton trial
+        out = object.__new__(WindowNode)
+        out.__dict__.update(self.__dict__)
+        out.pose, out.vel, out.bias, out.clk = pose, vel, bias, clk
+        out.s_code = None if self.s_code is None else self.s_code.copy()
+        out.s_rr = None if self.s_rr is None else self.s_rr.copy()
         return out
 
     def attach_gnss(self, gnss: GnssEpoch | None) -> None:
@@ -163,30 +186,70 @@ class GnssTerms(NamedTuple):
     bounds: list[tuple[int, int, int]]  #: (node index, first row, stop row) of each GNSS node within an R-block
 
 
-def window_gnss_terms(nodes: list[WindowNode], jacobian: bool = True) -> GnssTerms | None:
-    """Whitened GNSS errors (and Jacobian) of every node, vectorised over the window; None without GNSS."""
+class _GnssLayout(NamedTuple):
+    """The GNSS measurements of a window stacked in :func:`window_gnss_terms` row order.
+
+    They change when a node gets, loses or reweights its GNSS epoch, not when
+    the states move: one layout serves every Gauss-Newton step and line-search
+    trial of a window.
+    """
+
+    idx: list[int]  #: window index of each GNSS node
+    node: np.ndarray  #: (m,) ``idx`` as an index array
+    bounds: list[tuple[int, int, int]]  #: (node index, first row, stop row) of each GNSS node within an R-block
+    counts: np.ndarray  #: (m,) satellites of each GNSS node
+    width: int  #: most satellites of a node
+    padded: np.ndarray  #: (2R,) flat position of each row in a zero-padded (m, code / range rate, width) stack
+    sat_pos: np.ndarray  #: (R, 3) m, satellite ECEF position at transmit time
+    sat_vel: np.ndarray  #: (R, 3) m/s
+    z_code: np.ndarray  #: (R,) m
+    z_rr: np.ndarray  #: (R,) m/s
+    w: np.ndarray  #: (2R,) weights of the code then the range-rate rows (0: row not used)
+    used: np.ndarray  #: (2R,) ``w > 0``, the rows in use
+
+
+def _gnss_layout(nodes: list[WindowNode]) -> _GnssLayout:
+    """:class:`_GnssLayout` of a window (``idx`` empty without GNSS)."""
     idx = [i for i, n in enumerate(nodes) if n.gnss is not None]
-    if not idx:
-        return None
     gs = [nodes[i].gnss for i in idx]
-    counts = np.array([len(g.code) for g in gs])
+    counts = np.array([len(g.code) for g in gs], dtype=int)
     stops = np.cumsum(counts)
     bounds = [(i, int(b - c), int(b)) for i, b, c in zip(idx, stops, counts)]
-    sat_pos = np.concatenate([g.sat_pos for g in gs])
-    sat_vel = np.concatenate([g.sat_vel for g in gs])
-    z_code = np.concatenate([g.code for g in gs])
-    z_rr = np.concatenate([g.rr for g in gs])
+    if not idx:
+        none = np.zeros(0)
+        return _GnssLayout(idx=idx, node=np.zeros(0, int), bounds=bounds, counts=counts, width=0,
+                           padded=np.zeros(0, int), sat_pos=np.zeros((0, 3)), sat_vel=np.zeros((0, 3)), z_code=none,
+                           z_rr=none, w=none, used=np.zeros(0, bool))
+    width = int(counts.max())
+    slot = np.arange(stops[-1]) - np.repeat(stops - counts, counts)  # row number within its node
+    first = np.repeat(2 * width * np.arange(len(idx)), counts) + slot
     w = np.concatenate([np.concatenate([g.w_code for g in gs]), np.concatenate([g.w_rr for g in gs])])
-    p = np.repeat(np.array([nodes[i].pose.translation() for i in idx]), counts, axis=0)
-    v = np.repeat(np.array([nodes[i].vel for i in idx]), counts, axis=0)
-    clk = np.repeat(np.array([nodes[i].clk for i in idx]), counts, axis=0)
-    rng, grad = sagnac_range_gradient(sat_pos, p)
-    rdot, d_pos, d_vel = range_rate(sat_pos, sat_vel, p, v)
-    R = len(z_code)
-    e = np.concatenate([rng + clk[:, 0] - z_code, rdot + clk[:, 1] - z_rr]) * w
+    w.flags.writeable = False  # handed out in every GnssTerms of the window
+    return _GnssLayout(idx, np.array(idx), bounds, counts, width, np.concatenate([first, first + width]),
+                       np.concatenate([g.sat_pos for g in gs]), np.concatenate([g.sat_vel for g in gs]),
+                       np.concatenate([g.code for g in gs]), np.concatenate([g.rr for g in gs]), w, w > 0)
+
+
+def window_gnss_terms(nodes: list[WindowNode], jacobian: bool = True,
+                      layout: _GnssLayout | None = None) -> GnssTerms | None:
+    """Whitened GNSS errors (and Jacobian) of every node, vectorised over the window; None without GNSS.
+
+    ``layout`` is :func:`_gnss_layout` of ``nodes`` when the caller keeps it.
+    """
+    lay = _gnss_layout(nodes) if layout is None else layout
+    if not lay.idx:
+        return None
+    poses = np.array([nodes[i].pose.matrix() for i in lay.idx])  # (m, 4, 4): rotation and translation in one call
+    p = np.repeat(poses[:, :3, 3], lay.counts, axis=0)
+    v = np.repeat(np.array([nodes[i].vel for i in lay.idx]), lay.counts, axis=0)
+    clk = np.repeat(np.array([nodes[i].clk for i in lay.idx]), lay.counts, axis=0)
+    rng, grad = sagnac_range_gradient(lay.sat_pos, p)
+    rdot, d_pos, d_vel = range_rate(lay.sat_pos, lay.sat_vel, p, v)
+    R = len(lay.z_code)
+    e = np.concatenate([rng + clk[:, 0] - lay.z_code, rdot + clk[:, 1] - lay.z_rr]) * lay.w
     if not jacobian:
-        return GnssTerms(e, None, w, bounds)
-    rot = np.repeat(np.array([nodes[i].pose.rotation().matrix() for i in idx]), counts, axis=0)
+        return GnssTerms(e, None, lay.w, lay.bounds)
+    rot = np.repeat(poses[:, :3, :3], lay.counts, axis=0)
     J = np.zeros((2 * R, NS))
     # the Pose3 tangent moves the position along body axes: dp = R dt
     J[:R, POS:POS + 3] = np.einsum("rj,rjk->rk", grad, rot)
@@ -194,8 +257,53 @@ def window_gnss_terms(nodes: list[WindowNode], jacobian: bool = True) -> GnssTer
     J[R:, POS:POS + 3] = np.einsum("rj,rjk->rk", d_pos, rot)
     J[R:, VEL:VEL + 3] = d_vel
     J[R:, DRIFT] = 1.0
-    J *= w[:, None]
-    return GnssTerms(e, J, w, bounds)
+    J *= lay.w[:, None]
+    return GnssTerms(e, J, lay.w, lay.bounds)
+
+
+def _mv(M: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Stacked matrix-vector products ``M[k] @ v[k]``, one BLAS call per k like a loop (einsum sums otherwise)."""
+    return (M @ v[..., None])[..., 0]
+
+
+def _sequential_sum(values: np.ndarray) -> float:
+    """Left-to-right sum, the order of a loop over the factors (``np.sum`` is pairwise)."""
+    return float(np.add.accumulate(values)[-1])
+
+
+def _gnss_blocks(g: GnssTerms, b: np.ndarray,
+                 lay: _GnssLayout) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Normal-equation terms of each GNSS node's code and range-rate rows.
+
+    The rows are scattered into a zero-padded (node, code / range rate, row, 17)
+    stack so that batched products replace a loop over the nodes; padding rows
+    add exact zeros.
+
+    Parameters
+    ----------
+    g : GnssTerms
+        The window's GNSS terms with their Jacobian.
+    b : ndarray, shape (2R,)
+        Whitened right-hand side of the rows, ``-(e + S)``.
+    lay : _GnssLayout
+        The window's GNSS layout.
+
+    Returns
+    -------
+    JtJ : ndarray, shape (m, 17, 17)
+    Jtb : ndarray, shape (m, 17)
+    bb : ndarray, shape (m,)
+        ``|b|^2`` of each node's rows [whitened, dimensionless], nodes in ``lay.idx`` order.
+    """
+    shape = (len(lay.idx), 2, lay.width)
+    J = np.zeros((np.prod(shape), NS))
+    r = np.zeros(len(J))
+    J[lay.padded] = g.J
+    r[lay.padded] = b
+    J, r = J.reshape(*shape, NS), r.reshape(shape)
+    Jt = J.swapaxes(-1, -2)
+    JtJ, Jtb, bb = Jt @ J, _mv(Jt, r), (r[..., None, :] @ r[..., None])[..., 0, 0]
+    return JtJ[:, 0] + JtJ[:, 1], Jtb[:, 0] + Jtb[:, 1], bb[:, 0] + bb[:, 1]
 
 
 def _s_of(nodes: list[WindowNode]) -> np.ndarray:
@@ -203,17 +311,169 @@ def _s_of(nodes: list[WindowNode]) -> np.ndarray:
     with_g = [n for n in nodes if n.gnss is not None]
     if not with_g:
         return np.zeros(0)
-    return np.concatenate([np.concatenate([n.s_code for n in with_g]), np.concatenate([n.s_rr for n in with_g])])
+    return np.concatenate([n.s_code for n in with_g] + [n.s_rr for n in with_g])
 
 
-def _solve_block_tridiagonal(H: np.ndarray, eta: np.ndarray) -> np.ndarray:
-    """Solve ``H dx = eta`` for the window's block-tridiagonal information matrix (banded Cholesky)."""
-    bw = min(2 * NS, len(eta))
-    ab = np.zeros((bw, len(eta)))
-    for k in range(bw):
-        ab[bw - 1 - k, k:] = np.diagonal(H, k)
-    ab[-1] += 1e-12  # the prior and IMU chain make H positive definite; guard round-off only
-    return solve_banded_h(ab, eta, check_finite=False)
+#: Row ranges, in a (30, 15) slab per pair, of GTSAM's CombinedImuFactor Jacobians w.r.t. pose_i, vel_i, pose_j,
+#: vel_j, bias_i and bias_j: each range transposed is the column-major (15, k) array GTSAM writes into.
+_IMU_BLOCKS = ((0, 6), (6, 9), (9, 15), (15, 18), (18, 24), (24, 30))
+#: Column of a pair's Jacobian (the 17 error states of node i-1, then those of node i) of each of those 30 columns.
+_IMU_COLUMNS = np.r_[ROT:VEL + 3, NS + ROT:NS + VEL + 3, BA:BG + 3, NS + BA:NS + BG + 3]
+
+
+class _WindowFactors(NamedTuple):
+    """The factors of a window, stacked: they stay while its states move.
+
+    One instance serves every Gauss-Newton step and line-search trial of a
+    window; it changes when a node is added or leaves, or when a node's GNSS
+    rows change. P = n - 1 pairs of consecutive nodes.
+    """
+
+    gnss: _GnssLayout  #: the GNSS measurements
+    W: np.ndarray  #: (P, 15, 15) whitening of each pair's IMU factor
+    Wc: np.ndarray  #: (P, 2, 2) whitening of each pair's clock model
+    F: np.ndarray  #: (P, 2, 2) clock transition over each pair's interval
+    slab: np.ndarray  #: (P, 30, 15) where GTSAM writes each pair's IMU Jacobians (scratch)
+    outputs: list[list[np.ndarray]]  #: per pair, the six column-major views of its slab GTSAM writes into
+
+
+def _window_factors(nodes: list[WindowNode]) -> _WindowFactors:
+    """:class:`_WindowFactors` of a window (node ``k >= 1`` holds the factors from node ``k - 1``)."""
+    later = nodes[1:]
+    # stacked column-major like each factor (a transposed Cholesky factor): the batched products then run the
+    # BLAS kernels of per-pair ones and give the same bits
+    W = np.array([n.imu_sqrt_info.T for n in later]).reshape(-1, 15, 15).swapaxes(-1, -2)
+    Wc = np.array([n.clk_sqrt_info.T for n in later]).reshape(-1, 2, 2).swapaxes(-1, -2)
+    F = np.tile(np.eye(2), (len(later), 1, 1))
+    F[:, 0, 1] = [n.dt for n in later]
+    slab = np.zeros((len(later), 30, 15))
+    outputs = [[slab[k, lo:hi].T for lo, hi in _IMU_BLOCKS] for k in range(len(later))]
+    return _WindowFactors(_gnss_layout(nodes), W, Wc, F, slab, outputs)
+
+
+class _Linearisation(NamedTuple):
+    """A window's whitened factors linearised at its states; S enters when the normal equations are assembled."""
+
+    R0: np.ndarray  #: (17, 17) Jacobian of the prior w.r.t. the first node
+    b0: np.ndarray  #: (17,) minus the prior's whitened error
+    A: np.ndarray  #: (n - 1, 17, 34) IMU and clock Jacobians of each pair (:func:`_pair_terms`)
+    b: np.ndarray  #: (n - 1, 17) minus their whitened errors
+    gnss: GnssTerms | None  #: GNSS rows with their Jacobian, None without GNSS
+
+
+def _pair_terms(nodes: list[WindowNode], factors: _WindowFactors,
+                jacobian: bool = True) -> tuple[np.ndarray | None, np.ndarray]:
+    """IMU and clock factors of every two consecutive nodes, stacked over the window.
+
+    GTSAM evaluates each ``CombinedImuFactor`` (one C++ call per pair: every
+    Gauss-Newton step moves every state, so each pair is relinearised); the
+    whitening and the placement into the pair's columns are batched.
+
+    Parameters
+    ----------
+    nodes : list of WindowNode
+        The window.
+    factors : _WindowFactors
+        Its factors.
+    jacobian : bool
+        Also return the Jacobians.
+
+    Returns
+    -------
+    A : ndarray, shape (n - 1, 17, 34), or None when not asked
+        Whitened Jacobian of pair ``k`` w.r.t. the error states of nodes ``k``
+        and ``k + 1``: 15 IMU rows (GTSAM's error order), then clock and drift.
+    b : ndarray, shape (n - 1, 17)
+        Minus the whitened errors [dimensionless].
+    """
+    pairs = len(nodes) - 1
+    biases = [gtsam.imuBias.ConstantBias(n.bias[:3], n.bias[3:]) for n in nodes]
+    err = np.empty((pairs, 15))
+    for k in range(pairs):
+        a, b = nodes[k], nodes[k + 1]
+        err[k] = b.imu.evaluateError(a.pose, a.vel, b.pose, b.vel, biases[k], biases[k + 1],
+                                     *(factors.outputs[k] if jacobian else ()))
+    clk = np.array([n.clk for n in nodes])
+    rhs = np.empty((pairs, NS))
+    rhs[:, :15] = -_mv(factors.W, err)
+    rhs[:, 15:] = -_mv(factors.Wc, clk[1:] - _mv(factors.F, clk[:-1]))
+    if not jacobian:
+        return None, rhs
+    A = np.zeros((pairs, NS, 2 * NS))
+    A[:, :15, _IMU_COLUMNS] = factors.W @ factors.slab.swapaxes(-1, -2)
+    A[:, 15:, CLK:CLK + 2] = -factors.Wc @ factors.F
+    A[:, 15:, NS + CLK:NS + CLK + 2] = factors.Wc
+    return A, rhs
+
+
+@lru_cache(maxsize=4)  # a window grows one state per epoch, then keeps its size
+def _band_layout(n: int) -> tuple[int, np.ndarray, np.ndarray]:
+    """Where the upper triangle of an n-state block-tridiagonal H goes in LAPACK upper band storage.
+
+    Returns
+    -------
+    bw : int
+        Rows of the band storage ``ab`` (17 n columns), ``ab[bw - 1 + r - c, c] = H[r, c]``.
+    dst, src : ndarray of int
+        ``ab.ravel()[dst] = concatenate([D.ravel(), U.ravel()])[src]`` fills
+        ``ab`` with the upper triangles of the diagonal blocks and the blocks
+        above them (read-only: shared by every call).
+    """
+    bw = min(2 * NS, NS * n)  # a block above the diagonal reaches 2 NS - 1 columns right of it
+    cols = NS * n
+    k = np.arange(n)[:, None]
+    i, j = np.triu_indices(NS)  # diagonal blocks, upper triangle
+    d_dst = (bw - 1 + i - j) * cols + NS * k + j
+    d_src = NS * NS * k + NS * i + j
+    iu, ju = np.divmod(np.arange(NS * NS), NS)  # blocks above the diagonal: node k's rows, node k + 1's columns
+    u_dst = (bw - 1 + iu - ju - NS) * cols + NS * k[:-1] + NS + ju
+    u_src = NS * NS * n + np.arange(NS * NS * (n - 1))
+    dst, src = np.concatenate([d_dst.ravel(), u_dst.ravel()]), np.concatenate([d_src.ravel(), u_src])
+    dst.flags.writeable = src.flags.writeable = False
+    return bw, dst, src
+
+
+class NormalEquations(NamedTuple):
+    """Gauss-Newton normal equations ``H dx = eta`` (``H = G^T G``, ``eta = G^T b``) of a window of n states.
+
+    The prior and the GNSS rows touch one state, the IMU and clock factors two
+    consecutive ones: H is block tridiagonal and only its diagonal blocks and
+    the blocks above them are kept.
+    """
+
+    D: np.ndarray  #: (n, 17, 17) diagonal blocks of H
+    U: np.ndarray  #: (n - 1, 17, 17) blocks ``H[k, k + 1]`` above the diagonal
+    eta: np.ndarray  #: (17 n,) ``G^T b``
+    sq: float  #: ``|b|^2``, the cost without the S penalty
+
+    def solve(self) -> np.ndarray:
+        """``dx`` (17 n,) by banded Cholesky (LAPACK ``pbsv``): linear in n where a dense solve is cubic."""
+        n = len(self.D)
+        bw, dst, src = _band_layout(n)
+        ab = np.zeros((bw, NS * n))
+        ab.ravel()[dst] = np.concatenate([self.D.ravel(), self.U.ravel()])[src]
+        ab[-1] += 1e-12  # the prior and IMU chain make H positive definite; guard round-off only
+        return solve_banded_h(ab, self.eta, check_finite=False)
+
+    def dense(self) -> np.ndarray:
+        """H as a dense (17 n, 17 n) array."""
+        n = len(self.D)
+        k = np.arange(n)
+        H = np.zeros((n, NS, n, NS))
+        H[k, :, k, :] = self.D
+        H[k[:-1], :, k[1:], :] = self.U
+        H[k[1:], :, k[:-1], :] = self.U.transpose(0, 2, 1)
+        return H.reshape(NS * n, NS * n)
+
+
+def _retracted(nodes: list[WindowNode], dx: np.ndarray) -> list[WindowNode]:
+    """The nodes moved by the error-state step ``dx`` (shape (17 n,)); S copied as in :meth:`WindowNode.copy`."""
+    d = dx.reshape(len(nodes), NS)
+    # the vector states move in one addition each; only the pose retraction (GTSAM) is per node
+    vel = np.array([n.vel for n in nodes]) + d[:, VEL:VEL + 3]
+    bias = np.array([n.bias for n in nodes]) + d[:, BA:BG + 3]
+    clk = np.array([n.clk for n in nodes]) + d[:, CLK:]
+    return [n._with_state(n.pose.retract(dn[:6]), v, b, c) for n, dn, v, b, c in zip(nodes, d, vel, bias, clk)]
 
 
 def _clock_model(dt: float, h0: float, h_2: float) -> tuple[np.ndarray, np.ndarray]:
@@ -256,7 +516,10 @@ class WindowSolver:
         self.prior_mean: WindowNode | None = None
         self.prior_R = np.eye(NS)
         self.prior_r = np.zeros(NS)
-        self._ne = None
+        self._ne: NormalEquations | None = None  # at the current nodes
+        self._lin: _Linearisation | None = None  # at the current nodes
+        self._factors: _WindowFactors | None = None  # of the current nodes
+        self._s_penalty: float | None = None  # 2 sum lambda |S| of the current nodes
 
     # ---------------------------------------------------------------- building
 
@@ -272,7 +535,7 @@ class WindowSolver:
         self.prior_R = np.diag(1.0 / np.asarray(sigmas, float))
         self.prior_r = np.zeros(NS)
         node.attach_gnss(gnss)
-        self._ne = None
+        self._factors_changed()
 
     def predict(self, f_b: np.ndarray, w_b: np.ndarray, dt: np.ndarray) -> WindowNode:
         """Preintegrate IMU samples from the newest node and return the predicted next node."""
@@ -295,7 +558,7 @@ class WindowSolver:
         """Add a predicted node with its GNSS epoch; marginalise the oldest when the window overflows."""
         node.attach_gnss(gnss)
         self.nodes.append(node)
-        self._ne = None
+        self._factors_changed()
         if len(self.nodes) > self.window + 1:
             self._marginalise_oldest()
 
@@ -305,92 +568,84 @@ class WindowSolver:
         for node in [*self.nodes, self.prior_mean]:
             node.pose = gtsam.Pose3(gtsam.Rot3(R @ node.pose.rotation().matrix()), node.pose.translation())
             node.vel = R @ node.vel
-        self._ne = None
+        self._ne, self._lin = None, None
+
+    def _factors_changed(self) -> None:
+        """A node came or left, or its GNSS rows changed: drop everything derived from the window."""
+        self._ne, self._lin, self._factors, self._s_penalty = None, None, None, None
+
+    def _stacked_factors(self) -> _WindowFactors:
+        """:func:`_window_factors` of the current nodes, kept until :meth:`_factors_changed`."""
+        if self._factors is None:
+            self._factors = _window_factors(self.nodes)
+        return self._factors
 
     # ---------------------------------------------------------------- linearisation
 
-    def _pair_terms(self, nodes: list[WindowNode], i: int,
-                    jacobian: bool = True) -> tuple[np.ndarray | None, np.ndarray, slice]:
-        """IMU and clock factors into node ``i``: whitened Jacobian over nodes ``i-1, i`` (17 x 34), b = -error."""
-        a, b = nodes[i - 1], nodes[i]
-        bi = gtsam.imuBias.ConstantBias(a.bias[:3], a.bias[3:])
-        bj = gtsam.imuBias.ConstantBias(b.bias[:3], b.bias[3:])
-        W = b.imu_sqrt_info
-        F = np.array([[1.0, b.dt], [0.0, 1.0]])
-        Wc = b.clk_sqrt_info
-        rhs = np.empty(17)
-        rhs[15:] = -Wc @ (b.clk - F @ a.clk)
-        sl = slice(NS * (i - 1), NS * (i + 1))
-        if not jacobian:
-            rhs[:15] = -W @ b.imu.evaluateError(a.pose, a.vel, b.pose, b.vel, bi, bj)
-            return None, rhs, sl
-        Hall = np.zeros((15, 30), order="F")  # column blocks of an F-ordered array are F-contiguous views
-        Hs = [Hall[:, lo:hi] for lo, hi in ((0, 6), (6, 9), (9, 15), (15, 18), (18, 24), (24, 30))]
-        rhs[:15] = -W @ b.imu.evaluateError(a.pose, a.vel, b.pose, b.vel, bi, bj, *Hs)
-        WH = W @ Hall
-        A = np.zeros((17, 2 * NS))
-        # GTSAM's key order: pose_i, vel_i, pose_j, vel_j, bias_i, bias_j
-        A[:15, 0:9] = WH[:, 0:9]
-        A[:15, NS:NS + 9] = WH[:, 9:18]
-        A[:15, BA:BA + 6] = WH[:, 18:24]
-        A[:15, NS + BA:NS + BA + 6] = WH[:, 24:30]
-        A[15:, CLK:CLK + 2] = -Wc @ F
-        A[15:, NS + CLK:NS + CLK + 2] = Wc
-        return A, rhs, sl
-
-    def _prior_terms(self, nodes: list[WindowNode]) -> tuple[np.ndarray, np.ndarray, slice]:
+    def _prior_terms(self, nodes: list[WindowNode]) -> tuple[np.ndarray, np.ndarray]:
+        """Whitened Jacobian (17 x 17) of the prior w.r.t. the first node and b = -error."""
         e = self.prior_R @ _local(self.prior_mean, nodes[0]) - self.prior_r
-        return self.prior_R, -e, slice(0, NS)
+        return self.prior_R, -e
 
-    def _terms(self, nodes: list[WindowNode],
-               jacobian: bool = True) -> Iterator[tuple[np.ndarray | None, np.ndarray, slice]]:
-        """Prior, IMU and clock factors as (A, b, columns); GNSS is handled vectorised."""
-        yield self._prior_terms(nodes)
-        for i in range(1, len(nodes)):
-            yield self._pair_terms(nodes, i, jacobian)
+    def _linearise(self, nodes: list[WindowNode], factors: _WindowFactors) -> _Linearisation:
+        """Every factor of a window with the given factors, linearised at its states."""
+        R, b0 = self._prior_terms(nodes)
+        A, b = _pair_terms(nodes, factors)
+        return _Linearisation(R, b0, A, b, window_gnss_terms(nodes, layout=factors.gnss))
 
-    def _normal_equations(self, nodes: list[WindowNode],
-                          gnss_nodes: set[int] | None = None) -> tuple[np.ndarray, np.ndarray, float]:
-        """``G^T G``, ``G^T b`` and ``|b|^2`` of the window (GNSS of ``gnss_nodes`` only, default all)."""
-        N = NS * len(nodes)
-        H = np.zeros((N, N))
-        eta = np.zeros(N)
-        sq = 0.0
-        for A, b, sl in self._terms(nodes):
-            H[sl, sl] += A.T @ A
-            eta[sl] += A.T @ b
-            sq += float(b @ b)
-        g = window_gnss_terms(nodes)
+    def _linearised(self) -> _Linearisation:
+        """:meth:`_linearise` at the current nodes, kept until they move or change."""
+        if self._lin is None:
+            self._lin = self._linearise(self.nodes, self._stacked_factors())
+        return self._lin
+
+    def _normal_equations(self, nodes: list[WindowNode], lin: _Linearisation, factors: _WindowFactors,
+                          gnss_nodes: set[int] | None = None) -> NormalEquations:
+        """:class:`NormalEquations` of a window from its linearisation and S (GNSS of ``gnss_nodes`` only)."""
+        n = len(nodes)
+        D = np.zeros((n, NS, NS))
+        eta = np.zeros((n, NS))
+        R, b0, A, b, g = lin
+        D[0] = R.T @ R
+        eta[0] = R.T @ b0
+        At = A.swapaxes(-1, -2)
+        AtA, Atb = At @ A, _mv(At, b)
+        D[:-1] += AtA[:, :NS, :NS]
+        D[1:] += AtA[:, NS:, NS:]
+        eta[:-1] += Atb[:, :NS]
+        eta[1:] += Atb[:, NS:]
+        squares = [[b0 @ b0], (b[:, None] @ b[..., None]).ravel()]
         if g is not None:
-            b = -(g.e + _s_of(nodes) * (g.w > 0))
-            R = len(g.e) // 2
-            for i, lo, hi in g.bounds:
-                if gnss_nodes is not None and i not in gnss_nodes:
-                    continue
-                Jc, Jr, bc, br = g.J[lo:hi], g.J[R + lo:R + hi], b[lo:hi], b[R + lo:R + hi]
-                sl = slice(NS * i, NS * (i + 1))
-                H[sl, sl] += Jc.T @ Jc + Jr.T @ Jr
-                eta[sl] += Jc.T @ bc + Jr.T @ br
-                sq += float(bc @ bc + br @ br)
-        return H, eta, sq
+            node = factors.gnss.node
+            JtJ, Jtb, bb = _gnss_blocks(g, -(g.e + _s_of(nodes) * factors.gnss.used), factors.gnss)
+            if gnss_nodes is not None:
+                keep = np.isin(node, sorted(gnss_nodes))
+                node, JtJ, Jtb, bb = node[keep], JtJ[keep], Jtb[keep], bb[keep]
+            D[node] += JtJ
+            eta[node] += Jtb
+            squares.append(bb)
+        return NormalEquations(D, AtA[:, :NS, NS:], eta.ravel(), _sequential_sum(np.concatenate(squares)))
 
     def _weighted_s_l1(self, nodes: list[WindowNode]) -> float:
         """``sum lambda_i |S_i|`` over the window."""
+        # with an infinite threshold S stays 0 and adds nothing (inf * 0 would be NaN)
+        code, rr = np.isfinite(self.lam_rho), np.isfinite(self.lam_d)
         tot = 0.0
         for n in nodes:
-            # with an infinite threshold S stays 0 and adds nothing (inf * 0 would be NaN)
-            if n.gnss is not None and np.isfinite(self.lam_rho):
+            if n.gnss is None:
+                continue
+            if code:
                 tot += self.lam_rho * np.abs(n.s_code).sum()
-            if n.gnss is not None and np.isfinite(self.lam_d):
+            if rr:
                 tot += self.lam_d * np.abs(n.s_rr).sum()
         return float(tot)
 
     def cost(self, nodes: list[WindowNode] | None = None) -> float:
         """``|z - g(X) - S|^2 + 2 sum lambda |S|`` of the window."""
         nodes = self.nodes if nodes is None else nodes
-        sq = 0.0
-        for _, b, _ in self._terms(nodes, jacobian=False):
-            sq += float(b @ b)
+        _, b0 = self._prior_terms(nodes)
+        _, b = _pair_terms(nodes, _window_factors(nodes), jacobian=False)
+        sq = float(b0 @ b0) + float(np.sum(b * b))
         g = window_gnss_terms(nodes, jacobian=False)
         if g is not None:
             sq += float(np.sum((g.e + _s_of(nodes) * (g.w > 0)) ** 2))
@@ -401,34 +656,39 @@ class WindowSolver:
     def x_step(self, line_search: bool = True) -> tuple[float, float]:
         """One Gauss-Newton step on X given S, with backtracking. Returns (|b|_2 before, |dX|_2 taken).
 
-        The normal equations of an accepted trial point are kept for the next
-        step: the line search's cost evaluation is then free.
+        The linearisation and normal equations of an accepted trial point are
+        kept for the next step: the line search's cost evaluation is then free.
         """
         if self._ne is None:
-            self._ne = self._normal_equations(self.nodes)
-        H, eta, sq = self._ne
-        dx = _solve_block_tridiagonal(H, eta)
+            self._ne = self._normal_equations(self.nodes, self._linearised(), self._stacked_factors())
+        ne = self._ne
+        dx = ne.solve()
+        step = float(np.linalg.norm(dx))
         self._ne = None
         # a step below the tolerance cannot change the cost beyond round-off: take it as is
-        if not line_search or np.linalg.norm(dx) < self.tol:
-            self.nodes = [n.retract(dx[NS * i:NS * (i + 1)]) for i, n in enumerate(self.nodes)]
-            return float(np.sqrt(sq)), float(np.linalg.norm(dx))
-        s_pen = 2.0 * self._weighted_s_l1(self.nodes)  # S is fixed during the X step
-        c0 = sq + s_pen
+        if not line_search or step < self.tol:
+            self.nodes, self._lin = _retracted(self.nodes, dx), None
+            return float(np.sqrt(ne.sq)), step
+        if self._s_penalty is None:  # S is fixed during X steps: one sum per S step
+            self._s_penalty = 2.0 * self._weighted_s_l1(self.nodes)
+        s_pen = self._s_penalty
+        c0 = ne.sq + s_pen
+        factors = self._stacked_factors()  # a retraction keeps the factors
         alpha = 1.0
         for _ in range(6):
-            trial = [n.retract(alpha * dx[NS * i:NS * (i + 1)]) for i, n in enumerate(self.nodes)]
-            ne = self._normal_equations(trial)
-            if ne[2] + s_pen <= c0 * (1.0 + 1e-12):
-                self.nodes, self._ne = trial, ne
-                return float(np.sqrt(sq)), float(alpha * np.linalg.norm(dx))
+            trial = _retracted(self.nodes, alpha * dx)
+            lin = self._linearise(trial, factors)
+            trial_ne = self._normal_equations(trial, lin, factors)
+            if trial_ne.sq + s_pen <= c0 * (1.0 + 1e-12):
+                self.nodes, self._lin, self._ne = trial, lin, trial_ne
+                return float(np.sqrt(ne.sq)), alpha * step
             alpha *= 0.5
-        self._ne = (H, eta, sq)
-        return float(np.sqrt(sq)), 0.0
+        self._ne = ne
+        return float(np.sqrt(ne.sq)), 0.0
 
     def s_step(self) -> float:
         """Closed-form S update (eq. 14) on all GNSS residuals; returns |dS|_2."""
-        g = window_gnss_terms(self.nodes, jacobian=False)
+        g = self._linearised().gnss  # the next X step's linearisation: X does not move here
         if g is None:
             return 0.0
         R = len(g.e) // 2
@@ -437,7 +697,7 @@ class WindowSolver:
         old = _s_of(self.nodes)
         for i, lo, hi in g.bounds:
             self.nodes[i].s_code, self.nodes[i].s_rr = new[lo:hi], new[R + lo:R + hi]
-        self._ne = None
+        self._ne, self._s_penalty = None, None
         return float(np.linalg.norm(new - old))
 
     def solve(self, record: bool = False) -> tuple[int, list[tuple[float, ...]]]:
@@ -480,9 +740,10 @@ class WindowSolver:
         if node.gnss is None:
             self.x_step(line_search=False)
             return 0
-        H0, _, _ = self._normal_equations(self.nodes, gnss_nodes=set(range(last)))
+        lin = self._linearised()
+        H0 = self._normal_equations(self.nodes, lin, self._stacked_factors(), gnss_nodes=set(range(last))).dense()
         P = np.linalg.inv(H0)[-NS:, -NS:]
-        g = window_gnss_terms(self.nodes)
+        g = lin.gnss
         R = len(g.e) // 2
         _, lo, hi = g.bounds[-1]
         rows = np.r_[lo:hi, R + lo:R + hi]
@@ -493,7 +754,7 @@ class WindowSolver:
             k = len(node.gnss.code)
             node.gnss = replace(node.gnss, w_code=np.where(bad[:k], 0.0, node.gnss.w_code),
                                 w_rr=np.where(bad[k:], 0.0, node.gnss.w_rr))
-            self._ne = None
+            self._factors_changed()
         self.x_step(line_search=False)
         return int(bad.sum())
 
@@ -510,17 +771,18 @@ class WindowSolver:
         pair = [n.copy() for n in self.nodes[:2]]
         for n in pair:
             n.gnss = n.without_outliers()
-        H, eta, _ = self._normal_equations(pair)
-        H00, H01, H11 = H[:NS, :NS], H[:NS, NS:], H[NS:, NS:]
+        factors = _window_factors(pair)
+        ne = self._normal_equations(pair, self._linearise(pair, factors), factors)
+        H00, H01, H11 = ne.D[0], ne.U[0], ne.D[1]
         c = cho_factor(H00 + 1e-12 * np.eye(NS))
         lam = H11 - H01.T @ cho_solve(c, H01)
-        eta1 = eta[NS:] - H01.T @ cho_solve(c, eta[:NS])
+        eta1 = ne.eta[NS:] - H01.T @ cho_solve(c, ne.eta[:NS])
         lam = 0.5 * (lam + lam.T)
         R = np.linalg.cholesky(lam + 1e-12 * np.eye(NS)).T
         self.prior_R = R
         self.prior_r = solve_triangular(R, eta1, trans="T")
         self.prior_mean = self.nodes[1].copy()
         self.nodes = self.nodes[1:]
-        self._ne = None
+        self._factors_changed()
         first = self.nodes[0]
         first.gnss, first.s_code, first.s_rr, first.imu, first.clk_sqrt_info = None, None, None, None, None

@@ -1,5 +1,7 @@
-"""CRT-LSS: the S step, agreement with a batch smoother, outliers ending up in S, window Jacobians, validation."""
+"""CRT-LSS: S step, batch-smoother agreement, outliers in S, window Jacobians and normal equations, validation."""
 from __future__ import annotations
+
+import copy
 
 import gtsam
 import numpy as np
@@ -11,13 +13,19 @@ from estimators.crt_lss import CrtLss, CrtLssConfig
 from estimators.gnss_ins_data import prepare_gnss_ins
 from estimators.gnss_ins_driver import run_gnss_ins
 from estimators.window_solver import (
+    BA,
+    BG,
     CLK,
     DRIFT,
     NS,
     POS,
+    ROT,
     VEL,
     WindowNode,
     WindowSolver,
+    _pair_terms,
+    _retracted,
+    _window_factors,
     soft_threshold,
     window_gnss_terms,
 )
@@ -38,6 +46,29 @@ def clean() -> simbench.Scenario:
 
 def _cfg(**kw) -> CrtLssConfig:
     return CrtLssConfig(**kw)
+
+
+@pytest.fixture(scope="module")
+def full_window(clean: simbench.Scenario) -> WindowSolver:
+    """The solver as Algorithm 1 starts on the last full window of the clean drive.
+
+    L = 4, thresholds low enough that S is non-zero.
+    """
+    seen: list[WindowSolver] = []
+    orig = WindowSolver.solve
+
+    def spy(self: WindowSolver, record: bool = False) -> tuple[int, list[tuple[float, ...]]]:
+        if self.full:
+            snap = copy.copy(self)
+            snap.nodes = [n.copy() for n in self.nodes]
+            snap._factors_changed()  # the copy computes its own linearisation
+            seen[:] = [snap]
+        return orig(self, record)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(WindowSolver, "solve", spy)
+        run_gnss_ins(clean.receiver_view(), _cfg(), mode="lss", window=4, lambdas=(0.5, 0.7))
+    return seen[0]
 
 
 def test_soft_threshold_is_the_closed_form_minimiser() -> None:
@@ -144,3 +175,60 @@ def test_crt_lss_declares_the_imu_and_validates_its_config() -> None:
     for field, value in (("window", 0), ("lambda_rho", 0.0), ("max_iterations", 0), ("code_sigma_m", -1.0)):
         with pytest.raises(SimbenchError, match=rf"estimator\.crt_lss\.{field}"):
             CrtLss(CrtLssConfig(**{field: value}))
+
+
+def test_stacked_pair_terms_are_a_loop_over_the_gtsam_factors(full_window: WindowSolver) -> None:
+    """Bit for bit: the batched whitening and placement make the BLAS calls of a per-pair loop."""
+    nodes = full_window.nodes
+    A, b = _pair_terms(nodes, full_window._stacked_factors())
+    for k in range(len(nodes) - 1):
+        a, n = nodes[k], nodes[k + 1]
+        H = np.zeros((15, 30), order="F")
+        e = n.imu.evaluateError(a.pose, a.vel, n.pose, n.vel, gtsam.imuBias.ConstantBias(a.bias[:3], a.bias[3:]),
+                                gtsam.imuBias.ConstantBias(n.bias[:3], n.bias[3:]),
+                                *(H[:, lo:hi] for lo, hi in ((0, 6), (6, 9), (9, 15), (15, 18), (18, 24), (24, 30))))
+        WH = n.imu_sqrt_info @ H
+        F = np.array([[1.0, n.dt], [0.0, 1.0]])
+        expected = np.zeros((NS, 2 * NS))
+        expected[:15, ROT:VEL + 3] = WH[:, 0:9]  # GTSAM's key order: pose_i, vel_i, pose_j, vel_j, bias_i, bias_j
+        expected[:15, NS + ROT:NS + VEL + 3] = WH[:, 9:18]
+        expected[:15, BA:BG + 3] = WH[:, 18:24]
+        expected[:15, NS + BA:NS + BG + 3] = WH[:, 24:30]
+        expected[15:, CLK:CLK + 2] = -n.clk_sqrt_info @ F
+        expected[15:, NS + CLK:NS + CLK + 2] = n.clk_sqrt_info
+        np.testing.assert_array_equal(A[k], expected, err_msg=f"pair {k}")
+        np.testing.assert_array_equal(b[k], np.r_[-n.imu_sqrt_info @ e, -n.clk_sqrt_info @ (n.clk - F @ a.clk)])
+
+
+def test_window_normal_equations_are_the_cost_gradient_and_solve_banded(full_window: WindowSolver) -> None:
+    """eta is minus half the cost gradient (central differences); the banded solve solves the dense system."""
+    s = full_window
+    rng = np.random.default_rng(1)
+    # away from the solution, so that every factor (the IMU ones above all) has a sizeable residual
+    nodes = _retracted(s.nodes, 1e-3 * rng.normal(size=NS * len(s.nodes)))
+    ne = s._normal_equations(nodes, s._linearise(nodes, s._stacked_factors()), s._stacked_factors())
+    assert ne.sq + 2.0 * s._weighted_s_l1(nodes) == pytest.approx(s.cost(nodes), rel=1e-12)
+    assert s.s_l1_norm() > 0.0
+    h = 1e-6  # round-off of ECEF positions limits the differences to ~1e-5: a misplaced block is off by O(1)
+    for _ in range(5):
+        v = rng.normal(size=NS * len(nodes))
+        v[:NS] = 0.0  # the prior's Jacobian is taken as the identity: exact only at its mean
+        slope = (s.cost(_retracted(nodes, h * v)) - s.cost(_retracted(nodes, -h * v))) / (2 * h)
+        assert slope == pytest.approx(-2.0 * ne.eta @ v, rel=1e-3)
+    H = ne.dense()
+    np.testing.assert_allclose(H, H.T, rtol=0, atol=1e-12 * np.abs(H).max())
+    dx = ne.solve()
+    assert np.linalg.norm(H @ dx - ne.eta) < 1e-9 * np.linalg.norm(ne.eta)
+
+
+def test_a_window_without_gnss_rows_solves_on_the_imu_and_clock_alone(full_window: WindowSolver) -> None:
+    """Epochs with fewer than 4 satellites have no GNSS rows: a window can hold none (seen on long urban drives)."""
+    s = full_window
+    nodes = [n.copy() for n in s.nodes]
+    for n in nodes:
+        n.gnss = None
+    assert window_gnss_terms(nodes) is None
+    factors = _window_factors(nodes)
+    ne = s._normal_equations(nodes, s._linearise(nodes, factors), factors)
+    assert ne.sq == pytest.approx(s.cost(nodes), rel=1e-12)
+    assert np.all(np.isfinite(ne.solve()))
