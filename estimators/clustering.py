@@ -111,8 +111,9 @@ def fit_dpgmm(x: np.ndarray, *, truncation: int = 10, max_iter: int = 1000, tol:
     # non-convergence within max_iter still gives a usable (if slightly looser) mixture
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
-        model.fit(fit_x)
-    labels = model.predict(x)
+        # fit_predict's final E-step gives the labels predict would (fit discards them)
+        fitted = model.fit_predict(fit_x)
+    labels = fitted if fit_rows is None else model.predict(x)
     counts = np.bincount(labels, minlength=k)
     keep = np.flatnonzero(counts > 0)
     keep = keep[np.argsort(-counts[keep], kind="stable")]

@@ -208,6 +208,20 @@ def test_bce_records_the_mixture_of_every_iteration(open_sky: Scenario) -> None:
         assert np.array(m["covariances"]).shape == (len(m["weights"]), 2, 2)
 
 
+def test_bce_ad_stops_once_the_error_no_longer_decreases(open_sky: Scenario) -> None:
+    """Sec. 6.2.5 (GTSAM's checkConvergence): a decrease below rel_tol, a rise included, ends BCE-AD."""
+    cfg = BceAdConfig()
+    sol = BceAd(cfg).estimate(open_sky.receiver_view())
+    err = [h["error"] for h in sol.diagnostics["history"]]
+    # every iteration before the last decreased the error by more than rel_tol
+    assert all(err[i] - err[i + 1] > cfg.rel_tol * err[i] for i in range(len(err) - 2))
+    stop = sol.diagnostics["stop_reason"]
+    if stop == "error increased":
+        assert err[-1] > err[-2]
+    else:
+        assert stop == "converged" and abs(err[-2] - err[-1]) <= cfg.rel_tol * err[-2]
+
+
 @pytest.mark.parametrize("n_features", [2, 3])
 def test_bce_ad_records_selected_features(open_sky: Scenario, n_features: int) -> None:
     sol = BceAd(BceAdConfig(max_iterations=2, n_features=n_features)).estimate(open_sky.receiver_view())
