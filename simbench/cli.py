@@ -67,7 +67,7 @@ def main() -> None:
         shaping = config_overrides(args)
         cfg = compose_config(shaping) if shaping is not None else None
         if cfg is not None and "studies" in cfg:  # a sweep of sweeps (thesis): studies x worlds
-            studies = to_typed({k: cfg[k] for k in ("studies", "worlds", "own_scenario", "study_args") if k in cfg},
+            studies = to_typed({k: cfg[k] for k in ("studies", "worlds", "own_scenario", "study_args", "world_studies") if k in cfg},
                                StudiesConfig, "config")
             sys.exit(run_studies(studies, Path(cfg.results_dir), args))
     except SimbenchError as exc:

@@ -7,7 +7,8 @@ the study's scenario; the study's own scenario settings, e.g. ``ch7_ice``'s
 ``scenario.duration_s``, still apply on top). A study listed in
 ``own_scenario`` runs once on the scenario of its sweep file, into
 ``results_dir/<study>``: Ch.4's Monte-Carlo flights are part of its claim, not
-a drive through a world. Then one aggregate, ``claims.csv`` (one verdict per
+a drive through a world. A world listed in ``world_studies`` runs only the
+studies listed for it. Then one aggregate, ``claims.csv`` (one verdict per
 claim and world, :func:`simbench.claims.claims_table`) and report over all of
 them. The wall time of every study x world is appended to ``results_dir/study_times.csv``.
 """
@@ -43,13 +44,17 @@ class StudiesConfig:
     own_scenario: list[str] = field(default_factory=list)
     #: extra command-line overrides of one study, e.g. {ch5_bce: ["estimator=[l2,dcs,mm,bce,oracle]"]}
     study_args: dict[str, list[str]] = field(default_factory=dict)
+    #: the studies of one world when not all of them, e.g. {morgantown1: [ch5_bce, ch7_ice]}
+    world_studies: dict[str, list[str]] = field(default_factory=dict)
 
     def validate(self) -> None:
         """One-line :class:`SimbenchError` for an unknown study or world."""
         sweeps, scenarios = available("sweep"), available("scenario")
         for key, names, known in (("studies", self.studies, sweeps), ("worlds", self.worlds, scenarios),
                                   ("own_scenario", self.own_scenario, self.studies),
-                                  ("study_args", list(self.study_args), self.studies)):
+                                  ("study_args", list(self.study_args), self.studies),
+                                  ("world_studies", list(self.world_studies), scenarios),
+                                  *((f"world_studies.{w}", s, self.studies) for w, s in self.world_studies.items())):
             unknown = [n for n in names if n not in known]
             if unknown:
                 raise SimbenchError(key, f"unknown {', '.join(unknown)}", f"choose from {', '.join(known)}")
@@ -68,7 +73,8 @@ class StudyRun:
 
 
 #: Overrides of the studies config itself and of what each study sets: never passed down to a study.
-_OWN_KEYS = ("+sweep", "sweep_name", "results_dir", "studies", "worlds", "own_scenario", "study_args")
+_OWN_KEYS = ("+sweep", "sweep_name", "results_dir", "studies", "worlds", "own_scenario", "study_args",
+             "world_studies")
 
 
 def plan(cfg: StudiesConfig, root: Path, args: Sequence[str]) -> list[StudyRun]:
@@ -82,7 +88,7 @@ def plan(cfg: StudiesConfig, root: Path, args: Sequence[str]) -> list[StudyRun]:
     args : sequence of str
         The command line; every override but the keys of :class:`StudiesConfig`,
         ``+sweep``, ``sweep_name`` and ``results_dir`` goes to every study (e.g.
-        ``hydra/launcher=joblib``, ``hydra.sweeper.params.seed=range(0,5)``).
+        ``hydra/launcher=joblib``, ``seed=range(0,5)``).
 
     Raises
     ------
@@ -102,6 +108,8 @@ def plan(cfg: StudiesConfig, root: Path, args: Sequence[str]) -> list[StudyRun]:
                                                           *extra]))
             continue
         for world in cfg.worlds:
+            if study not in cfg.world_studies.get(world, [study]):
+                continue
             out = root / world / study
             runs.append(StudyRun(study, world, out, [f"+sweep={study}", f"scenario={world}", f"results_dir={out}",
                                                      *extra]))

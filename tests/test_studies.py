@@ -21,25 +21,27 @@ ROOT = Path("results/thesis")
 
 def _studies(args: list[str]) -> StudiesConfig:
     cfg = compose_config(config_overrides(args))
-    return to_typed({k: cfg[k] for k in ("studies", "worlds", "own_scenario", "study_args")}, StudiesConfig)
+    return to_typed({k: cfg[k] for k in ("studies", "worlds", "own_scenario", "study_args", "world_studies")},
+                    StudiesConfig)
 
 
 def test_thesis_over_worlds_puts_each_study_and_world_in_its_own_folder() -> None:
     args = ["+sweep=thesis", "worlds=[urban,morgantown1]", "hydra/launcher=joblib",
-            "hydra.sweeper.params.seed=range(0,5)"]
+            "seed=range(0,5)"]
     cfg = _studies(args)  # the seed range (a sweep) is left to the studies, not composed here
     assert cfg.worlds == ["urban", "morgantown1"] and cfg.own_scenario == ["ch4_convergence"]
     runs = plan(cfg, ROOT, args)
     assert [(r.study, r.world) for r in runs[:3]] == [("ch4_convergence", ""), ("ch5_bce", "urban"),
                                                       ("ch5_bce", "morgantown1")]
-    assert len(runs) == 1 + 2 * (len(cfg.studies) - 1)
+    assert len(runs) == 1 + (len(cfg.studies) - 1) + 2  # the drive runs ch5_bce and ch7_ice only
+    assert {r.study for r in runs if r.world == "morgantown1"} == {"ch5_bce", "ch7_ice"}
     ch4, ch5_mt = runs[0], runs[2]
     assert ch4.results_dir == ROOT / "ch4_convergence" and not any(a.startswith("scenario=") for a in ch4.args)
     assert ch5_mt.results_dir == ROOT / "morgantown1" / "ch5_bce"
     # the thesis's own override of the study, then the command line's
     assert ch5_mt.args == ["+sweep=ch5_bce", "scenario=morgantown1", f"results_dir={ROOT / 'morgantown1/ch5_bce'}",
                            "estimator=[l2,dcs,mm,bce,oracle]", "hydra/launcher=joblib",
-                           "hydra.sweeper.params.seed=range(0,5)"]
+                           "seed=range(0,5)"]
     assert "estimator=[l2,dcs,mm,bce,oracle]" not in runs[-1].args  # crt_window keeps its estimators
     # the world replaces the sweep file's scenario; the study's own scenario settings stay
     study = compose_config(["+sweep=ch7_ice", "scenario=morgantown1"])
@@ -55,6 +57,10 @@ def test_bad_worlds_are_one_line_errors() -> None:
         plan(StudiesConfig(studies=["ch5_bce"], own_scenario=["ch4_convergence"]), ROOT, [])
     with pytest.raises(SimbenchError, match=r"^study_args: unknown ch7_ice -- choose from ch5_bce"):
         plan(StudiesConfig(studies=["ch5_bce"], study_args={"ch7_ice": ["seed=1"]}), ROOT, [])
+    with pytest.raises(SimbenchError, match=r"^world_studies.urban: unknown ch7_ice -- choose from ch5_bce"):
+        plan(StudiesConfig(studies=["ch5_bce"], worlds=["urban"], world_studies={"urban": ["ch7_ice"]}), ROOT, [])
+    with pytest.raises(SimbenchError, match=r"^world_studies: unknown nosuch -- choose from .*urban"):
+        plan(StudiesConfig(studies=["ch5_bce"], worlds=["urban"], world_studies={"nosuch": ["ch5_bce"]}), ROOT, [])
 
 
 def test_config_overrides_drops_sweeps_only() -> None:
