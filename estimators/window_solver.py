@@ -466,6 +466,24 @@ class NormalEquations(NamedTuple):
         return H.reshape(NS * n, NS * n)
 
 
+def _upper_cholesky(info: np.ndarray) -> np.ndarray:
+    """Upper triangular ``R`` with ``R^T R = info`` for a marginal information matrix.
+
+    The Schur complement of a window whose states span metres and
+    microradians can come out a hair indefinite by cancellation; then its
+    eigenvalues are floored at 1e-9 of the largest (the nearest positive
+    definite matrix keeps every direction the data inform) before the
+    factorisation.
+    """
+    jitter = 1e-12 * np.eye(len(info))
+    try:
+        return np.linalg.cholesky(info + jitter).T
+    except np.linalg.LinAlgError:
+        w, v = np.linalg.eigh(info)
+        w = np.maximum(w, 1e-9 * w.max())
+        return np.linalg.cholesky((v * w) @ v.T + jitter).T
+
+
 def _retracted(nodes: list[WindowNode], dx: np.ndarray) -> list[WindowNode]:
     """The nodes moved by the error-state step ``dx`` (shape (17 n,)); S copied as in :meth:`WindowNode.copy`."""
     d = dx.reshape(len(nodes), NS)
@@ -777,8 +795,7 @@ class WindowSolver:
         c = cho_factor(H00 + 1e-12 * np.eye(NS))
         lam = H11 - H01.T @ cho_solve(c, H01)
         eta1 = ne.eta[NS:] - H01.T @ cho_solve(c, ne.eta[:NS])
-        lam = 0.5 * (lam + lam.T)
-        R = np.linalg.cholesky(lam + 1e-12 * np.eye(NS)).T
+        R = _upper_cholesky(0.5 * (lam + lam.T))
         self.prior_R = R
         self.prior_r = solve_triangular(R, eta1, trans="T")
         self.prior_mean = self.nodes[1].copy()
