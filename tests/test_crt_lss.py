@@ -25,6 +25,7 @@ from estimators.window_solver import (
     WindowSolver,
     _pair_terms,
     _retracted,
+    _upper_cholesky,
     _window_factors,
     soft_threshold,
     window_gnss_terms,
@@ -232,3 +233,21 @@ def test_a_window_without_gnss_rows_solves_on_the_imu_and_clock_alone(full_windo
     ne = s._normal_equations(nodes, s._linearise(nodes, factors), factors)
     assert ne.sq == pytest.approx(s.cost(nodes), rel=1e-12)
     assert np.all(np.isfinite(ne.solve()))
+
+
+def test_marginal_information_left_indefinite_by_rounding_still_factors() -> None:
+    """A positive definite information gives the plain Cholesky factor; one with a tiny negative
+    eigenvalue (Schur-complement cancellation) gives R^T R equal to it with that eigenvalue floored."""
+    rng = np.random.default_rng(0)
+    q, _ = np.linalg.qr(rng.standard_normal((NS, NS)))
+    w = np.logspace(-4, 10, NS)
+    info = (q * w) @ q.T
+    np.testing.assert_array_equal(_upper_cholesky(info), np.linalg.cholesky(info + 1e-12 * np.eye(NS)).T)
+    w[0] = -1e-3
+    bad = (q * w) @ q.T
+    with pytest.raises(np.linalg.LinAlgError):
+        np.linalg.cholesky(bad + 1e-12 * np.eye(NS))
+    r = _upper_cholesky(bad)
+    assert np.allclose(np.tril(r, -1), 0.0)
+    floored = (q * np.maximum(w, 1e-9 * w.max())) @ q.T
+    np.testing.assert_allclose(r.T @ r, floored, rtol=0, atol=1e-6 * w.max())
