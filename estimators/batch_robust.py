@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import asdict, dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import gtsam
 import numpy as np
@@ -175,16 +175,24 @@ class DcsBatch(BatchGraphEstimator):
 
 
 @dataclass
-class MmConfig(BatchConfig):
-    """Batch max-mixtures with a static inlier/outlier model."""
+class MaxMixtureFields:
+    """The static inlier/outlier model of batch and incremental MM; each sets its published scale."""
 
-    #: outlier covariance = inlier covariance times this; None: the batch code's 1e6
+    #: outlier covariance = inlier covariance times this; None: ``PUBLISHED_OUTLIER_SCALE``
     outlier_scale: float | None = None
     outlier_weight: float = 0.5  #: prior weight of the outlier component (equal weights)
+    PUBLISHED_OUTLIER_SCALE: ClassVar[float]
 
     def __post_init__(self) -> None:
         if self.outlier_scale is None:
-            self.outlier_scale = 1e6
+            self.outlier_scale = self.PUBLISHED_OUTLIER_SCALE
+
+
+@dataclass
+class MmConfig(BatchConfig, MaxMixtureFields):
+    """Batch max-mixtures with a static inlier/outlier model."""
+
+    PUBLISHED_OUTLIER_SCALE: ClassVar[float] = 1e6  #: the batch code's
 
     def validate(self, where: str) -> None:
         """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""

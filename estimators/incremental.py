@@ -46,7 +46,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import asdict, dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import gtsam
 import numpy as np
@@ -54,7 +54,7 @@ import pandas as pd
 
 from estimators import register
 from estimators.base import Estimator, solution_frame
-from estimators.batch_robust import max_mixture_outliers, validate_max_mixture
+from estimators.batch_robust import MaxMixtureFields, max_mixture_outliers, validate_max_mixture
 from estimators.measurement import predict_given_troposphere, prepare_ppp
 from estimators.ppp_graph import (
     ZERO_KEY,
@@ -63,6 +63,7 @@ from estimators.ppp_graph import (
     amb_key,
     clock_key,
     drift_key,
+    insert_double,
     iono_key,
     isb_key,
     pos_key,
@@ -286,16 +287,16 @@ class IncrementalGraphEstimator(Estimator):
             return None
         v = gtsam.Values()
         v.insert(pos_key(k - 1), isam.calculateEstimatePoint3(pos_key(k - 1)))
-        v.insert(zwd_key(k - 1), isam.calculateEstimateDouble(zwd_key(k - 1)))
+        insert_double(v, zwd_key(k - 1), isam.calculateEstimateDouble(zwd_key(k - 1)))
         if g.constant_velocity:
             v.insert(vel_key(k - 1), isam.calculateEstimatePoint3(vel_key(k - 1)))
-            v.insert(drift_key(k - 1), isam.calculateEstimateDouble(drift_key(k - 1)))
+            insert_double(v, drift_key(k - 1), isam.calculateEstimateDouble(drift_key(k - 1)))
         for s in range(1, g.obs.n_isb + 1):
-            v.insert(isb_key(s, k - 1), isam.calculateEstimateDouble(isb_key(s, k - 1)))
+            insert_double(v, isb_key(s, k - 1), isam.calculateEstimateDouble(isb_key(s, k - 1)))
         if g.with_iono:
             for p in g.prev_row[rows]:
                 if p >= 0:
-                    v.insert(iono_key(int(p)), isam.calculateEstimateDouble(iono_key(int(p))))
+                    insert_double(v, iono_key(int(p)), isam.calculateEstimateDouble(iono_key(int(p))))
         return v
 
 
@@ -401,16 +402,10 @@ class Isam2Dcs(IncrementalGraphEstimator):
 
 
 @dataclass
-class Isam2MmConfig(IncrementalConfig):
+class Isam2MmConfig(IncrementalConfig, MaxMixtureFields):
     """Incremental max-mixtures with a static two-component model."""
 
-    #: outlier covariance = inlier covariance times this; None: the incremental code's 10
-    outlier_scale: float | None = None
-    outlier_weight: float = 0.5  #: prior weight of the outlier component (equal weights)
-
-    def __post_init__(self) -> None:
-        if self.outlier_scale is None:
-            self.outlier_scale = 10.0
+    PUBLISHED_OUTLIER_SCALE: ClassVar[float] = 10.0  #: the incremental code's
 
     def validate(self, where: str) -> None:
         """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""

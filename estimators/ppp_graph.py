@@ -136,6 +136,7 @@ __all__ = [
     "MotionModel",
     "clock_key",
     "gauss_newton_step",
+    "insert_double",
     "iono_key",
     "pos_key",
     "solve",
@@ -635,31 +636,31 @@ class PppGraph:
             pos = previous.atPoint3(pos_key(k - 1))
             zwd = previous.atDouble(zwd_key(k - 1))
         v.insert(pos_key(k), gtsam.Point3(*np.asarray(pos, float)))
-        _insert_double(v, clock_key(k), self.spp_clock_m[k] / C_LIGHT)
-        _insert_double(v, zwd_key(k), zwd)
+        insert_double(v, clock_key(k), self.spp_clock_m[k] / C_LIGHT)
+        insert_double(v, zwd_key(k), zwd)
         if self.constant_velocity:
             vel = np.zeros(3)
             if previous is not None and k > 0 and previous.exists(vel_key(k - 1)):
                 vel = previous.atPoint3(vel_key(k - 1))
             v.insert(vel_key(k), gtsam.Point3(*np.asarray(vel, float)))
-            _insert_double(v, drift_key(k), self.drift0[k])
+            insert_double(v, drift_key(k), self.drift0[k])
         for s in range(1, obs.n_isb + 1):
             isb = self.isb0_m[s - 1]
             if previous is not None and k > 0 and previous.exists(isb_key(s, k - 1)):
                 isb = previous.atDouble(isb_key(s, k - 1))
-            _insert_double(v, isb_key(s, k), isb)
-            _insert_double(v, sysclock_key(s, k), (self.spp_clock_m[k] + isb) / C_LIGHT)
+            insert_double(v, isb_key(s, k), isb)
+            insert_double(v, sysclock_key(s, k), (self.spp_clock_m[k] + isb) / C_LIGHT)
         if k == 0:
-            _insert_double(v, ZERO_KEY, 0.0)
+            insert_double(v, ZERO_KEY, 0.0)
         rows = obs.epoch_slice(k)
         for r in range(rows.start, rows.stop):
             p = int(self.prev_row[r])
             if self.arc_start[r]:
-                _insert_double(v, amb_key(int(obs.arc[r])), self._amb0(r))
+                insert_double(v, amb_key(int(obs.arc[r])), self._amb0(r))
             if self.iono_rows[r]:
                 iono = previous.atDouble(iono_key(p)) if (previous is not None and p >= 0
                                                           and previous.exists(iono_key(p))) else 0.0
-                _insert_double(v, iono_key(r), iono)
+                insert_double(v, iono_key(r), iono)
         return v
 
     def initial_values(self) -> gtsam.Values:
@@ -741,7 +742,7 @@ def _carry_forward(x: np.ndarray) -> np.ndarray:
     return np.where(last >= 0, x[np.maximum(last, 0)], x[np.argmax(known)])
 
 
-def _insert_double(values: gtsam.Values, key: int, x: float) -> None:
+def insert_double(values: gtsam.Values, key: int, x: float) -> None:
     """``values.insert(key, x)`` for a double (a receiver clock in seconds, a bias or delay in metres).
 
     By keyword: a positional float is tried against GTSAM's 45 other ``insert`` overloads

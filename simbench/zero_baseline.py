@@ -21,8 +21,8 @@ from __future__ import annotations
 
 import argparse
 import sys
-from dataclasses import replace
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -67,7 +67,7 @@ def single_point_positions(scenario: Scenario, keep: pd.MultiIndex | None = None
     noise = StochasticModelConfig()
     view = scenario.receiver_view()
     if keep is not None:
-        rows = pd.MultiIndex.from_frame(view.observations[["epoch", "sat"]]).isin(keep)
+        rows = _pairs(view.observations).isin(keep)
         view = replace(view, observations=view.observations[rows].reset_index(drop=True))
     obs = prepare_ppp(view, ionosphere_free=False, code_sigma_m=noise.code_sigma_m,
                       phase_sigma_m=noise.phase_sigma_m, elevation_mask_deg=noise.elevation_mask_deg,
@@ -78,6 +78,11 @@ def single_point_positions(scenario: Scenario, keep: pd.MultiIndex | None = None
     ok = sol.trusted
     return pd.DataFrame({"epoch": obs.epoch_ids[ok], "x": sol.pos[ok, 0], "y": sol.pos[ok, 1],
                          "z": sol.pos[ok, 2]})
+
+
+def _pairs(observations: pd.DataFrame) -> pd.MultiIndex:
+    """The ``(epoch, sat)`` pairs of an observation table, in its row order."""
+    return pd.MultiIndex.from_frame(observations[["epoch", "sat"]])
 
 
 def zero_baseline(scenario: str, seed: int = 0, **overrides: object) -> pd.DataFrame:
@@ -103,11 +108,11 @@ def zero_baseline(scenario: str, seed: int = 0, **overrides: object) -> pd.DataF
     scenes = {preset: simbench.simulate(scenario, preset, seed=seed, **overrides)
               for preset in (REFERENCE_PRESET, *PRESETS)}
     reference = scenes[REFERENCE_PRESET]
-    tracked = pd.MultiIndex.from_frame(reference.observations[["epoch", "sat"]])
+    tracked = _pairs(reference.observations)
     drive = DRIVE_SCENARIOS.get(scenario)
     rows = []
     for preset in PRESETS:
-        both = tracked.intersection(pd.MultiIndex.from_frame(scenes[preset].observations[["epoch", "sat"]]))
+        both = tracked.intersection(_pairs(scenes[preset].observations))
         fix = single_point_positions(scenes[preset], both).set_index("epoch")
         ref = single_point_positions(reference, both).set_index("epoch")
         common = fix.index.intersection(ref.index)
