@@ -77,7 +77,7 @@ import pandas as pd
 from sklearn.mixture import BayesianGaussianMixture
 
 from estimators import register
-from estimators.batch_robust import BatchConfig, BatchGraphEstimator
+from estimators.batch_robust import BatchConfig, BatchGraphEstimator, stop_reason
 from estimators.clustering import Mixture, code_marginal_labels, fit_dpgmm, select_features
 from estimators.measurement import PppObservations
 from estimators.ppp_graph import PppGraph, gauss_newton_step
@@ -183,36 +183,13 @@ class _IterativeCovariance(BatchGraphEstimator):
             values, err = gauss_newton_step(graph, values, ordering)
             history.append({"iteration": it + 1, "error": err, **record})
             if prev_err is not None:
-                reason = _stop_reason(prev_err, err, cfg.rel_tol, cfg.stop_on_increase)
+                reason = stop_reason(prev_err, err, cfg.rel_tol, on_increase=cfg.stop_on_increase)
                 if reason is not None:
                     stop = reason
                     break
             prev_err = err
         return values, {"iterations": len(history), "stop_reason": stop, "history": history}
 
-
-def _stop_reason(previous: float, current: float, rel_tol: float, on_increase: bool) -> str | None:
-    """Why the re-weighting loop stops after an iteration, None to go on.
-
-    Parameters
-    ----------
-    previous, current : float
-        Total graph error after the previous and the current re-solve (GTSAM's
-        ``0.5 * sum of squared whitened residuals``, dimensionless).
-    rel_tol : float
-        Relative tolerance on the error change.
-    on_increase : bool
-        Stop when the error rises by more than ``rel_tol`` too (GTSAM's ``checkConvergence``).
-
-    Returns
-    -------
-    str or None
-        ``"converged"`` (change within ``rel_tol``), ``"error increased"``, or None.
-    """
-    decrease = previous - current
-    if abs(decrease) <= rel_tol * abs(previous):
-        return "converged"
-    return "error increased" if on_increase and decrease < 0 else None
 
 
 def _component_noise(mix_means: np.ndarray, mix_cov: np.ndarray, labels: np.ndarray) -> dict[str, np.ndarray]:

@@ -96,7 +96,9 @@ def plan(cfg: StudiesConfig, root: Path, args: Sequence[str]) -> list[StudyRun]:
         For a ``scenario=`` override together with ``worlds``.
     """
     cfg.validate()
-    passed = [a for a in args if a.partition("=")[0] not in _OWN_KEYS]
+    # "+sweep" is an own key as written; the others also with Hydra's "+"/"++"/"~" prefixes
+    passed = [a for a in args if a.partition("=")[0] not in _OWN_KEYS
+              and a.partition("=")[0].lstrip("+~") not in _OWN_KEYS]
     if cfg.worlds and any(a.partition("=")[0].lstrip("+~") == "scenario" for a in passed):
         raise SimbenchError("scenario", "is set on the command line together with worlds",
                             "list the scenario presets in worlds=[...] instead")

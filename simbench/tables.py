@@ -15,7 +15,7 @@ from scipy import stats
 
 from simbench.claims import BOOTSTRAP_RESAMPLES, CONFIDENCE, CONVERGENCE_S, ratio_of_means
 from simbench.config import ScenarioSource
-from simbench.published import DRIVE_MEDIANS_M, DRIVE_SCENARIOS, PUBLISHED_FAMILY
+from simbench.published import DRIVE_MEDIANS_BY_SWEEP, DRIVE_MEDIANS_M, DRIVE_SCENARIOS, PUBLISHED_FAMILY
 from simbench.variants import NO_OVERRIDES, is_default
 
 #: Columns that identify a variant of an estimator: the structured overrides and their label.
@@ -171,7 +171,10 @@ def drive_comparison(summary: pd.DataFrame) -> pd.DataFrame:
     ----------
     summary : pandas.DataFrame
         Result rows; only default variants of ``morgantownN`` scenarios with a
-        published counterpart (:data:`simbench.published.PUBLISHED_FAMILY`) are used.
+        published counterpart are used: the sweep's table
+        (:data:`simbench.published.DRIVE_MEDIANS_BY_SWEEP`, Ch.6 for ``ch6_bce_ad``,
+        else Ch.5/Ch.7's) has the estimator's family
+        (:data:`simbench.published.PUBLISHED_FAMILY`) for that receiver and drive.
 
     Returns
     -------
@@ -191,10 +194,12 @@ def drive_comparison(summary: pd.DataFrame) -> pd.DataFrame:
     out = []
     for (sweep, receiver, scenario, estimator), group in rows.groupby(["sweep", "receiver", "scenario", "estimator"],
                                                                       dropna=False):
-        ok = group[group["status"] == "ok"]
         drive = DRIVE_SCENARIOS[scenario]
         family = PUBLISHED_FAMILY[estimator]
-        published = DRIVE_MEDIANS_M[(receiver, drive)][family]
+        published = DRIVE_MEDIANS_BY_SWEEP.get(sweep, DRIVE_MEDIANS_M).get((receiver, drive), {}).get(family)
+        if published is None:  # e.g. BCE-AD outside Ch.6, or Ch.6's high receiver: not published
+            continue
+        ok = group[group["status"] == "ok"]
         median = _mean_ci_ref(ok["horizontal_median_ref"].to_numpy(float))[0] if len(ok) else np.nan
         out.append({"sweep": sweep, "receiver": receiver, "drive": drive, "estimator": estimator,
                     "published_as": family, "n_seeds": len(ok),

@@ -8,6 +8,7 @@ import pytest
 import simbench
 from estimators.batch_robust import (
     DcsBatch,
+    DcsConfig,
     L2Batch,
     MmBatch,
     MmConfig,
@@ -241,3 +242,25 @@ def test_bce_ad_records_selected_features(open_sky: Scenario, n_features: int) -
         assert abs(sum(mix["weights"]) - 1) < 1e-9
         assert sum(mix["counts"]) == n_obs  # every observation belongs to one component
         assert np.array(mix["covariances"]).shape == (len(mix["weights"]), 2, 2)
+
+
+def test_dcs_gauss_newton_steps_reach_levenberg_marquardts_solution() -> None:
+    """Each step re-weights (IRLS): run to 1e-10 the steps end where LM does; the default stop is near it."""
+    base = simbench.simulate("open_sky", "high", seed=1001, **{"scenario.duration_s": 90})
+    data = _with_injected_nlos(base, 0.1, seed=1).receiver_view()
+    cfg = DcsConfig()
+    obs = prepare_ppp(data, **cfg.prepare_kwargs())
+    g = PppGraph(obs, cfg)
+    l2 = g.structure_factors()
+    l2.push_back(g.measurement_factors())
+    robust = g.structure_factors()
+    robust.push_back(g.measurement_factors(robust=gtsam.noiseModel.mEstimator.DCS.Create(cfg.kernel_width)))
+    start = solve(l2, g.initial_values())
+    reference = g.positions(solve(robust, start, max_iterations=500, relative_tol=1e-10))
+    assert np.abs(g.positions(start) - reference).max() > 1.0  # the outliers matter here
+    tight = DcsBatch(DcsConfig(rel_tol=1e-10, max_iterations=500)).estimate(data)
+    assert np.abs(tight.epochs[["x", "y", "z"]].to_numpy() - reference).max() < 0.005
+    default = DcsBatch(cfg).estimate(data)
+    assert default.diagnostics["stop_reason"] == "converged" and default.diagnostics["iterations"] < 100
+    gap = np.linalg.norm(default.epochs[["x", "y", "z"]].to_numpy() - reference, axis=1)
+    assert np.median(gap) < 0.05 and gap.max() < 0.3

@@ -8,7 +8,7 @@ import pytest
 import simbench
 from simbench.config import NlosConfig, ReplayConfig
 from simbench.errors import SimbenchError
-from simbench.published import DRIVE_MEDIANS_M
+from simbench.published import CH6_DRIVE_MEDIANS_M, DRIVE_MEDIANS_M
 from simbench.sim.trajectory import replay, roadside_street
 from simbench.tables import drive_comparison
 
@@ -73,3 +73,11 @@ def test_drive_comparison_sets_our_medians_beside_the_published() -> None:
     mm = table[table["estimator"] == "isam2_mm"].iloc[0]
     assert mm["published_as"] == "MM" and mm["published"] == DRIVE_MEDIANS_M[("high", 3)]["MM"]
     assert drive_comparison(summary[summary["scenario"] == "urban"]).empty
+    # BCE-AD's study is set beside Ch.6's own table (low receiver only), not beside Ch.7's
+    ch6 = pd.DataFrame([{**_row("morgantown3", "low", name, 0, 4.0), "sweep": "ch6_bce_ad"}
+                        for name in ("bce_ad", "l2")] + [{**_row("morgantown3", "high", "l2", 0, 4.0),
+                                                          "sweep": "ch6_bce_ad"}])
+    table = drive_comparison(ch6).set_index("estimator")
+    assert list(table.index) == ["bce_ad", "l2"] and table.loc["bce_ad", "published_as"] == "BCE-AD"
+    assert table.loc["bce_ad", "published"] == CH6_DRIVE_MEDIANS_M[("low", 3)]["BCE-AD"] == 3.25
+    assert table.loc["l2", "published"] == CH6_DRIVE_MEDIANS_M[("low", 3)]["L2"] != DRIVE_MEDIANS_M[("low", 3)]["L2"]

@@ -21,8 +21,8 @@ ROOT = Path("results/thesis")
 
 def _studies(args: list[str]) -> StudiesConfig:
     cfg = compose_config(config_overrides(args))
-    return to_typed({k: cfg[k] for k in ("studies", "worlds", "own_scenario", "study_args", "world_studies")},
-                    StudiesConfig)
+    return to_typed({k: cfg[k] for k in ("studies", "worlds", "own_scenario", "study_args", "world_studies")
+                     if k in cfg}, StudiesConfig)
 
 
 def test_thesis_over_worlds_puts_each_study_and_world_in_its_own_folder() -> None:
@@ -33,8 +33,10 @@ def test_thesis_over_worlds_puts_each_study_and_world_in_its_own_folder() -> Non
     runs = plan(cfg, ROOT, args)
     assert [(r.study, r.world) for r in runs[:3]] == [("ch4_convergence", ""), ("ch5_bce", "urban"),
                                                       ("ch5_bce", "morgantown1")]
-    assert len(runs) == 1 + (len(cfg.studies) - 1) + 2  # the drive runs ch5_bce and ch7_ice only
-    assert {r.study for r in runs if r.world == "morgantown1"} == {"ch5_bce", "ch7_ice"}
+    # the drive runs the studies the dissertation measured on collect 1
+    assert len(runs) == 1 + (len(cfg.studies) - 1) + 4
+    assert {r.study for r in runs if r.world == "morgantown1"} == {"ch5_bce", "ch5_sensitivity", "ch6_bce_ad",
+                                                                   "ch7_ice"}
     ch4, ch5_mt = runs[0], runs[2]
     assert ch4.results_dir == ROOT / "ch4_convergence" and not any(a.startswith("scenario=") for a in ch4.args)
     assert ch5_mt.results_dir == ROOT / "morgantown1" / "ch5_bce"
@@ -44,6 +46,10 @@ def test_thesis_over_worlds_puts_each_study_and_world_in_its_own_folder() -> Non
                            "seed=range(0,5)"]
     assert "estimator=[l2,dcs,mm,bce,oracle]" not in runs[-1].args  # crt_window keeps its estimators
     # the world replaces the sweep file's scenario; the study's own scenario settings stay
+    # Hydra's deletion of an own key is not passed down either (a study has no world_studies)
+    trimmed = _studies([*args, "~world_studies"])
+    assert trimmed.world_studies == {}
+    assert not any("world_studies" in a for run in plan(trimmed, ROOT, [*args, "~world_studies"]) for a in run.args)
     study = compose_config(["+sweep=ch7_ice", "scenario=morgantown1"])
     assert study.scenario.name == "morgantown1" and study.scenario.duration_s == 1200.0
 

@@ -129,7 +129,8 @@ def build_report(run_dir: Path, summary: pd.DataFrame, epochs: pd.DataFrame, cla
     if len(drives):
         page.h2("Morgantown drives: our medians beside the dissertation's")
         page.p("median_ref = mean over seeds of the median horizontal error over reference epochs [m]; published = "
-               "the dissertation's median on the real drive (Ch.7 tables, ICE paper) for the same estimator family "
+               "the dissertation's median on the real drive (Ch.7 tables and the ICE paper; Ch.6 Table 6.3.1 for "
+               "ch6_bce_ad, which processed the collects again) for the same estimator family "
                "(batch and incremental variants are both set beside it); ratio = median_ref / published. Our drives "
                "are the recorded trajectories under the broadcast orbits of the day in a simulated suburban street, "
                "not the recorded observables.", cls="note")
