@@ -191,7 +191,6 @@ class _IterativeCovariance(BatchGraphEstimator):
         return values, {"iterations": len(history), "stop_reason": stop, "history": history}
 
 
-
 def _component_noise(mix_means: np.ndarray, mix_cov: np.ndarray, labels: np.ndarray) -> dict[str, np.ndarray]:
     """Per-row measurement-factor arguments from each row's component mean and 2x2 covariance."""
     cov = mix_cov[labels]

@@ -23,7 +23,6 @@ from tabulate import tabulate
 
 import estimators
 from simbench.compose import CONF_DIR, check_group_choices, compose_config, register_schemas
-from simbench.config import to_typed
 from simbench.errors import SimbenchError
 from simbench.studies import StudiesConfig, run_studies
 
@@ -67,9 +66,7 @@ def main() -> None:
         shaping = config_overrides(args)
         cfg = compose_config(shaping) if shaping is not None else None
         if cfg is not None and "studies" in cfg:  # a sweep of sweeps (thesis): studies x worlds
-            studies = to_typed({k: cfg[k] for k in ("studies", "worlds", "own_scenario", "study_args", "world_studies") if k in cfg},
-                               StudiesConfig, "config")
-            sys.exit(run_studies(studies, Path(cfg.results_dir), args))
+            sys.exit(run_studies(StudiesConfig.from_config(cfg), Path(cfg.results_dir), args))
     except SimbenchError as exc:
         print(f"error: {exc}", file=sys.stderr)
         sys.exit(2)

@@ -18,13 +18,15 @@ import subprocess
 import sys
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from datetime import datetime, timezone
 from pathlib import Path
 
 import pandas as pd
+from omegaconf import DictConfig
 
 from simbench.compose import available
+from simbench.config import to_typed
 from simbench.errors import SimbenchError
 
 __all__ = ["STUDY_TIMES", "StudiesConfig", "StudyRun", "plan", "run_studies", "time_budget"]
@@ -46,6 +48,11 @@ class StudiesConfig:
     study_args: dict[str, list[str]] = field(default_factory=dict)
     #: the studies of one world when not all of them, e.g. {morgantown1: [ch5_bce, ch7_ice]}
     world_studies: dict[str, list[str]] = field(default_factory=dict)
+
+    @classmethod
+    def from_config(cls, cfg: DictConfig) -> StudiesConfig:
+        """The studies keys of a composed config (those it sets), typed and checked."""
+        return to_typed({f.name: cfg[f.name] for f in fields(cls) if f.name in cfg}, cls, "config")
 
     def validate(self) -> None:
         """One-line :class:`SimbenchError` for an unknown study or world."""
@@ -72,9 +79,13 @@ class StudyRun:
     args: list[str]
 
 
-#: Overrides of the studies config itself and of what each study sets: never passed down to a study.
-_OWN_KEYS = ("+sweep", "sweep_name", "results_dir", "studies", "worlds", "own_scenario", "study_args",
-             "world_studies")
+#: Keys of the studies config itself and of what each study sets: never passed down to a study.
+_OWN_KEYS = ("sweep", "sweep_name", "results_dir", *(f.name for f in fields(StudiesConfig)))
+
+
+def _key(arg: str) -> str:
+    """The config key an override sets, without Hydra's ``+``/``++``/``~`` prefix."""
+    return arg.partition("=")[0].lstrip("+~")
 
 
 def plan(cfg: StudiesConfig, root: Path, args: Sequence[str]) -> list[StudyRun]:
@@ -86,8 +97,9 @@ def plan(cfg: StudiesConfig, root: Path, args: Sequence[str]) -> list[StudyRun]:
     root : Path
         ``results_dir`` of the whole run.
     args : sequence of str
-        The command line; every override but the keys of :class:`StudiesConfig`,
-        ``+sweep``, ``sweep_name`` and ``results_dir`` goes to every study (e.g.
+        The command line; every override but those of the keys of
+        :class:`StudiesConfig`, ``sweep``, ``sweep_name`` and ``results_dir`` (with
+        or without Hydra's ``+``/``++``/``~``) goes to every study (e.g.
         ``hydra/launcher=joblib``, ``seed=range(0,5)``).
 
     Raises
@@ -96,10 +108,8 @@ def plan(cfg: StudiesConfig, root: Path, args: Sequence[str]) -> list[StudyRun]:
         For a ``scenario=`` override together with ``worlds``.
     """
     cfg.validate()
-    # "+sweep" is an own key as written; the others also with Hydra's "+"/"++"/"~" prefixes
-    passed = [a for a in args if a.partition("=")[0] not in _OWN_KEYS
-              and a.partition("=")[0].lstrip("+~") not in _OWN_KEYS]
-    if cfg.worlds and any(a.partition("=")[0].lstrip("+~") == "scenario" for a in passed):
+    passed = [a for a in args if _key(a) not in _OWN_KEYS]
+    if cfg.worlds and any(_key(a) == "scenario" for a in passed):
         raise SimbenchError("scenario", "is set on the command line together with worlds",
                             "list the scenario presets in worlds=[...] instead")
     runs = []

@@ -10,7 +10,6 @@ import pytest
 from simbench.claims import claims_table
 from simbench.cli import config_overrides
 from simbench.compose import compose_config
-from simbench.config import to_typed
 from simbench.errors import SimbenchError
 from simbench.report.build import build_report
 from simbench.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS
@@ -21,8 +20,7 @@ ROOT = Path("results/thesis")
 
 def _studies(args: list[str]) -> StudiesConfig:
     cfg = compose_config(config_overrides(args))
-    return to_typed({k: cfg[k] for k in ("studies", "worlds", "own_scenario", "study_args", "world_studies")
-                     if k in cfg}, StudiesConfig)
+    return StudiesConfig.from_config(cfg)
 
 
 def test_thesis_over_worlds_puts_each_study_and_world_in_its_own_folder() -> None:
