@@ -12,6 +12,7 @@ Parts (``--part``):
 Run e.g. ``OMP_NUM_THREADS=1 python benchmarks/batch_claims.py --part low --seeds 10``.
 Evaluation seeds start at 0 (nothing here was tuned on them).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -20,7 +21,7 @@ import time
 import pandas as pd
 
 import simbench
-from simbench.runner import run_estimators
+from simbench.runs.runner import run_estimators
 
 SCALES = (0.1, 0.3, 1.0, 3.0, 10.0, 100.0)
 STATS = ["horizontal_median", "horizontal_mean", "horizontal_var", "horizontal_max", "time_per_obs_s", "total_s"]
@@ -35,9 +36,13 @@ def _run(receiver: str, seeds: range, configs: dict[str, dict], tag: dict) -> pd
         failed = summ[summ["status"] != "ok"]
         for _, r in failed.iterrows():
             print(f"  seed {seed} {r['estimator']} failed: {r['message']}")
-        print(f"  {tag} seed {seed}: " + ", ".join(f"{e} {m:.2f} m {t:.0f} s" for e, m, t in
-                                               summ[["estimator", "horizontal_median", "total_s"]].to_numpy()),
-              flush=True)
+        print(
+            f"  {tag} seed {seed}: "
+            + ", ".join(
+                f"{e} {m:.2f} m {t:.0f} s" for e, m, t in summ[["estimator", "horizontal_median", "total_s"]].to_numpy()
+            ),
+            flush=True,
+        )
         rows.append(summ)
     return pd.concat(rows, ignore_index=True)
 
@@ -55,7 +60,10 @@ def main() -> None:
         names = ["l2", "dcs", "mm", "bce"] + (["bce_ad", "oracle"] if args.part == "low" else [])
         df = _run(args.part, seeds, {n: {} for n in names}, {"scale": 1.0})
         table = df.groupby("estimator")[STATS].median().loc[names]
-        print(f"\n== urban / {args.part} receiver, seeds {seeds.start}..{seeds.stop - 1}: median over seeds of each statistic")
+        print(
+            f"\n== urban / {args.part} receiver, seeds {seeds.start}..{seeds.stop - 1}: "
+            "median over seeds of each statistic"
+        )
         print(table.to_string(float_format=lambda v: f"{v:.4g}"))
         print("(oracle reads labels: accuracy floor)" if args.part == "low" else "")
         wins = df.pivot(index="seed", columns="estimator", values="horizontal_median")
@@ -69,7 +77,10 @@ def main() -> None:
         parts = [_run("low", seeds, {n: {"prior_scale": s} for n in names}, {"scale": s}) for s in SCALES]
         df = pd.concat(parts, ignore_index=True)
         table = df.groupby(["estimator", "scale"])["horizontal_median"].median().unstack("scale").loc[names]
-        print(f"\n== sensitivity (urban / low, seeds {seeds.start}..{seeds.stop - 1}): median over seeds of the horizontal median")
+        print(
+            f"\n== sensitivity (urban / low, seeds {seeds.start}..{seeds.stop - 1}): "
+            "median over seeds of the horizontal median"
+        )
         print(table.to_string(float_format=lambda v: f"{v:.3f}"))
         spread = (table.max(axis=1) - table.min(axis=1)).rename("max-min")
         print(spread.to_string(float_format=lambda v: f"{v:.3f}"))

@@ -11,6 +11,7 @@ the numbers as noisy).
 
     OMP_NUM_THREADS=1 python benchmarks/bce_speed.py [--duration 3600] [--scenario urban] [--repeat 2] [--bce-ad]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -19,7 +20,7 @@ import time
 import simbench
 from estimators.batch_robust import L2Batch
 from estimators.bce import Bce, BceAd, BceConfig
-from simbench.metrics import enu_errors
+from simbench.analysis.metrics import enu_errors
 
 #: The issue's target: BCE total wall time at most this multiple of batch L2.
 TARGET_RATIO = 5.0
@@ -36,12 +37,15 @@ def main() -> None:
     ap.add_argument("--bce-ad", action="store_true", help="also run BCE-AD (default config)")
     args = ap.parse_args()
     tic = time.perf_counter()
-    scen = simbench.simulate(args.scenario, args.receiver, seed=args.seed,
-                             **{"scenario.duration_s": args.duration, "scenario.rate_hz": 1.0})
+    scen = simbench.simulate(
+        args.scenario, args.receiver, seed=args.seed, **{"scenario.duration_s": args.duration, "scenario.rate_hz": 1.0}
+    )
     data = scen.receiver_view()
     n_obs = len(scen.observations)
-    print(f"{args.scenario}/{args.receiver}, {args.duration:.0f} s at 1 Hz, seed {args.seed}, {n_obs} observations "
-          f"(simulated in {time.perf_counter() - tic:.0f} s); best of {args.repeat}")
+    print(
+        f"{args.scenario}/{args.receiver}, {args.duration:.0f} s at 1 Hz, seed {args.seed}, {n_obs} observations "
+        f"(simulated in {time.perf_counter() - tic:.0f} s); best of {args.repeat}"
+    )
     runs = {"l2": L2Batch, "bce (default)": Bce}
     if not args.no_full_fit:
         runs["bce fit_sample=0"] = lambda: Bce(BceConfig(fit_sample=0))
@@ -55,9 +59,12 @@ def main() -> None:
         it = sol.diagnostics.get("iterations", 1)
         stop = sol.diagnostics.get("stop_reason", "-")
         median = float(enu_errors(sol.epochs, scen.truth)["horizontal"].median())
-        print(f"{label:22s} total {sol.total_s:7.2f} s  iterations {it:3d} ({stop})  {sol.total_s / it:6.3f} s/iteration  "
-              f"{1e6 * sol.total_s / n_obs:7.1f} us/obs  horizontal median {median:5.2f} m  "
-              f"ratio to L2 {sol.total_s / seconds['l2']:5.2f}")
+        print(
+            f"{label:22s} total {sol.total_s:7.2f} s  iterations {it:3d} ({stop})  "
+            f"{sol.total_s / it:6.3f} s/iteration  "
+            f"{1e6 * sol.total_s / n_obs:7.1f} us/obs  horizontal median {median:5.2f} m  "
+            f"ratio to L2 {sol.total_s / seconds['l2']:5.2f}"
+        )
     ratio = seconds["bce (default)"] / seconds["l2"]
     print(f"target BCE <= {TARGET_RATIO:g}x L2: ratio {ratio:.2f} -> {'met' if ratio <= TARGET_RATIO else 'NOT met'}")
 

@@ -3,7 +3,7 @@
 Target (issue 15, thread discipline): on 2 cores the two concurrent sweeps
 finish within 1.3x the time of running them one after the other. Before each
 job limited its own BLAS/OpenMP threads (``blas_threads``,
-:func:`simbench.jobs.run_job`), two smoke sweeps started at once took more than
+:func:`simbench.runs.jobs.run_job`), two smoke sweeps started at once took more than
 11 minutes for their first job each (a job takes about 15 s alone): every
 process ran OpenBLAS's busy threads on both cores.
 
@@ -17,6 +17,7 @@ their ratio. The cores must be otherwise idle for a timing.
 Run: ``python benchmarks/concurrent_sweeps.py`` (``--quick`` for a check that it works:
 one 30 s open-sky scenario, ``l2`` only).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -38,10 +39,22 @@ REPO = Path(__file__).resolve().parent.parent
 
 def sweep_command(out: Path, name: str, seeds: str, quick: bool) -> list[str]:
     """The command line of one sweep into ``out``."""
-    config = (["scenario=open_sky", "scenario.duration_s=30", "estimator=[l2]"] if quick
-              else ["scenario=urban,flight", "scenario.duration_s=90"])
-    return [sys.executable, "-m", "simbench", "-m", *config, f"seed={seeds}", f"sweep_name={name}",
-            "progress=false", f"results_dir={out}"]
+    config = (
+        ["scenario=open_sky", "scenario.duration_s=30", "estimator=[l2]"]
+        if quick
+        else ["scenario=urban,flight", "scenario.duration_s=90"]
+    )
+    return [
+        sys.executable,
+        "-m",
+        "simbench",
+        "-m",
+        *config,
+        f"seed={seeds}",
+        f"sweep_name={name}",
+        "progress=false",
+        f"results_dir={out}",
+    ]
 
 
 def run_sweeps(out: Path, quick: bool, concurrent: bool) -> float:
@@ -50,8 +63,10 @@ def run_sweeps(out: Path, quick: bool, concurrent: bool) -> float:
     commands = [sweep_command(out, f"sweep_{i}", seeds, quick) for i, seeds in enumerate(SEEDS)]
     start = time.perf_counter()
     if concurrent:
-        procs = [subprocess.Popen(cmd, cwd=REPO, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                                  text=True) for cmd in commands]
+        procs = [
+            subprocess.Popen(cmd, cwd=REPO, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+            for cmd in commands
+        ]
         errors = [p.communicate()[1] for p in procs]
         codes = [p.returncode for p in procs]
     else:
@@ -84,8 +99,10 @@ def main() -> None:
         concurrent = run_sweeps(Path(tmp) / "concurrent", args.quick, concurrent=True)
         print(f"at once:             {concurrent:.1f} s; {check_rows(Path(tmp) / 'concurrent')}")
     ratio = concurrent / sequential
-    print(f"ratio at once / one after the other: {ratio:.2f} (target <= {TARGET}: "
-          f"{'met' if ratio <= TARGET else 'MISSED'}; {os.cpu_count()} cores)")
+    print(
+        f"ratio at once / one after the other: {ratio:.2f} (target <= {TARGET}: "
+        f"{'met' if ratio <= TARGET else 'MISSED'}; {os.cpu_count()} cores)"
+    )
 
 
 if __name__ == "__main__":

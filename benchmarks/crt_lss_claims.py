@@ -3,12 +3,13 @@
 Runs ``ekf_ins``, ``iekf_ins`` and ``crt_lss`` with L in {1, 2, 5, 10, 20} on the
 default urban scenario (street-canyon NLOS), the ``low`` receiver and the
 consumer IMU at 100 Hz, over evaluation seeds 0..N-1, through
-:func:`simbench.runner.run_estimators` with the configs of ``conf/estimator``.
+:func:`simbench.runs.runner.run_estimators` with the configs of ``conf/estimator``.
 Prints the pooled 3-D error percentiles (p50, p90, p97, max) and the per-seed
 medians; writes nothing into the repository (``--out`` for a Parquet copy).
 
     OMP_NUM_THREADS=1 python benchmarks/crt_lss_claims.py --seeds 10
 """
+
 from __future__ import annotations
 
 import argparse
@@ -19,15 +20,17 @@ import pandas as pd
 import yaml
 
 import simbench
-from simbench.compose import CONF_DIR
-from simbench.runner import run_estimators
+from simbench.runs.compose import CONF_DIR
+from simbench.runs.runner import run_estimators
 
 WINDOWS = (1, 2, 5, 10, 20)
 
 
 def _configs() -> dict[str, dict]:
-    node = {n: yaml.safe_load((CONF_DIR / "estimator" / f"{n}.yaml").read_text())[n]
-            for n in ("ekf_ins", "iekf_ins", "crt_lss")}
+    node = {
+        n: yaml.safe_load((CONF_DIR / "estimator" / f"{n}.yaml").read_text())[n]
+        for n in ("ekf_ins", "iekf_ins", "crt_lss")
+    }
     return node
 
 
@@ -51,8 +54,11 @@ def main() -> None:
             print(seed, f"crt_lss_L{L}", summary, flush=True)
         res = run_estimators(sc, runs, receiver="low", progress=False)
         frames.append(res.epochs)
-        print(seed, res.summary[["estimator", "status", "error_3d_median", "update_median_s"]].to_dict("records"),
-              flush=True)
+        print(
+            seed,
+            res.summary[["estimator", "status", "error_3d_median", "update_median_s"]].to_dict("records"),
+            flush=True,
+        )
     ep = pd.concat(frames, ignore_index=True)
     if args.out:
         ep.to_parquet(args.out)
@@ -63,12 +69,24 @@ def main() -> None:
         e = e[np.isfinite(e)]
         per_seed = ep[ep["estimator"] == name].groupby("seed")["error_3d"].median()
         upd = ep.loc[ep["estimator"] == name, "update_s"]
-        rows.append({"estimator": name, "epochs": len(e), "p50": np.percentile(e, 50), "p90": np.percentile(e, 90),
-                     "p97": np.percentile(e, 97), "max": e.max(), "frac_lt_1m": float(np.mean(e < 1.0)),
-                     "seed_median_p50": float(per_seed.median()), "update_mean_ms": 1e3 * float(upd.mean())})
+        rows.append(
+            {
+                "estimator": name,
+                "epochs": len(e),
+                "p50": np.percentile(e, 50),
+                "p90": np.percentile(e, 90),
+                "p97": np.percentile(e, 97),
+                "max": e.max(),
+                "frac_lt_1m": float(np.mean(e < 1.0)),
+                "seed_median_p50": float(per_seed.median()),
+                "update_mean_ms": 1e3 * float(upd.mean()),
+            }
+        )
     table = pd.DataFrame(rows)
-    print(f"\nurban / low receiver / consumer IMU 100 Hz / 1 Hz GNSS, seeds {args.first_seed}..{args.seeds - 1}, "
-          f"{args.duration:g} s each; pooled 3-D error [m]")
+    print(
+        f"\nurban / low receiver / consumer IMU 100 Hz / 1 Hz GNSS, seeds {args.first_seed}..{args.seeds - 1}, "
+        f"{args.duration:g} s each; pooled 3-D error [m]"
+    )
     print(table.to_string(index=False, float_format=lambda v: f"{v:.2f}"))
 
 

@@ -8,6 +8,7 @@ Timings on a shared machine are noisy: compare medians.
 
     python benchmarks/crt_lss_timing.py [--duration 300] [--seed 1000] [--windows 1 5 20]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -32,11 +33,15 @@ def main() -> None:
     ap.add_argument("--windows", type=int, nargs="+", default=[2, 5, 10, 20], help="CRT-LSS window lengths L")
     args = ap.parse_args()
     longest = max(args.windows)
-    sc = simbench.simulate("urban", "low", seed=args.seed, imu="consumer",
-                           **{"scenario.duration_s": args.duration, "imu.rate_hz": 100.0})
+    sc = simbench.simulate(
+        "urban", "low", seed=args.seed, imu="consumer", **{"scenario.duration_s": args.duration, "imu.rate_hz": 100.0}
+    )
     data = sc.receiver_view()
-    runs = {"ekf_ins": EkfIns(), "iekf_ins": IekfIns(),
-            **{f"crt_lss_L{L}": CrtLss(CrtLssConfig(window=L)) for L in args.windows}}
+    runs = {
+        "ekf_ins": EkfIns(),
+        "iekf_ins": IekfIns(),
+        **{f"crt_lss_L{L}": CrtLss(CrtLssConfig(window=L)) for L in args.windows},
+    }
     stats = {}
     for name, est in runs.items():
         sol = est.estimate(data)
@@ -44,15 +49,21 @@ def main() -> None:
         stats[name] = (u.mean(), np.median(u), np.percentile(u, 95), sol.diagnostics["iterations_mean"])
     ekf_mean, ekf_med = stats["ekf_ins"][0], stats["ekf_ins"][1]
     print(f"urban, low receiver, consumer IMU 100 Hz, 1 Hz GNSS, {args.duration:g} s, seed {args.seed}")
-    print(f"{'estimator':>14} {'mean ms':>8} {'median ms':>9} {'p95 ms':>8} {'iters':>6} {'x EKF(mean)':>11} "
-          f"{'x EKF(med)':>10}")
+    print(
+        f"{'estimator':>14} {'mean ms':>8} {'median ms':>9} {'p95 ms':>8} {'iters':>6} {'x EKF(mean)':>11} "
+        f"{'x EKF(med)':>10}"
+    )
     for name, (mean, med, p95, it) in stats.items():
-        print(f"{name:>14} {1e3 * mean:8.2f} {1e3 * med:9.2f} {1e3 * p95:8.2f} {it:6.2f} {mean / ekf_mean:11.1f} "
-              f"{med / ekf_med:10.1f}")
+        print(
+            f"{name:>14} {1e3 * mean:8.2f} {1e3 * med:9.2f} {1e3 * p95:8.2f} {it:6.2f} {mean / ekf_mean:11.1f} "
+            f"{med / ekf_med:10.1f}"
+        )
     mean = stats[f"crt_lss_L{longest}"][0]
-    print(f"CRT-LSS L={longest} mean update {1e3 * mean:.1f} ms vs target {1e3 * TARGET_S:.0f} ms: "
-          f"{'met' if mean < TARGET_S else 'NOT met'} ({TARGET_S / mean:.1f}x margin); "
-          f"ratio to EKF {mean / ekf_mean:.1f}x")
+    print(
+        f"CRT-LSS L={longest} mean update {1e3 * mean:.1f} ms vs target {1e3 * TARGET_S:.0f} ms: "
+        f"{'met' if mean < TARGET_S else 'NOT met'} ({TARGET_S / mean:.1f}x margin); "
+        f"ratio to EKF {mean / ekf_mean:.1f}x"
+    )
 
 
 if __name__ == "__main__":

@@ -4,6 +4,7 @@ Target (foundation issue): under 5 s on one core. Prints the wall time per
 stage-free end-to-end generation, observation rows per second and the ratio to
 the target. Run: ``python benchmarks/generator_throughput.py [--repeat N]``.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -13,9 +14,9 @@ import time
 os.environ.setdefault("OMP_NUM_THREADS", "1")  # one core, as the target says
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from simbench.compose import compose_config  # noqa: E402
-from simbench.config import SimConfig, to_typed  # noqa: E402
-from simbench.sim.generator import generate  # noqa: E402
+from simbench.runs.compose import compose_config
+from simbench.sim.config import SimConfig, to_typed
+from simbench.sim.generator import generate
 
 TARGET_S = 5.0
 
@@ -24,15 +25,31 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--duration", type=float, default=3600.0)
-    parser.add_argument("--broadcast", action="store_true",
-                        help="31-satellite broadcast constellation (brdc.18n) instead of the nominal 24")
+    parser.add_argument(
+        "--broadcast",
+        action="store_true",
+        help="31-satellite broadcast constellation (brdc.18n) instead of the nominal 24",
+    )
     args = parser.parse_args()
-    cfg = compose_config(["scenario=urban", "receiver=low", "seed=0", f"scenario.duration_s={args.duration}",
-                          "scenario.rate_hz=10", "scenario.dual_frequency=true",
-                          "scenario.errors.multipath.elevation_dependent=true",
-                          *(["scenario.constellation.kind=broadcast",
-                             "scenario.constellation.nav_path=../shared/data/wvu_drives/brdc.18n"] if args.broadcast
-                            else [])])
+    cfg = compose_config(
+        [
+            "scenario=urban",
+            "receiver=low",
+            "seed=0",
+            f"scenario.duration_s={args.duration}",
+            "scenario.rate_hz=10",
+            "scenario.dual_frequency=true",
+            "scenario.errors.multipath.elevation_dependent=true",
+            *(
+                [
+                    "scenario.constellation.kind=broadcast",
+                    "scenario.constellation.nav_path=../shared/data/wvu_drives/brdc.18n",
+                ]
+                if args.broadcast
+                else []
+            ),
+        ]
+    )
     sim = to_typed({k: cfg[k] for k in ("scenario", "receiver", "imu", "seed")}, SimConfig)
     times = []
     for _ in range(args.repeat):
@@ -41,8 +58,10 @@ def main() -> None:
         times.append(time.perf_counter() - start)
     best = min(times)
     n_obs, n_ep = len(sc.observations), sc.n_epochs
-    print(f"scenario: {args.duration:.0f} s at 10 Hz, {n_ep} epochs, {n_obs} observations "
-          f"({n_obs / n_ep:.1f} satellites/epoch), {len(sc.imu)} IMU samples")
+    print(
+        f"scenario: {args.duration:.0f} s at 10 Hz, {n_ep} epochs, {n_obs} observations "
+        f"({n_obs / n_ep:.1f} satellites/epoch), {len(sc.imu)} IMU samples"
+    )
     print(f"generation wall time: best {best:.2f} s, all {', '.join(f'{t:.2f}' for t in times)}")
     print(f"throughput: {n_obs / best:,.0f} observations/s, {n_ep / best:,.0f} epochs/s")
     print(f"ratio to the {TARGET_S:.0f} s target: {best / TARGET_S:.2f} ({'met' if best < TARGET_S else 'MISSED'})")

@@ -11,6 +11,7 @@ and ICE's adaptation count against the naive "adapt every T_c residuals" count.
 
 Evaluation seeds are 0..N-1. Result files are not written.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -43,8 +44,16 @@ def run_seed(args: tuple[int, str, str, float]) -> dict:
         out[name] = _horizontal(sc, sol.epochs)
         if name == "ICE":
             d = sol.diagnostics
-            out["ice"] = {k: d[k] for k in ("n_adaptations", "naive_adaptations", "n_residuals", "n_outliers",
-                                            "epochs_without_gnss_update")}
+            out["ice"] = {
+                k: d[k]
+                for k in (
+                    "n_adaptations",
+                    "naive_adaptations",
+                    "n_residuals",
+                    "n_outliers",
+                    "epochs_without_gnss_update",
+                )
+            }
             out["ice"]["n_components"] = len(d["final_model"]["weights"])
             out["ice"]["weights"] = d["final_model"]["weights"]
     return out
@@ -71,15 +80,17 @@ def main() -> None:
         med = np.array([[np.median(r[n]) for n in ESTIMATORS] for r in res])
         best = np.argmin(med, axis=1)
         print("median of per-seed medians " + " ".join(f"{n} {v:.2f}" for n, v in zip(ESTIMATORS, np.median(med, 0))))
-        print("lowest per-seed median: " + ", ".join(f"{n} {int((best == i).sum())}"
-                                                      for i, n in enumerate(ESTIMATORS)))
+        print("lowest per-seed median: " + ", ".join(f"{n} {int((best == i).sum())}" for i, n in enumerate(ESTIMATORS)))
         ice = [r["ice"] for r in res]
-        print(f"ICE adaptations: total {sum(d['n_adaptations'] for d in ice)} vs naive "
-              f"{sum(d['naive_adaptations'] for d in ice)}; per seed median {np.median([d['n_adaptations'] for d in ice]):.0f}"
-              f" vs {np.median([d['naive_adaptations'] for d in ice]):.0f}; outlier fraction "
-              f"{sum(d['n_outliers'] for d in ice) / sum(d['n_residuals'] for d in ice):.3f}; epochs without GNSS "
-              f"update {sum(d['epochs_without_gnss_update'] for d in ice)}; final components per seed "
-              f"{[d['n_components'] for d in ice]}")
+        print(
+            f"ICE adaptations: total {sum(d['n_adaptations'] for d in ice)} vs naive "
+            f"{sum(d['naive_adaptations'] for d in ice)}; "
+            f"per seed median {np.median([d['n_adaptations'] for d in ice]):.0f}"
+            f" vs {np.median([d['naive_adaptations'] for d in ice]):.0f}; outlier fraction "
+            f"{sum(d['n_outliers'] for d in ice) / sum(d['n_residuals'] for d in ice):.3f}; epochs without GNSS "
+            f"update {sum(d['epochs_without_gnss_update'] for d in ice)}; final components per seed "
+            f"{[d['n_components'] for d in ice]}"
+        )
 
 
 if __name__ == "__main__":

@@ -8,6 +8,7 @@ ICE's median is under 10 ms. Timings on a shared machine are noisy.
 
     python benchmarks/incremental_timing.py [--duration 3600] [--seed 0]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -32,13 +33,23 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--receiver", default="low")
     a = ap.parse_args()
-    sc = simbench.simulate("open_sky", a.receiver, seed=a.seed, **{
-        "scenario.duration_s": a.duration, "scenario.dual_frequency": False,
-        "scenario.constellation.kind": "broadcast", "scenario.start_sow_s": 496_800.0,
-        "scenario.constellation.nav_path": "../shared/data/wvu_drives/brdc.18n"})
+    sc = simbench.simulate(
+        "open_sky",
+        a.receiver,
+        seed=a.seed,
+        **{
+            "scenario.duration_s": a.duration,
+            "scenario.dual_frequency": False,
+            "scenario.constellation.kind": "broadcast",
+            "scenario.start_sow_s": 496_800.0,
+            "scenario.constellation.nav_path": "../shared/data/wvu_drives/brdc.18n",
+        },
+    )
     sats = sc.observations.groupby("epoch").size()
-    print(f"open_sky, broadcast constellation, {a.duration:.0f} s at 1 Hz, {sats.mean():.1f} satellites/epoch "
-          f"(min {sats.min()}, max {sats.max()}), receiver {a.receiver}")
+    print(
+        f"open_sky, broadcast constellation, {a.duration:.0f} s at 1 Hz, {sats.mean():.1f} satellites/epoch "
+        f"(min {sats.min()}, max {sats.max()}), receiver {a.receiver}"
+    )
     print(f"{'estimator':12s} {'median ms':>10s} {'p95 ms':>8s} {'last 10% median ms':>19s} {'total s':>8s}")
     med = {}
     for name, cls in estimators.registered().items():
@@ -47,13 +58,17 @@ def main() -> None:
         sol = cls().estimate(sc.receiver_view())
         u = 1e3 * sol.epochs["update_s"].to_numpy()
         med[name] = float(np.median(u))
-        tail = u[int(0.9 * len(u)):]
+        tail = u[int(0.9 * len(u)) :]
         print(f"{name:12s} {med[name]:10.2f} {np.percentile(u, 95):8.2f} {np.median(tail):19.2f} {sol.total_s:8.1f}")
     ratio = med["ice"] / med["isam2_ppp"]
-    print(f"ICE median / incremental L2 median = {ratio:.2f} (target <= {TARGET_RATIO}): "
-          f"{'met' if ratio <= TARGET_RATIO else 'NOT met'}")
-    print(f"ICE median {med['ice']:.2f} ms (target < {TARGET_ICE_MS} ms): "
-          f"{'met' if med['ice'] < TARGET_ICE_MS else 'NOT met'}")
+    print(
+        f"ICE median / incremental L2 median = {ratio:.2f} (target <= {TARGET_RATIO}): "
+        f"{'met' if ratio <= TARGET_RATIO else 'NOT met'}"
+    )
+    print(
+        f"ICE median {med['ice']:.2f} ms (target < {TARGET_ICE_MS} ms): "
+        f"{'met' if med['ice'] < TARGET_ICE_MS else 'NOT met'}"
+    )
 
 
 if __name__ == "__main__":

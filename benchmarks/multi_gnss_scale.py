@@ -11,6 +11,7 @@ constant-velocity model with Doppler factors. Prints the batch L2 wall time
 
     python benchmarks/multi_gnss_scale.py [--duration 3600] [--seed 0]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -34,9 +35,16 @@ ISB_M = 40.0
 def two_system_scenario(duration_s: float, seed: int) -> simbench.Scenario:
     """GPS (broadcast) and a second system (nominal slots, 'E' ids, +40 m receiver clock), merged by epoch."""
     common = {"scenario.duration_s": duration_s, "scenario.start_sow_s": 496_800.0}
-    gps = simbench.simulate("open_sky", "low", seed=seed, **common, **{
-        "scenario.constellation.kind": "broadcast",
-        "scenario.constellation.nav_path": "../shared/data/wvu_drives/brdc.18n"})
+    gps = simbench.simulate(
+        "open_sky",
+        "low",
+        seed=seed,
+        **common,
+        **{
+            "scenario.constellation.kind": "broadcast",
+            "scenario.constellation.nav_path": "../shared/data/wvu_drives/brdc.18n",
+        },
+    )
     other = simbench.simulate("open_sky", "low", seed=seed, **common)
     second = other.observations.assign(sat="E" + other.observations["sat"].str[1:])
     second[["code_l1", "phase_l1"]] += ISB_M
@@ -51,8 +59,10 @@ def main() -> None:
     a = ap.parse_args()
     sc = two_system_scenario(a.duration, a.seed)
     sats = sc.observations.groupby("epoch").size()
-    print(f"open_sky, GPS broadcast + second system, {a.duration:.0f} s at 1 Hz, {sats.mean():.1f} satellites/epoch "
-          f"(min {sats.min()}, max {sats.max()}), code + Doppler, constant velocity")
+    print(
+        f"open_sky, GPS broadcast + second system, {a.duration:.0f} s at 1 Hz, {sats.mean():.1f} satellites/epoch "
+        f"(min {sats.min()}, max {sats.max()}), code + Doppler, constant velocity"
+    )
     settings = {"measurements": "code", "motion_model": "constant_velocity"}
     for name in ("l2", "isam2_ppp"):
         cls = estimators.get(name)
@@ -62,14 +72,18 @@ def main() -> None:
         isb = sol.diagnostics["inter_system_bias_m"]["E"]
         if name == "l2":
             verdict = "met" if sol.total_s < TARGET_BATCH_S else "NOT met"
-            print(f"batch L2: {sol.total_s:.2f} s (target < {TARGET_BATCH_S:.0f} s): {verdict}; "
-                  f"3-D median {np.median(err):.2f} m; ISB {isb:.2f} m (simulated {ISB_M:.0f})")
+            print(
+                f"batch L2: {sol.total_s:.2f} s (target < {TARGET_BATCH_S:.0f} s): {verdict}; "
+                f"3-D median {np.median(err):.2f} m; ISB {isb:.2f} m (simulated {ISB_M:.0f})"
+            )
         else:
             u = 1e3 * sol.epochs["update_s"].to_numpy()
             verdict = "met" if np.median(u) < TARGET_UPDATE_MS else "NOT met"
-            print(f"iSAM2: update median {np.median(u):.2f} ms, p95 {np.percentile(u, 95):.2f} ms "
-                  f"(target median < {TARGET_UPDATE_MS:.0f} ms): {verdict}; total {sol.total_s:.1f} s; "
-                  f"3-D median {np.median(err):.2f} m; ISB {isb:.2f} m")
+            print(
+                f"iSAM2: update median {np.median(u):.2f} ms, p95 {np.percentile(u, 95):.2f} ms "
+                f"(target median < {TARGET_UPDATE_MS:.0f} ms): {verdict}; total {sol.total_s:.1f} s; "
+                f"3-D median {np.median(err):.2f} m; ISB {isb:.2f} m"
+            )
 
 
 if __name__ == "__main__":

@@ -11,6 +11,7 @@ pooled over the seeds, and the per-seed medians.
 
 Evaluation seeds are 0..N-1 (nothing was tuned on them). Result files are not written.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -36,8 +37,10 @@ def run_seed(args: tuple[int, float, str]) -> dict[str, np.ndarray]:
     sc = simbench.simulate("flight", receiver, seed=seed, **{"scenario.duration_s": duration})
     data = sc.receiver_view()
     out: dict[str, np.ndarray] = {}
-    estimators = {"iSAM2-PPP": Isam2Ppp(IncrementalConfig(ionosphere_free=True, ambiguity_sigma_m=100.0)),
-                  "EKF-PPP": EkfPpp(EkfPppConfig(ionosphere_free=True, ambiguity_sigma_m=100.0))}
+    estimators = {
+        "iSAM2-PPP": Isam2Ppp(IncrementalConfig(ionosphere_free=True, ambiguity_sigma_m=100.0)),
+        "EKF-PPP": EkfPpp(EkfPppConfig(ionosphere_free=True, ambiguity_sigma_m=100.0)),
+    }
     for name, est in estimators.items():
         sol = est.estimate(data)
         err, t = _errors(sc, sol.epochs)
@@ -67,12 +70,16 @@ def main() -> None:
     for title, window in (("all epochs (Table 4.4.4)", None), ("first 15 min (Table 4.4.5)", CONVERGENCE_S)):
         print(f"\n{title}\n{'':12s} {'median':>9s} {'mean':>9s} {'std':>9s} {'max':>10s}")
         for n in names:
-            e = np.concatenate([r[n][r[n + ':t'] < window] if window else r[n] for r in results])
+            e = np.concatenate([r[n][r[n + ":t"] < window] if window else r[n] for r in results])
             print(f"{n:12s} {_stats(e)}")
     print("\nper-seed median / mean / max over all epochs [cm]; iSAM2 | EKF")
     for s, r in enumerate(results):
-        print(f"seed {s:3d}: " + " | ".join(f"{100*np.median(r[n]):7.1f} {100*r[n].mean():7.1f} {100*r[n].max():8.1f}"
-                                         for n in names))
+        print(
+            f"seed {s:3d}: "
+            + " | ".join(
+                f"{100 * np.median(r[n]):7.1f} {100 * r[n].mean():7.1f} {100 * r[n].max():8.1f}" for n in names
+            )
+        )
     wins = sum(r["iSAM2-PPP"].mean() < r["EKF-PPP"].mean() for r in results)
     print(f"\niSAM2 mean error below the EKF's in {wins}/{len(results)} flights")
     for n in names:

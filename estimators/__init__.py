@@ -11,10 +11,11 @@ the entry point's name being the estimator's ``name``::
     [project.entry-points."simbench.estimators"]
     huber_spp = "simbench_example_estimator:HuberSpp"
 
-Its parameters are its ``Config`` dataclass; :mod:`simbench.compose` puts it
+Its parameters are its ``Config`` dataclass; :mod:`simbench.runs.compose` puts it
 into the Hydra ``estimator`` group beside ``conf/estimator/``. The runner, the
 CLI and the contract test look built-ins and plug-ins up alike by name.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -27,7 +28,7 @@ from importlib.metadata import EntryPoint, entry_points
 from typing import TypeVar
 
 from estimators.base import Estimator, Solution
-from simbench.errors import SimbenchError
+from simbench.errors import SimbenchError, one_line
 
 #: Entry-point group in which installed packages name their estimator classes.
 ENTRY_POINT_GROUP = "simbench.estimators"
@@ -96,20 +97,23 @@ def discover(entries: Iterable[EntryPoint], taken: dict[str, type[Estimator]]) -
         try:
             cls = entry.load()
         except Exception as exc:
-            from simbench.runner import one_line  # the runner imports this registry
-
-            raise SimbenchError(field, f"package '{package}' cannot load {entry.value}: {one_line(exc)}",
-                                fix) from None
+            raise SimbenchError(field, f"package '{package}' cannot load {entry.value}: {one_line(exc)}", fix) from None
         if not (isinstance(cls, type) and issubclass(cls, Estimator)):
             raise SimbenchError(field, f"package '{package}' names {entry.value}, not an Estimator subclass", fix)
         config = getattr(cls, "Config", None)
         if not (isinstance(config, type) and dataclasses.is_dataclass(config)):
-            raise SimbenchError(field, f"package '{package}': {cls.__name__} has no Config dataclass",
-                                f"give {cls.__name__} a Config dataclass of its parameters, or pip uninstall "
-                                f"{package}")
+            raise SimbenchError(
+                field,
+                f"package '{package}': {cls.__name__} has no Config dataclass",
+                f"give {cls.__name__} a Config dataclass of its parameters, or pip uninstall {package}",
+            )
         if getattr(cls, "name", None) != entry.name:
-            raise SimbenchError(field, f"package '{package}': {cls.__name__}.name is "
-                                f"{getattr(cls, 'name', None)!r}, not the entry point's name", fix)
+            raise SimbenchError(
+                field,
+                f"package '{package}': {cls.__name__}.name is "
+                f"{getattr(cls, 'name', None)!r}, not the entry point's name",
+                fix,
+            )
         if entry.name == ALL:
             raise SimbenchError(field, f"package '{package}' uses the reserved name '{entry.name}'", fix)
         if entry.name in taken and taken[entry.name] is not cls:
@@ -119,8 +123,11 @@ def discover(entries: Iterable[EntryPoint], taken: dict[str, type[Estimator]]) -
         else:
             owner = ""
         if owner:
-            raise SimbenchError(field, f"package '{package}' registers the name '{entry.name}' of {owner}",
-                                f"rename the estimator in package '{package}' or pip uninstall one of them")
+            raise SimbenchError(
+                field,
+                f"package '{package}' registers the name '{entry.name}' of {owner}",
+                f"rename the estimator in package '{package}' or pip uninstall one of them",
+            )
         found[entry.name] = Plugin(cls=cls, package=package)
     return found
 
@@ -149,10 +156,26 @@ def get(name: str) -> type[Estimator]:
     """Look an estimator class up by name, with a one-line error for unknown names."""
     known = registered()
     if name not in known:
-        raise SimbenchError("estimator", f"unknown estimator '{name}'",
-                            f"choose from {', '.join(known)} (python -m simbench --estimators lists them)")
+        raise SimbenchError(
+            "estimator",
+            f"unknown estimator '{name}'",
+            f"choose from {', '.join(known)} (python -m simbench --estimators lists them)",
+        )
     return known[name]
 
 
-__all__ = ["Estimator", "Solution", "Plugin", "ENTRY_POINT_GROUP", "BUILT_IN", "ALL", "register",
-           "built_in", "discover", "plugins", "registered", "source", "get"]
+__all__ = [
+    "Estimator",
+    "Solution",
+    "Plugin",
+    "ENTRY_POINT_GROUP",
+    "BUILT_IN",
+    "ALL",
+    "register",
+    "built_in",
+    "discover",
+    "plugins",
+    "registered",
+    "source",
+    "get",
+]

@@ -11,6 +11,7 @@ config by :meth:`Estimator.needs`); the runner skips, with a reason, an
 estimator whose needs a scenario cannot meet. Its config dataclass has one
 ``validate(where)`` entry point, called at construction.
 """
+
 from __future__ import annotations
 
 import time
@@ -27,7 +28,9 @@ from simbench.contract import Need, ReceiverData
 SOLUTION_COLUMNS: dict[str, str] = {
     "epoch": "int, GNSS epoch index",
     "t": "s, epoch time since scenario start",
-    "x": "m, estimated antenna ECEF x", "y": "m, estimated ECEF y", "z": "m, estimated ECEF z",
+    "x": "m, estimated antenna ECEF x",
+    "y": "m, estimated ECEF y",
+    "z": "m, estimated ECEF z",
     "update_s": "s, wall time of this epoch's update (batch estimators: total time / epochs)",
 }
 
@@ -118,5 +121,6 @@ class Estimator(ABC):
 
 def solution_frame(epoch: np.ndarray, t: np.ndarray, pos: np.ndarray, update_s: np.ndarray) -> pd.DataFrame:
     """Assemble :data:`SOLUTION_COLUMNS` from arrays (pos is (n, 3) ECEF metres)."""
-    return pd.DataFrame({"epoch": epoch.astype(np.int64), "t": t, "x": pos[:, 0], "y": pos[:, 1],
-                         "z": pos[:, 2], "update_s": update_s})
+    return pd.DataFrame(
+        {"epoch": epoch.astype(np.int64), "t": t, "x": pos[:, 0], "y": pos[:, 1], "z": pos[:, 2], "update_s": update_s}
+    )

@@ -33,6 +33,7 @@ a robust kernel would switch every phase factor off at the first linearisation.
 ``prior_scale`` (s) multiplies the a-priori measurement covariance (sigmas by
 ``sqrt(s)``), for the sensitivity study of Fig. 5.3.7.
 """
+
 from __future__ import annotations
 
 import time
@@ -75,7 +76,9 @@ class BatchConfig(PppGraphConfig):
     def validate(self, where: str) -> None:
         """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
         super().validate(where)
-        require_positive(f"{where}.prior_scale", self.prior_scale, "give a covariance scale factor such as 1, 0.1 or 10")
+        require_positive(
+            f"{where}.prior_scale", self.prior_scale, "give a covariance scale factor such as 1, 0.1 or 10"
+        )
         for name in ("max_iterations", "lm_max_iterations"):
             require_at_least(f"{where}.{name}", getattr(self, name), 1, "give an iteration limit, e.g. the default 100")
 
@@ -140,12 +143,19 @@ class BatchGraphEstimator(Estimator):
         per_epoch = (time.perf_counter() - tic) / obs.n_epochs
         frame = solution_frame(obs.epoch_ids, obs.epoch_t, pos, np.full(obs.n_epochs, per_epoch))
         isb = {name: float(np.median(v)) for name, v in g.inter_system_biases(values).items()}
-        diag = {"n_epochs": int(obs.n_epochs), "n_observations": int(obs.n_obs), "n_arcs": int(obs.n_arcs),
-                "inter_system_bias_m": isb, **diag, "config": asdict(self.config)}
+        diag = {
+            "n_epochs": int(obs.n_epochs),
+            "n_observations": int(obs.n_obs),
+            "n_arcs": int(obs.n_arcs),
+            "inter_system_bias_m": isb,
+            **diag,
+            "config": asdict(self.config),
+        }
         return frame, diag
 
-    def _run(self, data: ReceiverData, obs: PppObservations, g: PppGraph,
-             structure: gtsam.NonlinearFactorGraph) -> tuple[gtsam.Values, dict[str, Any]]:
+    def _run(
+        self, data: ReceiverData, obs: PppObservations, g: PppGraph, structure: gtsam.NonlinearFactorGraph
+    ) -> tuple[gtsam.Values, dict[str, Any]]:
         raise NotImplementedError
 
 
@@ -180,8 +190,9 @@ class DcsConfig(BatchConfig):
     def validate(self, where: str) -> None:
         """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
         super().validate(where)
-        require_positive(f"{where}.kernel_width", self.kernel_width,
-                         "give the DCS kernel width in whitened units (default 2.5)")
+        require_positive(
+            f"{where}.kernel_width", self.kernel_width, "give the DCS kernel width in whitened units (default 2.5)"
+        )
 
 
 @register
@@ -196,12 +207,15 @@ class DcsBatch(BatchGraphEstimator):
         values = self._l2(g, structure)
         sc, sp = self._a_priori_sigmas(obs)
         graph = gtsam.NonlinearFactorGraph(structure)
-        graph.push_back(g.measurement_factors(code_sigma=sc, phase_sigma=sp,
-                                              robust=gtsam.noiseModel.mEstimator.DCS.Create(cfg.kernel_width)))
+        graph.push_back(
+            g.measurement_factors(
+                code_sigma=sc, phase_sigma=sp, robust=gtsam.noiseModel.mEstimator.DCS.Create(cfg.kernel_width)
+            )
+        )
         ordering = g.elimination_ordering(graph)
         err = graph.error(values)
         stop, iterations = "max_iterations", 0
-        for iterations in range(1, cfg.max_iterations + 1):
+        for iterations in range(1, cfg.max_iterations + 1):  # noqa: B007 (the count is reported after the loop)
             stepped, stepped_err = gauss_newton_step(graph, values, ordering)
             reason = stop_reason(err, stepped_err, cfg.rel_tol, on_increase=True)
             if reason != "error increased":  # a rise is rejected, as Levenberg-Marquardt would
@@ -210,9 +224,12 @@ class DcsBatch(BatchGraphEstimator):
                 stop = reason
                 break
         r_c, r_p = g.residuals(values)
-        return values, {"iterations": iterations, "stop_reason": stop,
-                        "downweighted_code": int(np.sum(np.abs(r_c / sc) > cfg.kernel_width)),
-                        "downweighted_phase": int(np.sum(np.abs(r_p / sp) > cfg.kernel_width))}
+        return values, {
+            "iterations": iterations,
+            "stop_reason": stop,
+            "downweighted_code": int(np.sum(np.abs(r_c / sc) > cfg.kernel_width)),
+            "downweighted_phase": int(np.sum(np.abs(r_p / sp) > cfg.kernel_width)),
+        }
 
 
 # --------------------------------------------------------------------------- max-mixtures
@@ -247,11 +264,17 @@ class MmConfig(BatchConfig, MaxMixtureFields):
 def validate_max_mixture(outlier_scale: float, outlier_weight: float, where: str) -> None:
     """One-line :class:`SimbenchError` for a two-component model that is not one (batch and incremental MM)."""
     if not outlier_scale > 1:
-        raise SimbenchError(f"{where}.outlier_scale", f"must exceed 1, got {outlier_scale}",
-                            "give the outlier/inlier covariance ratio, e.g. 1e6 (batch) or 10 (incremental)")
+        raise SimbenchError(
+            f"{where}.outlier_scale",
+            f"must exceed 1, got {outlier_scale}",
+            "give the outlier/inlier covariance ratio, e.g. 1e6 (batch) or 10 (incremental)",
+        )
     if not 0 < outlier_weight < 1:
-        raise SimbenchError(f"{where}.outlier_weight", f"must be within (0, 1), got {outlier_weight}",
-                            "give the outlier component's prior weight, e.g. the default 0.5")
+        raise SimbenchError(
+            f"{where}.outlier_weight",
+            f"must be within (0, 1), got {outlier_weight}",
+            "give the outlier component's prior weight, e.g. the default 0.5",
+        )
 
 
 def max_mixture_outliers(whitened: np.ndarray, outlier_scale: float, outlier_weight: float) -> np.ndarray:
@@ -263,7 +286,8 @@ def max_mixture_outliers(whitened: np.ndarray, outlier_scale: float, outlier_wei
     ``r^2 (1 - 1/s) > log s + 2 log((1-w)/w)``.
     """
     threshold = (np.log(outlier_scale) + 2.0 * np.log((1.0 - outlier_weight) / outlier_weight)) / (
-        1.0 - 1.0 / outlier_scale)
+        1.0 - 1.0 / outlier_scale
+    )
     return whitened**2 > threshold
 
 
@@ -292,13 +316,22 @@ class MmBatch(BatchGraphEstimator):
                 break
             prev_out = out
             graph = gtsam.NonlinearFactorGraph(structure)
-            graph.push_back(g.measurement_factors(code_sigma=np.where(out_c, sc * inflate, sc),
-                                                  phase_sigma=np.where(out_p, sp * inflate, sp)))
+            graph.push_back(
+                g.measurement_factors(
+                    code_sigma=np.where(out_c, sc * inflate, sc), phase_sigma=np.where(out_p, sp * inflate, sp)
+                )
+            )
             if ordering is None:  # every re-solve has this structure (only the noise models change)
                 ordering = g.elimination_ordering(graph)
             values, err = gauss_newton_step(graph, values, ordering)
-            history.append({"iteration": it + 1, "error": float(err), "outlier_code": int(out_c.sum()),
-                            "outlier_phase": int(out_p.sum())})
+            history.append(
+                {
+                    "iteration": it + 1,
+                    "error": float(err),
+                    "outlier_code": int(out_c.sum()),
+                    "outlier_phase": int(out_p.sum()),
+                }
+            )
             if prev_err is not None and stop_reason(prev_err, err, cfg.rel_tol, on_increase=False):
                 break
             prev_err = err

@@ -66,6 +66,7 @@ BCE-AD augments the residuals with elevation, azimuth and C/N0, selects
 (standardised) space, and gives each cluster the mean and covariance of its
 members' residuals. Selected features per iteration go to ``selected_features``.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -117,8 +118,12 @@ class BceConfig(BatchConfig):
         """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
         super().validate(where)
         for name, low in (("truncation", 1), ("dpgmm_max_iter", 1), ("fit_sample", 0)):
-            require_at_least(f"{where}.{name}", getattr(self, name), low,
-                             f"the defaults are in {type(self).__name__} (estimators/bce.py)")
+            require_at_least(
+                f"{where}.{name}",
+                getattr(self, name),
+                low,
+                f"the defaults are in {type(self).__name__} (estimators/bce.py)",
+            )
 
 
 @dataclass
@@ -139,8 +144,11 @@ class BceAdConfig(BceConfig):
         """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
         super().validate(where)
         if not 1 <= self.n_features <= len(FEATURES):
-            raise SimbenchError(f"{where}.n_features", f"must be 1..{len(FEATURES)}, got {self.n_features}",
-                                "choose how many of code/phase residual, elevation, azimuth, C/N0 to keep")
+            raise SimbenchError(
+                f"{where}.n_features",
+                f"must be 1..{len(FEATURES)}, got {self.n_features}",
+                "choose how many of code/phase residual, elevation, azimuth, C/N0 to keep",
+            )
 
 
 class _IterativeCovariance(BatchGraphEstimator):
@@ -161,8 +169,9 @@ class _IterativeCovariance(BatchGraphEstimator):
         self._fit_idx = self._fit_rows(obs.n_obs, rng)
         self._model = None
 
-    def _noise(self, data: ReceiverData, obs: PppObservations, r: np.ndarray,
-               it: int) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    def _noise(
+        self, data: ReceiverData, obs: PppObservations, r: np.ndarray, it: int
+    ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
         raise NotImplementedError
 
     def _run(self, data, obs, g: PppGraph, structure):
@@ -195,8 +204,13 @@ def _component_noise(mix_means: np.ndarray, mix_cov: np.ndarray, labels: np.ndar
     """Per-row measurement-factor arguments from each row's component mean and 2x2 covariance."""
     cov = mix_cov[labels]
     mean = mix_means[labels]
-    return {"code_sigma": np.sqrt(cov[:, 0, 0]), "phase_sigma": np.sqrt(cov[:, 1, 1]),
-            "code_phase_cov": cov[:, 0, 1], "code_offset": mean[:, 0], "phase_offset": mean[:, 1]}
+    return {
+        "code_sigma": np.sqrt(cov[:, 0, 0]),
+        "phase_sigma": np.sqrt(cov[:, 1, 1]),
+        "code_phase_cov": cov[:, 0, 1],
+        "code_offset": mean[:, 0],
+        "phase_offset": mean[:, 1],
+    }
 
 
 @register
@@ -212,9 +226,15 @@ class Bce(_IterativeCovariance):
         # the residual vector that exists: (code, phase) where any row has phase, code alone otherwise
         x = r if has.any() else r[:, :1]
         # with sparse phase the mixture is fitted on the rows with phase in the fixed sub-sample
-        mix = fit_dpgmm(x[has] if has.any() else x, truncation=cfg.truncation, max_iter=cfg.dpgmm_max_iter,
-                        tol=cfg.dpgmm_tol, seed=cfg.seed, fit_rows=_within(self._fit_idx, has),
-                        warm_start=self._previous(it))
+        mix = fit_dpgmm(
+            x[has] if has.any() else x,
+            truncation=cfg.truncation,
+            max_iter=cfg.dpgmm_max_iter,
+            tol=cfg.dpgmm_tol,
+            seed=cfg.seed,
+            fit_rows=_within(self._fit_idx, has),
+            warm_start=self._previous(it),
+        )
         self._model = mix.model
         means, covs = mix.means, mix.covariances
         if not has.any():  # code-only: 1-D components; the phase slots are unused
@@ -249,13 +269,24 @@ class BceAd(_IterativeCovariance):
         phase = r[:, 1]
         fill = float(np.nanmean(phase)) if np.isfinite(phase).any() else 0.0
         z = np.c_[_standardised(np.c_[r[:, 0], np.where(np.isfinite(phase), phase, fill)]), self._metadata]
-        chosen, scores = select_features(z[self._sample_idx], cfg.n_features, n_clusters=cfg.mcfs_clusters,
-                                         n_neighbors=cfg.mcfs_neighbors, seed=cfg.seed)
+        chosen, scores = select_features(
+            z[self._sample_idx],
+            cfg.n_features,
+            n_clusters=cfg.mcfs_clusters,
+            n_neighbors=cfg.mcfs_neighbors,
+            seed=cfg.seed,
+        )
         # a warm start only makes sense in the same feature space
         same = it > 0 and np.array_equal(chosen, self._chosen)
-        mix = fit_dpgmm(z[:, chosen], truncation=cfg.truncation, max_iter=cfg.dpgmm_max_iter, tol=cfg.dpgmm_tol,
-                        seed=cfg.seed,
-                        fit_rows=self._fit_idx, warm_start=self._previous(it) if same else None)
+        mix = fit_dpgmm(
+            z[:, chosen],
+            truncation=cfg.truncation,
+            max_iter=cfg.dpgmm_max_iter,
+            tol=cfg.dpgmm_tol,
+            seed=cfg.seed,
+            fit_rows=self._fit_idx,
+            warm_start=self._previous(it) if same else None,
+        )
         self._model, self._chosen = mix.model, chosen
         means, covs = _residual_statistics(r, mix, self._a_priori_cov(obs))
         noise = _component_noise(means, covs, mix.labels)
@@ -266,9 +297,16 @@ class BceAd(_IterativeCovariance):
             noise["phase_sigma"] = np.where(small, sp, noise["phase_sigma"])
             for key in ("code_phase_cov", "code_offset", "phase_offset"):
                 noise[key] = np.where(small, 0.0, noise[key])
-        record = {"selected_features": [FEATURES[i] for i in chosen], "mcfs_scores": scores.tolist(),
-                  "mixture": {"weights": mix.weights.tolist(), "counts": mix.counts.tolist(),
-                              "means": means.tolist(), "covariances": covs.tolist()}}
+        record = {
+            "selected_features": [FEATURES[i] for i in chosen],
+            "mcfs_scores": scores.tolist(),
+            "mixture": {
+                "weights": mix.weights.tolist(),
+                "counts": mix.counts.tolist(),
+                "means": means.tolist(),
+                "covariances": covs.tolist(),
+            },
+        }
         return noise, record
 
     def _a_priori_cov(self, obs: PppObservations) -> np.ndarray:

@@ -13,6 +13,7 @@ Zhang and He (2010), used by BCE-AD (dissertation Sec. 6.2.4): a k-nearest-neigh
 graph, its spectral embedding, one least-angle regression per eigenvector, and
 each feature's score the largest absolute coefficient it gets.
 """
+
 from __future__ import annotations
 
 import warnings
@@ -60,13 +61,25 @@ class Mixture:
 
     def to_json(self) -> dict[str, Any]:
         """JSON-friendly record (lists of floats) of the components, without labels."""
-        return {"weights": self.weights.tolist(), "means": self.means.tolist(),
-                "covariances": self.covariances.tolist(), "counts": self.counts.tolist()}
+        return {
+            "weights": self.weights.tolist(),
+            "means": self.means.tolist(),
+            "covariances": self.covariances.tolist(),
+            "counts": self.counts.tolist(),
+        }
 
 
-def fit_dpgmm(x: np.ndarray, *, truncation: int = 10, max_iter: int = 1000, tol: float = 1e-4,
-              seed: int = 0, fit_rows: np.ndarray | None = None, concentration: float = 1.0,
-              warm_start: BayesianGaussianMixture | None = None) -> Mixture:
+def fit_dpgmm(
+    x: np.ndarray,
+    *,
+    truncation: int = 10,
+    max_iter: int = 1000,
+    tol: float = 1e-4,
+    seed: int = 0,
+    fit_rows: np.ndarray | None = None,
+    concentration: float = 1.0,
+    warm_start: BayesianGaussianMixture | None = None,
+) -> Mixture:
     """Fit a variational DP-GMM with full covariances and hard-assign every point.
 
     Parameters
@@ -104,10 +117,20 @@ def fit_dpgmm(x: np.ndarray, *, truncation: int = 10, max_iter: int = 1000, tol:
         model.set_params(warm_start=True, max_iter=max_iter, tol=tol)
     else:
         model = BayesianGaussianMixture(
-            n_components=k, covariance_type="full", weight_concentration_prior_type="dirichlet_process",
-            weight_concentration_prior=concentration, mean_prior=np.zeros(d), mean_precision_prior=1.0,
-            degrees_of_freedom_prior=float(d), covariance_prior=d * np.eye(d), max_iter=max_iter, tol=tol,
-            random_state=seed, init_params="k-means++", n_init=1)
+            n_components=k,
+            covariance_type="full",
+            weight_concentration_prior_type="dirichlet_process",
+            weight_concentration_prior=concentration,
+            mean_prior=np.zeros(d),
+            mean_precision_prior=1.0,
+            degrees_of_freedom_prior=float(d),
+            covariance_prior=d * np.eye(d),
+            max_iter=max_iter,
+            tol=tol,
+            random_state=seed,
+            init_params="k-means++",
+            n_init=1,
+        )
     # non-convergence within max_iter still gives a usable (if slightly looser) mixture
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ConvergenceWarning)
@@ -120,9 +143,14 @@ def fit_dpgmm(x: np.ndarray, *, truncation: int = 10, max_iter: int = 1000, tol:
     remap = np.full(k, -1, np.int64)
     remap[keep] = np.arange(len(keep))
     w = model.weights_[keep]
-    return Mixture(weights=w / w.sum(), means=model.means_[keep].copy(),
-                   covariances=model.covariances_[keep].copy(), labels=remap[labels], counts=counts[keep],
-                   model=model)
+    return Mixture(
+        weights=w / w.sum(),
+        means=model.means_[keep].copy(),
+        covariances=model.covariances_[keep].copy(),
+        labels=remap[labels],
+        counts=counts[keep],
+        model=model,
+    )
 
 
 def code_marginal_labels(code: np.ndarray, weights: np.ndarray, means: np.ndarray, covs: np.ndarray) -> np.ndarray:
@@ -149,8 +177,9 @@ def code_marginal_labels(code: np.ndarray, weights: np.ndarray, means: np.ndarra
     return np.argmax(log_p, axis=1)
 
 
-def mcfs_scores(x: np.ndarray, *, n_clusters: int = 3, n_neighbors: int = 5, n_nonzero: int | None = None,
-                seed: int = 0) -> np.ndarray:
+def mcfs_scores(
+    x: np.ndarray, *, n_clusters: int = 3, n_neighbors: int = 5, n_nonzero: int | None = None, seed: int = 0
+) -> np.ndarray:
     """Multi-cluster feature selection scores (Cai et al. 2010) of each column of ``x``.
 
     Parameters

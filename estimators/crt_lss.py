@@ -26,6 +26,7 @@ Deviations from the paper, on purpose:
   state but no GNSS rows (IMU only). One receiver clock for all rows: no
   inter-system biases (the simulator is GPS only).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass

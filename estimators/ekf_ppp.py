@@ -66,6 +66,7 @@ noise this equals the joint update, and it keeps the first epoch well
 conditioned: with the 3e6 m clock prior a joint innovation covariance would mix
 9e12 m^2 with 6e-4 m^2 phase variances, beyond double precision.
 """
+
 from __future__ import annotations
 
 import time
@@ -80,8 +81,8 @@ from estimators import register
 from estimators.base import Estimator, solution_frame
 from estimators.measurement import (
     N_BASE_STATES,
-    predict_given_troposphere,
     PppObservations,
+    predict_given_troposphere,
     prepare_ppp,
 )
 from estimators.ppp_config import (
@@ -92,13 +93,13 @@ from estimators.ppp_config import (
     MotionModelConfig,
 )
 from simbench.contract import ReceiverData
+from simbench.core import atmosphere
+from simbench.core.frames import geodetic_from_ecef
 from simbench.errors import SimbenchError
 from simbench.gnss.doppler import doppler_velocities, range_rate
 from simbench.gnss.geometry import enu_basis
 from simbench.gnss.spp import solve_epochs, system_clock_offsets
 from simbench.gnss.troposphere import troposphere_terms
-from simbench.sim import atmosphere
-from simbench.sim.frames import geodetic_from_ecef
 
 #: Epochs searched for a trusted first fix.
 _INIT_EPOCHS = 30
@@ -185,9 +186,16 @@ class EkfPpp(Estimator):
         for rows in (slice(0, int(obs.epoch_stop[min(obs.n_epochs, _INIT_EPOCHS) - 1])), slice(None)):
             row_k = all_k[rows]
             try:
-                fix = solve_epochs(row_k, obs.sat_pos[rows], obs.code[rows], sigma=obs.sigma_code[rows],
-                                   el=obs.el[rows], doy=obs.doy, system_index=obs.system_index[rows],
-                                   fill_untrusted=True)
+                fix = solve_epochs(
+                    row_k,
+                    obs.sat_pos[rows],
+                    obs.code[rows],
+                    sigma=obs.sigma_code[rows],
+                    el=obs.el[rows],
+                    doy=obs.doy,
+                    system_index=obs.system_index[rows],
+                    fill_untrusted=True,
+                )
                 break
             except SimbenchError:  # no trusted fix among the first epochs: search them all
                 if rows == slice(None):
@@ -200,8 +208,14 @@ class EkfPpp(Estimator):
         x[isb0:vel0] = system_clock_offsets(fix, row_k, obs.system_index[rows])
         if doppler:
             # the drift of a receiver clock can be anything up to km/s: start at the first Doppler fix
-            _, drift_fix = doppler_velocities(row_k, obs.sat_pos[rows], obs.sat_vel[rows], fix.pos[row_k],
-                                              obs.range_rate[rows], cfg.doppler_sigma_mps * obs.sigma_scale[rows])
+            _, drift_fix = doppler_velocities(
+                row_k,
+                obs.sat_pos[rows],
+                obs.sat_vel[rows],
+                fix.pos[row_k],
+                obs.range_rate[rows],
+                cfg.doppler_sigma_mps * obs.sigma_scale[rows],
+            )
             known = np.isfinite(drift_fix)
             x[drift] = drift_fix[np.argmax(known)] if known.any() else 0.0
         p_diag = np.full(nx, cfg.ambiguity_sigma_m**2)
@@ -291,8 +305,9 @@ class EkfPpp(Estimator):
                     idx = N_BASE_STATES + slots[fresh]
                     ended = slot_arc[slots[fresh]]
                     arc_bias[ended[ended >= 0]] = kf.x[idx[ended >= 0]]
-                    pred, _ = predict_given_troposphere(sat_pos[fresh], kf.x[_POS], kf.x[_CLK], kf.x[_ZWD],
-                                                        hydro[fresh], m_w[fresh])
+                    pred, _ = predict_given_troposphere(
+                        sat_pos[fresh], kf.x[_POS], kf.x[_CLK], kf.x[_ZWD], hydro[fresh], m_w[fresh]
+                    )
                     _reset(kf, idx, obs.phase[rows][fresh] - pred, amb_var)
                     if n_iono:
                         _reset(kf, iono0 + slots[fresh], 0.0, iono_var)
@@ -321,8 +336,12 @@ class EkfPpp(Estimator):
                     pred = pred - kf.x[iono0 + slots]
                 if obs.n_isb:
                     pred[other] += kf.x[isb0 + sys_k[other] - 1]
-                kf.update(obs.phase[rows][has_phase], _const(H[has_phase]), _const(pred[has_phase]),
-                          R=np.diag(obs.sigma_phase[rows][has_phase] ** 2))
+                kf.update(
+                    obs.phase[rows][has_phase],
+                    _const(H[has_phase]),
+                    _const(pred[has_phase]),
+                    R=np.diag(obs.sigma_phase[rows][has_phase] ** 2),
+                )
 
             if doppler:
                 n_doppler += self._doppler_update(kf, obs, rows, vel0, drift)
@@ -357,8 +376,9 @@ class EkfPpp(Estimator):
             diagnostics["final_clock_drift_mps"] = float(kf.x[drift])
         return EkfTrack(pos_out, vel_out, update_s, diagnostics)
 
-    def _doppler_update(self, kf: ExtendedKalmanFilter, obs: PppObservations, rows: slice, vel0: int,
-                        drift: int) -> int:
+    def _doppler_update(
+        self, kf: ExtendedKalmanFilter, obs: PppObservations, rows: slice, vel0: int, drift: int
+    ) -> int:
         """Range-rate update with the epoch's Doppler rows; returns the number of rows used."""
         rr = obs.range_rate[rows]
         use = np.isfinite(rr)
@@ -377,7 +397,7 @@ class EkfPpp(Estimator):
         speed, yaw rate and their variances); returns 1 when an update was made."""
         speed, _, var_speed, _ = sample
         east, north, up = enu_basis(kf.x[_POS])
-        vel = kf.x[vel0:vel0 + 3]
+        vel = kf.x[vel0 : vel0 + 3]
         sig_s = float(np.sqrt(max(var_speed, 1e-6)))
         if abs(speed) < STANDSTILL_MPS:
             rows, z, sigma = np.vstack([east, north]), np.zeros(2), np.array([sig_s, sig_s])
@@ -390,7 +410,7 @@ class EkfPpp(Estimator):
             rows, z = np.vstack([along, np.cross(up, along)]), np.array([abs(speed), 0.0])
             sigma = np.array([sig_s, self.config.nhc_sigma_mps])
         H = np.zeros((2, kf.dim_x))
-        H[:, vel0:vel0 + 3] = rows
+        H[:, vel0 : vel0 + 3] = rows
         kf.update(z, _const(H), _const(H @ kf.x), R=np.diag(sigma**2))
         return 1
 

@@ -6,6 +6,7 @@ alignment); :class:`LssConfig` adds Algorithm 1's soft thresholds and stopping
 rule, shared by the iterated EKF and CRT-LSS. Each config checks itself in
 ``validate(where)``, which :class:`estimators.base.Estimator` calls at construction.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -15,10 +16,24 @@ from simbench.errors import SimbenchError, require_positive
 __all__ = ["GnssInsConfig", "LssConfig"]
 
 #: Fields of :class:`GnssInsConfig` that must be strictly positive.
-_POSITIVE_FIELDS = ("code_sigma_m", "doppler_sigma_mps", "pos_sigma_m", "vel_sigma_mps", "roll_pitch_sigma_deg",
-                    "yaw_sigma_deg", "accel_bias_sigma_mps2", "gyro_bias_sigma_dph", "clock_sigma_m",
-                    "drift_sigma_mps", "accel_noise_mps2_rthz", "gyro_noise_dph_rthz", "bias_tau_s", "clock_h0",
-                    "clock_h_2", "level_s")
+_POSITIVE_FIELDS = (
+    "code_sigma_m",
+    "doppler_sigma_mps",
+    "pos_sigma_m",
+    "vel_sigma_mps",
+    "roll_pitch_sigma_deg",
+    "yaw_sigma_deg",
+    "accel_bias_sigma_mps2",
+    "gyro_bias_sigma_dph",
+    "clock_sigma_m",
+    "drift_sigma_mps",
+    "accel_noise_mps2_rthz",
+    "gyro_noise_dph_rthz",
+    "bias_tau_s",
+    "clock_h0",
+    "clock_h_2",
+    "level_s",
+)
 
 
 @dataclass
@@ -68,8 +83,11 @@ class GnssInsConfig:
             Config node name, e.g. ``estimator.crt_lss``; prefixed to the field in the message.
         """
         for name in _POSITIVE_FIELDS:
-            require_positive(f"{where}.{name}", getattr(self, name),
-                             "give a positive value; the defaults are in estimators/gnss_ins_config.py")
+            require_positive(
+                f"{where}.{name}",
+                getattr(self, name),
+                "give a positive value; the defaults are in estimators/gnss_ins_config.py",
+            )
 
 
 @dataclass
@@ -86,8 +104,14 @@ class LssConfig(GnssInsConfig):
         super().validate(where)
         for name in ("lambda_rho", "lambda_d", "tol"):
             if not getattr(self, name) > 0:
-                raise SimbenchError(f"{where}.{name}", f"must be positive, got {getattr(self, name)}",
-                                    "thresholds are in whitened units (sigmas), e.g. 2")
+                raise SimbenchError(
+                    f"{where}.{name}",
+                    f"must be positive, got {getattr(self, name)}",
+                    "thresholds are in whitened units (sigmas), e.g. 2",
+                )
         if int(self.max_iterations) < 1:
-            raise SimbenchError(f"{where}.max_iterations", f"must be at least 1, got {self.max_iterations}",
-                                "the paper caps Algorithm 1 at 20")
+            raise SimbenchError(
+                f"{where}.max_iterations",
+                f"must be at least 1, got {self.max_iterations}",
+                "the paper caps Algorithm 1 at 20",
+            )

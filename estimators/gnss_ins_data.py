@@ -7,6 +7,7 @@ minus the modelled troposphere; the Doppler becomes an observed range rate
 point solutions come from one call of :func:`simbench.gnss.spp.solve_epochs`:
 they place the troposphere and give the filter its first fix.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -18,10 +19,10 @@ from estimators.gnss_ins_config import GnssInsConfig
 from estimators.measurement import prepare_ppp
 from estimators.ppp_config import MeasurementMode
 from simbench.contract import ReceiverData
+from simbench.core import atmosphere
+from simbench.core.frames import geodetic_from_ecef
 from simbench.gnss.spp import solve_epochs
 from simbench.gnss.troposphere import troposphere_terms
-from simbench.sim import atmosphere
-from simbench.sim.frames import geodetic_from_ecef
 
 __all__ = ["GnssEpoch", "GnssInsData", "SinglePointFix", "prepare_gnss_ins"]
 
@@ -74,9 +75,16 @@ def prepare_gnss_ins(data: ReceiverData, cfg: GnssInsConfig) -> GnssInsData:
     -------
     GnssInsData
     """
-    obs = prepare_ppp(data, ionosphere_free=False, code_sigma_m=cfg.code_sigma_m, phase_sigma_m=1.0,
-                      elevation_mask_deg=cfg.elevation_mask_deg, min_satellites=4, max_gap_epochs=1,
-                      measurements=MeasurementMode.code)  # code and Doppler only: code-only logs run
+    obs = prepare_ppp(
+        data,
+        ionosphere_free=False,
+        code_sigma_m=cfg.code_sigma_m,
+        phase_sigma_m=1.0,
+        elevation_mask_deg=cfg.elevation_mask_deg,
+        min_satellites=4,
+        max_gap_epochs=1,
+        measurements=MeasurementMode.code,
+    )  # code and Doppler only: code-only logs run
     sig_rr = cfg.doppler_sigma_mps * 10.0 ** ((cfg.doppler_ref_cn0_dbhz - obs.cn0) / 20.0)
     # range rates as prepare_ppp forms them (NaN where unusable, e.g. GLONASS FDMA rows)
     ok_rr = np.isfinite(obs.range_rate) & np.isfinite(sig_rr)
@@ -86,8 +94,16 @@ def prepare_gnss_ins(data: ReceiverData, cfg: GnssInsConfig) -> GnssInsData:
 
     # one receiver clock for all rows, as in the window (no inter-system bias state)
     k = np.repeat(np.arange(obs.n_epochs), obs.epoch_stop - obs.epoch_start)
-    spp = solve_epochs(k, obs.sat_pos, obs.code, n_epochs=obs.n_epochs, sigma=obs.sigma_code, el=obs.el,
-                       doy=obs.doy, fill_untrusted=True)
+    spp = solve_epochs(
+        k,
+        obs.sat_pos,
+        obs.code,
+        n_epochs=obs.n_epochs,
+        sigma=obs.sigma_code,
+        el=obs.el,
+        doy=obs.doy,
+        fill_untrusted=True,
+    )
     lat, _, h = geodetic_from_ecef(spp.pos)
     hydro, m_w = troposphere_terms(obs.el, lat[k], h[k], obs.doy)
     zwd = atmosphere.saastamoinen_zenith_m(lat, h)[1]
@@ -95,11 +111,19 @@ def prepare_gnss_ins(data: ReceiverData, cfg: GnssInsConfig) -> GnssInsData:
 
     gnss = {}
     for i, rows in obs.iter_epochs():
-        gnss[int(obs.epoch_ids[i])] = GnssEpoch(sat_pos=obs.sat_pos[rows], sat_vel=sat_vel[rows], code=code[rows],
-                                                w_code=1.0 / obs.sigma_code[rows], rr=rr[rows], w_rr=w_rr[rows],
-                                                sat=obs.sat[rows])
-    fixes = {int(obs.epoch_ids[i]): SinglePointFix(spp.pos[i].copy(), float(spp.clock_m[i, 0]))
-             for i in np.flatnonzero(spp.trusted)}
+        gnss[int(obs.epoch_ids[i])] = GnssEpoch(
+            sat_pos=obs.sat_pos[rows],
+            sat_vel=sat_vel[rows],
+            code=code[rows],
+            w_code=1.0 / obs.sigma_code[rows],
+            rr=rr[rows],
+            w_rr=w_rr[rows],
+            sat=obs.sat[rows],
+        )
+    fixes = {
+        int(obs.epoch_ids[i]): SinglePointFix(spp.pos[i].copy(), float(spp.clock_m[i, 0]))
+        for i in np.flatnonzero(spp.trusted)
+    }
 
     times = data.epoch_times
     idx = np.arange(len(times))

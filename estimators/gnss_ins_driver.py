@@ -10,6 +10,7 @@ starts at the first epoch after ``level_s`` seconds of static IMU data that has
 a trusted single point solution: levelled from the mean specific force, yaw 0,
 velocity and drift from the Doppler, and a prior no tighter than that fix.
 """
+
 from __future__ import annotations
 
 import time
@@ -38,10 +39,10 @@ from estimators.ins_mechanisation import (
 )
 from estimators.window_solver import CLK, POS, WindowNode, WindowSolver, initial_sigmas
 from simbench.contract import Need, ReceiverData
+from simbench.core.constants import DEG
 from simbench.errors import SimbenchError
 from simbench.gnss.doppler import doppler_velocity
 from simbench.gnss.geometry import sagnac_range_gradient
-from simbench.sim.constants import DEG
 
 __all__ = ["GnssInsEstimator", "GnssInsMode", "TABLE_COLUMNS", "lss_arguments", "run_gnss_ins"]
 
@@ -70,8 +71,12 @@ class _ImuStream:
         if data.imu is None or len(data.imu) < 2:
             raise SimbenchError("imu", "the GNSS/INS estimators need the IMU table", "simulate with an IMU")
         t = data.imu["t"].to_numpy(float)
-        return cls(t=t, f_b=data.imu[["ax", "ay", "az"]].to_numpy(float),
-                   w_b=data.imu[["gx", "gy", "gz"]].to_numpy(float), dt=np.diff(t, append=t[-1]))
+        return cls(
+            t=t,
+            f_b=data.imu[["ax", "ay", "az"]].to_numpy(float),
+            w_b=data.imu[["gx", "gy", "gz"]].to_numpy(float),
+            dt=np.diff(t, append=t[-1]),
+        )
 
     def static_mean_specific_force(self, until_s: float) -> np.ndarray:
         """Mean specific force of the samples up to ``until_s`` (the vehicle stands still) [m/s^2]."""
@@ -110,9 +115,17 @@ class _Track:
     outliers: list[dict[str, Any]] = field(default_factory=list)
 
 
-def run_gnss_ins(data: ReceiverData, cfg: GnssInsConfig, *, mode: GnssInsMode, window: int,
-                 lambdas: tuple[float, float] = (np.inf, np.inf), max_iterations: int = 20, tol: float = 1e-3,
-                 gate: float = np.inf) -> tuple[pd.DataFrame, dict[str, Any]]:
+def run_gnss_ins(
+    data: ReceiverData,
+    cfg: GnssInsConfig,
+    *,
+    mode: GnssInsMode,
+    window: int,
+    lambdas: tuple[float, float] = (np.inf, np.inf),
+    max_iterations: int = 20,
+    tol: float = 1e-3,
+    gate: float = np.inf,
+) -> tuple[pd.DataFrame, dict[str, Any]]:
     """Run a GNSS/INS estimator over a scenario.
 
     Parameters
@@ -163,21 +176,29 @@ def _first_epoch(prep: GnssInsData, after_s: float) -> int:
     """First epoch with a trusted single point fix once the IMU has levelled."""
     first = next((e for e in sorted(prep.fixes) if prep.t[e] >= after_s), None)
     if first is None:
-        raise SimbenchError("scenario.duration_s", "no GNSS epoch with a trusted fix after the levelling interval",
-                            "give a longer scenario or a shorter level_s")
+        raise SimbenchError(
+            "scenario.duration_s",
+            "no GNSS epoch with a trusted fix after the levelling interval",
+            "give a longer scenario or a shorter level_s",
+        )
     return first
 
 
-def _initialise(solver: WindowSolver, cfg: GnssInsConfig, imu: _ImuStream, g0: GnssEpoch, fix: SinglePointFix,
-                t0: float) -> None:
+def _initialise(
+    solver: WindowSolver, cfg: GnssInsConfig, imu: _ImuStream, g0: GnssEpoch, fix: SinglePointFix, t0: float
+) -> None:
     """First state: levelled attitude with yaw 0, the fix's position and clock, the Doppler velocity and drift."""
     roll, pitch = level_roll_pitch(imu.static_mean_specific_force(t0))
     vel0, drift0 = doppler_velocity(g0.sat_pos, g0.sat_vel, fix.pos, g0.rr, 1.0 / np.maximum(g0.w_rr, 1e-9))
-    node0 = WindowNode(pose=gtsam.Pose3(gtsam.Rot3(attitude_ecef(fix.pos, roll, pitch, 0.0)), fix.pos), vel=vel0,
-                       bias=np.zeros(6), clk=np.array([fix.clock_m, drift0]))
+    node0 = WindowNode(
+        pose=gtsam.Pose3(gtsam.Rot3(attitude_ecef(fix.pos, roll, pitch, 0.0)), fix.pos),
+        vel=vel0,
+        bias=np.zeros(6),
+        clk=np.array([fix.clock_m, drift0]),
+    )
     sigmas = initial_sigmas(cfg)
     pos_sd, clock_sd = _fix_sigmas(g0, fix)
-    sigmas[POS:POS + 3] = np.maximum(sigmas[POS:POS + 3], pos_sd)
+    sigmas[POS : POS + 3] = np.maximum(sigmas[POS : POS + 3], pos_sd)
     sigmas[CLK] = max(sigmas[CLK], clock_sd)
     solver.start(node0, sigmas, g0)
 
@@ -198,8 +219,9 @@ def _fix_sigmas(g: GnssEpoch, fix: SinglePointFix) -> tuple[float, float]:
     return float(np.sqrt(np.linalg.eigvalsh(P[:3, :3]).max())), float(np.sqrt(P[3, 3]))
 
 
-def _align_heading_once_moving(solver: WindowSolver, track: _Track, cfg: GnssInsConfig, epoch: int,
-                               gnss: GnssEpoch | None) -> None:
+def _align_heading_once_moving(
+    solver: WindowSolver, track: _Track, cfg: GnssInsConfig, epoch: int, gnss: GnssEpoch | None
+) -> None:
     """Turn the window's heading to the Doppler course over ground once the speed exceeds ``align_speed_mps``."""
     if gnss is None or np.count_nonzero(gnss.w_rr) < 4:
         return
@@ -249,8 +271,16 @@ def _keep_outliers(out: list[dict[str, Any]], epoch: int, node: WindowNode) -> N
     g = node.gnss
     for kind, s, w, unit in (("code", node.s_code, g.w_code, "m"), ("doppler", node.s_rr, g.w_rr, "m/s")):
         for j in np.flatnonzero(s):
-            out.append({"epoch": int(epoch), "sat": str(g.sat[j]), "kind": kind, "s_whitened": float(s[j]),
-                        "s_m": float(s[j] / w[j]), "unit": unit})
+            out.append(
+                {
+                    "epoch": int(epoch),
+                    "sat": str(g.sat[j]),
+                    "kind": kind,
+                    "s_whitened": float(s[j]),
+                    "s_m": float(s[j] / w[j]),
+                    "unit": unit,
+                }
+            )
     if len(out) > 4 * _N_LARGEST_S:
         out.sort(key=lambda r: -abs(r["s_m"]))
         del out[_N_LARGEST_S:]
@@ -261,18 +291,26 @@ def _solution(prep: GnssInsData, track: _Track) -> pd.DataFrame:
     return solution_frame(epochs, prep.t[epochs], np.asarray(track.pos), np.asarray(track.update_s))
 
 
-def _diagnostics(solver: WindowSolver, track: _Track, cfg: GnssInsConfig, prep: GnssInsData, mode: GnssInsMode,
-                 first: int) -> dict[str, Any]:
+def _diagnostics(
+    solver: WindowSolver, track: _Track, cfg: GnssInsConfig, prep: GnssInsData, mode: GnssInsMode, first: int
+) -> dict[str, Any]:
     last = solver.nodes[-1]
     return {
-        "mode": mode, "window": int(solver.window), "n_epochs": len(track.epoch), "first_epoch": int(first),
+        "mode": mode,
+        "window": int(solver.window),
+        "n_epochs": len(track.epoch),
+        "first_epoch": int(first),
         "gnss_epochs": len(prep.gnss),
-        "iterations_mean": float(np.mean(track.iterations)), "iterations_max": int(np.max(track.iterations)),
+        "iterations_mean": float(np.mean(track.iterations)),
+        "iterations_max": int(np.max(track.iterations)),
         "n_iteration_capped": int(track.n_capped),
-        "heading_aligned_epoch": int(track.aligned_epoch), "heading_reset_deg": float(track.heading_reset_deg),
+        "heading_aligned_epoch": int(track.aligned_epoch),
+        "heading_reset_deg": float(track.heading_reset_deg),
         "ekf_rejected_rows": int(track.n_rejected),
-        "code_rows": int(track.code_rows), "code_rows_with_s": int(track.code_rows_with_s),
-        "doppler_rows": int(track.doppler_rows), "doppler_rows_with_s": int(track.doppler_rows_with_s),
+        "code_rows": int(track.code_rows),
+        "code_rows_with_s": int(track.code_rows_with_s),
+        "doppler_rows": int(track.doppler_rows),
+        "doppler_rows_with_s": int(track.doppler_rows_with_s),
         "iteration_table_epoch": int(track.table_epoch),
         "iteration_table": [dict(zip(TABLE_COLUMNS, (int(r[0]), *map(float, r[1:])))) for r in track.table],
         "largest_s": sorted(track.outliers, key=lambda r: -abs(r["s_m"]))[:_N_LARGEST_S],
@@ -284,8 +322,13 @@ def _diagnostics(solver: WindowSolver, track: _Track, cfg: GnssInsConfig, prep: 
 
 def lss_arguments(cfg: LssConfig, window: int) -> dict[str, Any]:
     """:func:`run_gnss_ins` arguments of Algorithm 1 on a window of ``window`` GNSS epochs."""
-    return {"mode": "lss", "window": window, "lambdas": (cfg.lambda_rho, cfg.lambda_d),
-            "max_iterations": cfg.max_iterations, "tol": cfg.tol}
+    return {
+        "mode": "lss",
+        "window": window,
+        "lambdas": (cfg.lambda_rho, cfg.lambda_d),
+        "max_iterations": cfg.max_iterations,
+        "tol": cfg.tol,
+    }
 
 
 class GnssInsEstimator(Estimator):

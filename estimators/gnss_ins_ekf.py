@@ -21,11 +21,11 @@ measurement models and the initialisation.
   iterated EKF, which is the same as the CRT with L = 1"): Gauss-Newton
   relinearisation to convergence with Algorithm 1's soft-thresholded S step.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
 from typing import Any
-
 
 from estimators import register
 from estimators.gnss_ins_config import GnssInsConfig, LssConfig

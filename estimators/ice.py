@@ -41,6 +41,7 @@ Choices where the text is silent:
   residuals were greater than the threshold") is ``n_residuals // (T_c + 1)``
   over all tested residuals.
 """
+
 from __future__ import annotations
 
 from collections.abc import Callable
@@ -87,16 +88,23 @@ class IceConfig(IncrementalConfig):
     def validate(self, where: str) -> None:
         """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
         super().validate(where)
-        checks = (("z_threshold", self.z_threshold > 0), ("cluster_threshold", self.cluster_threshold >= 1),
-                  ("alpha", 0 < self.alpha < 1), ("max_components", self.max_components >= 1),
-                  ("min_cluster_points", self.min_cluster_points >= 1),
-                  ("prior_code_sigma_m", self.prior_code_sigma_m > 0),
-                  ("prior_phase_sigma_m", self.prior_phase_sigma_m > 0),
-                  ("dpgmm_truncation", self.dpgmm_truncation >= 1))
+        checks = (
+            ("z_threshold", self.z_threshold > 0),
+            ("cluster_threshold", self.cluster_threshold >= 1),
+            ("alpha", 0 < self.alpha < 1),
+            ("max_components", self.max_components >= 1),
+            ("min_cluster_points", self.min_cluster_points >= 1),
+            ("prior_code_sigma_m", self.prior_code_sigma_m > 0),
+            ("prior_phase_sigma_m", self.prior_phase_sigma_m > 0),
+            ("dpgmm_truncation", self.dpgmm_truncation >= 1),
+        )
         for name, ok in checks:
             if not ok:
-                raise SimbenchError(f"{where}.{name}", f"out of range: {getattr(self, name)}",
-                                    "the defaults are in IceConfig (estimators/ice.py)")
+                raise SimbenchError(
+                    f"{where}.{name}",
+                    f"out of range: {getattr(self, name)}",
+                    "the defaults are in IceConfig (estimators/ice.py)",
+                )
 
 
 @dataclass
@@ -169,19 +177,25 @@ class AdaptiveNoiseModel:
         pts = np.vstack(self.buffer)
         labels = self.cluster(pts)
         cfg = self.cfg
-        outcome = self.model.adapt(pts, labels, alpha=cfg.alpha, min_points=cfg.min_cluster_points,
-                                   max_components=cfg.max_components)
+        outcome = self.model.adapt(
+            pts, labels, alpha=cfg.alpha, min_points=cfg.min_cluster_points, max_components=cfg.max_components
+        )
         self.adaptations.append({"n_points": len(pts), "n_clusters": len(np.unique(labels)), **outcome})
         self.buffer, self.n_buffered = [], 0
         return True
 
     def diagnostics(self) -> dict[str, Any]:
         """Adaptation counts and the model history (one snapshot per adaptation, the prior first)."""
-        return {"n_adaptations": len(self.adaptations),
-                "naive_adaptations": self.n_residuals // (self.cfg.cluster_threshold + 1),
-                "n_residuals": int(self.n_residuals), "n_outliers": int(self.n_outliers),
-                "n_buffered_at_end": int(self.n_buffered), "adaptations": self.adaptations,
-                "model_history": self.model.history, "final_model": self.model.snapshot()}
+        return {
+            "n_adaptations": len(self.adaptations),
+            "naive_adaptations": self.n_residuals // (self.cfg.cluster_threshold + 1),
+            "n_residuals": int(self.n_residuals),
+            "n_outliers": int(self.n_outliers),
+            "n_buffered_at_end": int(self.n_buffered),
+            "adaptations": self.adaptations,
+            "model_history": self.model.history,
+            "final_model": self.model.snapshot(),
+        }
 
 
 @register
@@ -207,18 +221,29 @@ class Ice(IncrementalGraphEstimator):
         means = self._noise.model.means[comp] * scale[:, None]
         covs = self._noise.model.covs[comp] * np.square(scale)[:, None, None]
         if self.config.record_residuals:
-            self._records.append({"epoch": int(k), "code": pred.res_code.tolist(),
-                                  "phase": np.nan_to_num(pred.res_phase, nan=0.0).tolist(),
-                                  "new_arc": pred.new_arc.tolist(), "inlier": inlier.tolist()})
+            self._records.append(
+                {
+                    "epoch": int(k),
+                    "code": pred.res_code.tolist(),
+                    "phase": np.nan_to_num(pred.res_phase, nan=0.0).tolist(),
+                    "new_arc": pred.new_arc.tolist(),
+                    "inlier": inlier.tolist(),
+                }
+            )
         self._noise.observe(res, inlier, comp)
         if inlier.sum() < self.config.min_satellites:
             return None
         if code_only:  # the data have no phase rows, so there are no phase factors to weight
             return {"code_sigma": np.sqrt(covs[:, 0, 0]), "code_offset": means[:, 0], "use_code": inlier}
-        return {"code_sigma": np.sqrt(covs[:, 0, 0]), "phase_sigma": np.sqrt(covs[:, 1, 1]),
-                "code_phase_cov": np.where(pred.new_arc, 0.0, covs[:, 0, 1]),
-                "code_offset": means[:, 0], "phase_offset": np.where(pred.new_arc, 0.0, means[:, 1]),
-                "use_code": inlier, "use_phase": inlier}
+        return {
+            "code_sigma": np.sqrt(covs[:, 0, 0]),
+            "phase_sigma": np.sqrt(covs[:, 1, 1]),
+            "code_phase_cov": np.where(pred.new_arc, 0.0, covs[:, 0, 1]),
+            "code_offset": means[:, 0],
+            "phase_offset": np.where(pred.new_arc, 0.0, means[:, 1]),
+            "use_code": inlier,
+            "use_phase": inlier,
+        }
 
     def _diagnostics(self) -> dict[str, Any]:
         if self._noise is None:

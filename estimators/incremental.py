@@ -42,6 +42,7 @@ the estimators output; marginalisation is exact for the linear part of the model
 it is the same as plain iSAM2's up to relinearisation of positions older than the lag
 (urban, 600 s: horizontal median and mean equal to 1 mm for lags 0, 10, 30, 120 s).
 """
+
 from __future__ import annotations
 
 import time
@@ -72,8 +73,8 @@ from estimators.ppp_graph import (
     zwd_key,
 )
 from simbench.contract import ReceiverData
+from simbench.core.constants import C_LIGHT
 from simbench.errors import require_at_least, require_positive
-from simbench.sim.constants import C_LIGHT
 
 __all__ = ["EpochPrediction", "IncrementalConfig", "IncrementalGraphEstimator", "Isam2Dcs", "Isam2Mm", "Isam2Ppp"]
 
@@ -108,10 +109,14 @@ class IncrementalConfig(PppGraphConfig):
     def validate(self, where: str) -> None:
         """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
         super().validate(where)
-        require_positive(f"{where}.relinearize_threshold", self.relinearize_threshold,
-                         "give a threshold in metres, e.g. the default 1.0")
-        require_at_least(f"{where}.relinearize_skip", self.relinearize_skip, 1,
-                         "1 checks for relinearisation at every update")
+        require_positive(
+            f"{where}.relinearize_threshold",
+            self.relinearize_threshold,
+            "give a threshold in metres, e.g. the default 1.0",
+        )
+        require_at_least(
+            f"{where}.relinearize_skip", self.relinearize_skip, 1, "1 checks for relinearisation at every update"
+        )
         require_at_least(f"{where}.lag_s", self.lag_s, 0, "give the fixed-lag window in seconds (0: keep every epoch)")
 
 
@@ -187,12 +192,17 @@ class IncrementalGraphEstimator(Estimator):
             update_s[k] = time.perf_counter() - tic
 
         frame = solution_frame(obs.epoch_ids, obs.epoch_t, pos_out, update_s)
-        isb = {name: isam.calculateEstimateDouble(isb_key(s, n - 1))
-               for s, name in enumerate(obs.systems[1:], start=1)}
-        diagnostics = {"n_epochs": int(n), "n_observations": int(obs.n_obs), "n_arcs": int(obs.n_arcs),
-                       "inter_system_bias_m": isb,
-                       "epochs_without_gnss_update": int(skipped), "ionosphere_free": bool(cfg.ionosphere_free),
-                       "config": asdict(cfg), **self._diagnostics()}
+        isb = {name: isam.calculateEstimateDouble(isb_key(s, n - 1)) for s, name in enumerate(obs.systems[1:], start=1)}
+        diagnostics = {
+            "n_epochs": int(n),
+            "n_observations": int(obs.n_obs),
+            "n_arcs": int(obs.n_arcs),
+            "inter_system_bias_m": isb,
+            "epochs_without_gnss_update": int(skipped),
+            "ionosphere_free": bool(cfg.ionosphere_free),
+            "config": asdict(cfg),
+            **self._diagnostics(),
+        }
         return frame, diagnostics
 
     def _predict(self, k: int, rows: slice, g: PppGraph, isam: _Smoother) -> EpochPrediction:
@@ -204,8 +214,13 @@ class IncrementalGraphEstimator(Estimator):
         arcs = obs.arc[rows]
         m = len(prev)
         # further systems' rows carry their inter-system bias (the latest estimate)
-        isb = np.r_[0.0, [isam.calculateEstimateDouble(isb_key(s, k - 1)) if k else g.isb0_m[s - 1]
-                          for s in range(1, obs.n_isb + 1)]]
+        isb = np.r_[
+            0.0,
+            [
+                isam.calculateEstimateDouble(isb_key(s, k - 1)) if k else g.isb0_m[s - 1]
+                for s in range(1, obs.n_isb + 1)
+            ],
+        ]
         offset = isb[g.row_system[rows]]
         prior_pos, prior_root = None, None
         if k == 0:
@@ -264,12 +279,14 @@ class IncrementalGraphEstimator(Estimator):
         dt = float(g.obs.epoch_t[k] - g.obs.epoch_t[k - 1])
         vel = np.asarray(isam.calculateEstimatePoint3(vel_key(k - 1)), float)
         q = g.cfg.accel_sigma_mps2_rts
-        cov = (isam.marginalCovariance(pos_key(k - 1)) + dt * dt * isam.marginalCovariance(vel_key(k - 1))
-               + (q * q * dt**3 / 3.0) * np.eye(3))
+        cov = (
+            isam.marginalCovariance(pos_key(k - 1))
+            + dt * dt * isam.marginalCovariance(vel_key(k - 1))
+            + (q * q * dt**3 / 3.0) * np.eye(3)
+        )
         return pos + vel * dt, np.linalg.inv(np.linalg.cholesky(cov))
 
-    def _initial_values(self, k: int, rows: slice, g: PppGraph, isam: _Smoother,
-                        pred: EpochPrediction) -> gtsam.Values:
+    def _initial_values(self, k: int, rows: slice, g: PppGraph, isam: _Smoother, pred: EpochPrediction) -> gtsam.Values:
         v = g.new_values(k, self._previous(k, rows, g, isam))
         v.update(pos_key(k), gtsam.Point3(*pred.pos))
         v.update(clock_key(k), pred.clock_m / C_LIGHT)

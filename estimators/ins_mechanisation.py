@@ -23,6 +23,7 @@ Also here: coarse levelling from a static accelerometer mean, the heading
 reset about the local vertical and the course over ground. The Doppler
 range-rate model lives in :mod:`simbench.gnss.doppler`.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -30,8 +31,8 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
-from simbench.sim.constants import DEG, OMEGA_EARTH
-from simbench.sim.frames import (
+from simbench.core.constants import DEG, OMEGA_EARTH
+from simbench.core.frames import (
     dcm_body_to_ecef,
     dcm_body_to_ned,
     dcm_ned_to_ecef,
@@ -78,9 +79,14 @@ class ImuNoise:
     gyro_bias_rw: float
 
     @classmethod
-    def from_datasheet(cls, accel_noise_mps2_rthz: float, gyro_noise_dph_rthz: float,
-                       accel_bias_instability_mps2: float, gyro_bias_instability_dph: float,
-                       bias_tau_s: float) -> ImuNoise:
+    def from_datasheet(
+        cls,
+        accel_noise_mps2_rthz: float,
+        gyro_noise_dph_rthz: float,
+        accel_bias_instability_mps2: float,
+        gyro_bias_instability_dph: float,
+        bias_tau_s: float,
+    ) -> ImuNoise:
         """Convert datasheet-style values (the units of ``conf/imu``) into densities.
 
         A first-order Gauss-Markov bias of standard deviation ``sigma`` and
@@ -88,9 +94,12 @@ class ImuNoise:
         window of seconds it is indistinguishable from a random walk of that density.
         """
         root = np.sqrt(2.0 / bias_tau_s)
-        return cls(accel_noise=accel_noise_mps2_rthz, gyro_noise=gyro_noise_dph_rthz * DEG_PER_HOUR,
-                   accel_bias_rw=accel_bias_instability_mps2 * root,
-                   gyro_bias_rw=gyro_bias_instability_dph * DEG_PER_HOUR * root)
+        return cls(
+            accel_noise=accel_noise_mps2_rthz,
+            gyro_noise=gyro_noise_dph_rthz * DEG_PER_HOUR,
+            accel_bias_rw=accel_bias_instability_mps2 * root,
+            gyro_bias_rw=gyro_bias_instability_dph * DEG_PER_HOUR * root,
+        )
 
 
 def gravitation_ecef(pos: np.ndarray) -> np.ndarray:

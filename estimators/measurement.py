@@ -21,6 +21,7 @@ delay is removed (subtracted from code, added to phase).
 State order used by :func:`predict`'s Jacobian: ``[x, y, z, clock_m, zwd_m]``
 (ECEF metres, receiver clock times c in metres, zenith wet delay in metres).
 """
+
 from __future__ import annotations
 
 from collections.abc import Iterator
@@ -31,25 +32,31 @@ import pandas as pd
 
 from estimators.ppp_config import MeasurementMode, SigmaModel
 from simbench.contract import ReceiverData
+from simbench.core import atmosphere
+from simbench.core.constants import DEG, IF_A1, IF_A2
+from simbench.core.frames import geodetic_from_ecef
+from simbench.core.gpstime import day_of_year
 from simbench.errors import SimbenchError
-from simbench.sim import atmosphere
 from simbench.gnss.arcs import arc_ids
 from simbench.gnss.geometry import sagnac_range_gradient
 from simbench.gnss.signals import l1_wavelength_m
 from simbench.gnss.spp import solve_epochs
 from simbench.gnss.troposphere import troposphere_terms
-from simbench.sim.constants import DEG, IF_A1, IF_A2
-from simbench.sim.frames import geodetic_from_ecef
-from simbench.sim.gpstime import day_of_year
 
-__all__ = ["PppObservations", "arc_ids", "prepare_ppp", "predict", "predict_given_troposphere", "sigma_factor",
-           "N_BASE_STATES"]
+__all__ = [
+    "PppObservations",
+    "arc_ids",
+    "prepare_ppp",
+    "predict",
+    "predict_given_troposphere",
+    "sigma_factor",
+    "N_BASE_STATES",
+]
 
 #: Number of non-ambiguity states in :func:`predict`'s Jacobian: x, y, z, clock, zwd.
 N_BASE_STATES = 5
 
-_REQUIRED = ("epoch", "t", "sat", "code_l1", "phase_l1", "lli_l1", "sat_x", "sat_y", "sat_z", "sat_clock",
-             "el", "az")
+_REQUIRED = ("epoch", "t", "sat", "code_l1", "phase_l1", "lli_l1", "sat_x", "sat_y", "sat_z", "sat_clock", "el", "az")
 _REQUIRED_L2 = ("code_l2", "phase_l2", "lli_l2")
 #: Interval between the rough single-point positions used for the Klobuchar pierce points [s].
 _ROUGH_POSITION_INTERVAL_S = 60.0
@@ -58,8 +65,14 @@ _ROUGH_POSITION_INTERVAL_S = 60.0
 # --------------------------------------------------------------------------- prediction
 
 
-def predict_given_troposphere(sat_pos: np.ndarray, rx_pos: np.ndarray, clock_m: float, zwd_m: float,
-                              slant_hydrostatic_m: np.ndarray, m_wet: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def predict_given_troposphere(
+    sat_pos: np.ndarray,
+    rx_pos: np.ndarray,
+    clock_m: float,
+    zwd_m: float,
+    slant_hydrostatic_m: np.ndarray,
+    m_wet: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
     """:func:`predict` with the troposphere terms of :func:`troposphere_terms` given."""
     rng, grad = sagnac_range_gradient(sat_pos, rx_pos)
     H = np.empty((len(rng), N_BASE_STATES))
@@ -69,8 +82,16 @@ def predict_given_troposphere(sat_pos: np.ndarray, rx_pos: np.ndarray, clock_m: 
     return rng + clock_m + slant_hydrostatic_m + zwd_m * m_wet, H
 
 
-def predict(sat_pos: np.ndarray, rx_pos: np.ndarray, clock_m: float, zwd_m: float, el: np.ndarray,
-            lat: float, h: float, doy: float) -> tuple[np.ndarray, np.ndarray]:
+def predict(
+    sat_pos: np.ndarray,
+    rx_pos: np.ndarray,
+    clock_m: float,
+    zwd_m: float,
+    el: np.ndarray,
+    lat: float,
+    h: float,
+    doy: float,
+) -> tuple[np.ndarray, np.ndarray]:
     """Predicted code (= phase minus its bias) and Jacobian for one epoch.
 
     ``prediction = sagnac_range + clock_m + ZHD(lat, h) m_h(el) + zwd_m m_w(el)``.
@@ -209,11 +230,20 @@ class PppObservations:
             yield k, slice(a, b)
 
 
-def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: float, phase_sigma_m: float,
-                elevation_mask_deg: float, min_satellites: int = 4, max_gap_epochs: int = 1,
-                measurements: MeasurementMode = MeasurementMode.code_phase,
-                sigma_model: SigmaModel = SigmaModel.elevation, cn0_ref_dbhz: float = 45.0,
-                doppler_slip_m: float = 0.0) -> PppObservations:
+def prepare_ppp(
+    data: ReceiverData,
+    *,
+    ionosphere_free: bool,
+    code_sigma_m: float,
+    phase_sigma_m: float,
+    elevation_mask_deg: float,
+    min_satellites: int = 4,
+    max_gap_epochs: int = 1,
+    measurements: MeasurementMode = MeasurementMode.code_phase,
+    sigma_model: SigmaModel = SigmaModel.elevation,
+    cn0_ref_dbhz: float = 45.0,
+    doppler_slip_m: float = 0.0,
+) -> PppObservations:
     """Select, correct and weight the observations for PPP.
 
     Rows with missing values in the columns used, or below the elevation mask,
@@ -256,22 +286,34 @@ def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: floa
     need = _REQUIRED + (_REQUIRED_L2 if ionosphere_free else ())
     missing = [c for c in need if c not in obs.columns]
     if missing:
-        raise SimbenchError("observations", f"missing columns {missing}",
-                            "give an observation table with the columns of simbench.contract.OBSERVATION_COLUMNS")
+        raise SimbenchError(
+            "observations",
+            f"missing columns {missing}",
+            "give an observation table with the columns of simbench.contract.OBSERVATION_COLUMNS",
+        )
     if ionosphere_free and not (data.nav.dual_frequency and obs["code_l2"].notna().any()):
-        raise SimbenchError("ionosphere_free", "requested, but the data are single-frequency (no L2)",
-                            "set ionosphere_free=false, or simulate with scenario.dual_frequency=true")
+        raise SimbenchError(
+            "ionosphere_free",
+            "requested, but the data are single-frequency (no L2)",
+            "set ionosphere_free=false, or simulate with scenario.dual_frequency=true",
+        )
     for name, value in (("code_sigma_m", code_sigma_m), ("phase_sigma_m", phase_sigma_m)):
         if not value > 0:
             raise SimbenchError(name, f"must be positive, got {value}", "give a standard deviation in metres")
     if min_satellites < 1:
-        raise SimbenchError("min_satellites", f"must be at least 1, got {min_satellites}",
-                            "give 4 for snapshot-solvable epochs only, or 1 to keep every epoch with a satellite")
+        raise SimbenchError(
+            "min_satellites",
+            f"must be at least 1, got {min_satellites}",
+            "give 4 for snapshot-solvable epochs only, or 1 to keep every epoch with a satellite",
+        )
 
     require_phase = measurements == MeasurementMode.code_phase
     if require_phase and len(obs) and not np.isfinite(obs["phase_l1"].to_numpy(float)).any():
-        raise SimbenchError("observations", "carry no carrier phase (e.g. a libRSF pseudorange log)",
-                            "set the estimator's measurements=auto or measurements=code")
+        raise SimbenchError(
+            "observations",
+            "carry no carrier phase (e.g. a libRSF pseudorange log)",
+            "set the estimator's measurements=auto or measurements=code",
+        )
     phase_cols = ["phase_l1"] + (["phase_l2"] if ionosphere_free else [])
     code_cols = ["code_l1", "sat_x", "sat_y", "sat_z", "sat_clock", "el", "az", "t"]
     if ionosphere_free:
@@ -283,8 +325,9 @@ def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: floa
     obs = obs.loc[valid]
     with_phase = with_phase[valid]
     arc = np.full(len(obs), -1, np.int64)
-    arc[with_phase] = arc_ids(obs.loc[with_phase], max_gap_epochs, use_l2=ionosphere_free,
-                              doppler_slip_m=doppler_slip_m)
+    arc[with_phase] = arc_ids(
+        obs.loc[with_phase], max_gap_epochs, use_l2=ionosphere_free, doppler_slip_m=doppler_slip_m
+    )
 
     el = obs["el"].to_numpy(float) * DEG
     keep = el > elevation_mask_deg * DEG
@@ -293,9 +336,11 @@ def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: floa
         counts = np.bincount(epoch[keep], minlength=int(epoch.max()) + 1)
         keep &= counts[epoch] >= min_satellites
     if not keep.any():
-        raise SimbenchError("observations",
-                            f"no epoch has {min_satellites} satellites above the {elevation_mask_deg} deg mask",
-                            "lower elevation_mask_deg, or check the scenario (open sky, duration)")
+        raise SimbenchError(
+            "observations",
+            f"no epoch has {min_satellites} satellites above the {elevation_mask_deg} deg mask",
+            "lower elevation_mask_deg, or check the scenario (open sky, duration)",
+        )
 
     sat = obs["sat"].to_numpy()[keep]
     epoch = epoch[keep]
@@ -311,8 +356,9 @@ def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: floa
     sat_vel = np.full((len(sub), 3), np.nan)
     if {"doppler_l1", "sat_vx", "sat_vy", "sat_vz", "sat_clock_drift"} <= set(sub.columns):
         sat_vel = sub[["sat_vx", "sat_vy", "sat_vz"]].to_numpy(float)
-        range_rate = (-l1_wavelength_m(sub["sat"].to_numpy()) * sub["doppler_l1"].to_numpy(float)
-                      + sub["sat_clock_drift"].to_numpy(float))
+        range_rate = -l1_wavelength_m(sub["sat"].to_numpy()) * sub["doppler_l1"].to_numpy(float) + sub[
+            "sat_clock_drift"
+        ].to_numpy(float)
         range_rate[~np.isfinite(sat_vel).all(axis=1)] = np.nan
     doy = day_of_year(data.nav.gps_week, data.nav.start_sow_s)
 
@@ -336,21 +382,42 @@ def prepare_ppp(data: ReceiverData, *, ionosphere_free: bool, code_sigma_m: floa
 
     if not ionosphere_free and not data.nav.iono_corrected:
         lat, lon = _rough_lat_lon(sat_pos, code, sigma_scale, el, doy, t, epoch_start, epoch_stop, system_index)
-        iono = atmosphere.klobuchar_l1_delay_m(data.nav.start_sow_s + t, lat, lon, el, az,
-                                               np.asarray(data.nav.iono_alpha), np.asarray(data.nav.iono_beta))
+        iono = atmosphere.klobuchar_l1_delay_m(
+            data.nav.start_sow_s + t, lat, lon, el, az, np.asarray(data.nav.iono_alpha), np.asarray(data.nav.iono_beta)
+        )
         code = code - iono
         phase = phase + iono
     _, renumbered = np.unique(arc[arc >= 0], return_inverse=True)  # monotone: keeps the start order
     arc[arc >= 0] = renumbered
     return PppObservations(
-        epoch=epoch, t=t, sat=sat, sat_index=sat_index.astype(np.int64), sat_pos=sat_pos, code=code,
-        phase=phase, el=el, az=az, arc=arc.astype(np.int64), sigma_code=code_sigma_m * sigma_scale,
-        sigma_phase=phase_sigma_m * sigma_scale, sigma_scale=sigma_scale, cn0=cn0, epoch_ids=epoch_ids,
-        epoch_t=t[epoch_start], epoch_start=epoch_start, epoch_stop=epoch_stop,
+        epoch=epoch,
+        t=t,
+        sat=sat,
+        sat_index=sat_index.astype(np.int64),
+        sat_pos=sat_pos,
+        code=code,
+        phase=phase,
+        el=el,
+        az=az,
+        arc=arc.astype(np.int64),
+        sigma_code=code_sigma_m * sigma_scale,
+        sigma_phase=phase_sigma_m * sigma_scale,
+        sigma_scale=sigma_scale,
+        cn0=cn0,
+        epoch_ids=epoch_ids,
+        epoch_t=t[epoch_start],
+        epoch_start=epoch_start,
+        epoch_stop=epoch_stop,
         sat_names=tuple(str(s) for s in sat_names),
-        n_arcs=int(arc.max(initial=-1)) + 1, ionosphere_free=ionosphere_free, doy=doy, systems=systems,
-        system_index=system_index, range_rate=range_rate, sat_vel=sat_vel,
-        odometry=_odometry_per_epoch(data.odometry, t[epoch_start]) if len(data.odometry) else None)
+        n_arcs=int(arc.max(initial=-1)) + 1,
+        ionosphere_free=ionosphere_free,
+        doy=doy,
+        systems=systems,
+        system_index=system_index,
+        range_rate=range_rate,
+        sat_vel=sat_vel,
+        odometry=_odometry_per_epoch(data.odometry, t[epoch_start]) if len(data.odometry) else None,
+    )
 
 
 def _odometry_per_epoch(odo: pd.DataFrame, epoch_t: np.ndarray) -> np.ndarray:
@@ -367,9 +434,17 @@ def _odometry_per_epoch(odo: pd.DataFrame, epoch_t: np.ndarray) -> np.ndarray:
     return out
 
 
-def _rough_lat_lon(sat_pos: np.ndarray, code: np.ndarray, sigma: np.ndarray, el: np.ndarray, doy: float,
-                   t: np.ndarray, start: np.ndarray, stop: np.ndarray,
-                   system_index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _rough_lat_lon(
+    sat_pos: np.ndarray,
+    code: np.ndarray,
+    sigma: np.ndarray,
+    el: np.ndarray,
+    doy: float,
+    t: np.ndarray,
+    start: np.ndarray,
+    stop: np.ndarray,
+    system_index: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
     """Receiver latitude/longitude per row for the Klobuchar pierce points.
 
     Single point solutions every ~60 s (each epoch takes the latest one before
@@ -384,15 +459,31 @@ def _rough_lat_lon(sat_pos: np.ndarray, code: np.ndarray, sigma: np.ndarray, el:
     candidates = np.flatnonzero(stop - start >= 4)
     if candidates.size == 0:
         candidates = np.arange(n)  # solve_epochs then says in one line that nothing is trusted
-    every = candidates[np.unique(np.minimum(np.searchsorted(
-        t_epoch[candidates], np.arange(t_epoch[0], t_epoch[-1] + 1e-9, _ROUGH_POSITION_INTERVAL_S)),
-        candidates.size - 1))]
+    every = candidates[
+        np.unique(
+            np.minimum(
+                np.searchsorted(
+                    t_epoch[candidates], np.arange(t_epoch[0], t_epoch[-1] + 1e-9, _ROUGH_POSITION_INTERVAL_S)
+                ),
+                candidates.size - 1,
+            )
+        )
+    ]
     for solve_at in (every, candidates):
         rows = np.concatenate([np.arange(start[k], stop[k]) for k in solve_at])
         which_rows = np.repeat(np.arange(len(solve_at)), stop[solve_at] - start[solve_at])
         try:
-            sol = solve_epochs(which_rows, sat_pos[rows], code[rows], n_epochs=len(solve_at), sigma=sigma[rows],
-                               system_index=system_index[rows], el=el[rows], doy=doy, fill_untrusted=True)
+            sol = solve_epochs(
+                which_rows,
+                sat_pos[rows],
+                code[rows],
+                n_epochs=len(solve_at),
+                sigma=sigma[rows],
+                system_index=system_index[rows],
+                el=el[rows],
+                doy=doy,
+                fill_untrusted=True,
+            )
             break
         except SimbenchError:
             if solve_at is candidates:
@@ -401,4 +492,3 @@ def _rough_lat_lon(sat_pos: np.ndarray, code: np.ndarray, sigma: np.ndarray, el:
     which = np.maximum(np.searchsorted(solve_at, np.arange(n), side="right") - 1, 0)
     per_row = np.repeat(which, stop - start)
     return lats[per_row], lons[per_row]
-

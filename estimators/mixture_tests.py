@@ -32,6 +32,7 @@ covariance (divisor ``m``). With those, eqs. 7.8-7.9 give exactly the mean
 and the divisor-``n`` covariance of the pooled points, and eqs. 7.10-7.12
 (``w = count / (N + M)``) give the weights.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -108,8 +109,9 @@ def w_statistic_test(residuals: np.ndarray, cov_g: np.ndarray, alpha: float = 0.
     return TestResult(float(stat), p, p > alpha)
 
 
-def hotelling_t2_test(residuals: np.ndarray, mean_g: np.ndarray, cov_g: np.ndarray | None = None,
-                      alpha: float = 0.05) -> TestResult:
+def hotelling_t2_test(
+    residuals: np.ndarray, mean_g: np.ndarray, cov_g: np.ndarray | None = None, alpha: float = 0.05
+) -> TestResult:
     """Mean equivalence test of eqs. 7.6-7.7 (one-sample Hotelling ``T^2``).
 
     Parameters
@@ -144,8 +146,9 @@ def hotelling_t2_test(residuals: np.ndarray, mean_g: np.ndarray, cov_g: np.ndarr
     return TestResult(f, p, p > alpha)
 
 
-def components_equivalent(residuals: np.ndarray, mean_g: np.ndarray, cov_g: np.ndarray,
-                          alpha: float = 0.05) -> tuple[bool, float]:
+def components_equivalent(
+    residuals: np.ndarray, mean_g: np.ndarray, cov_g: np.ndarray, alpha: float = 0.05
+) -> tuple[bool, float]:
     """Both tests of Sec. 7.2.2 against one model component.
 
     Returns
@@ -160,8 +163,9 @@ def components_equivalent(residuals: np.ndarray, mean_g: np.ndarray, cov_g: np.n
     return w.accept and t.accept, min(w.p_value, t.p_value)
 
 
-def merge_moments(count_g: float, mean_g: np.ndarray, cov_g: np.ndarray, count_n: float, mean_n: np.ndarray,
-                  cov_n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def merge_moments(
+    count_g: float, mean_g: np.ndarray, cov_g: np.ndarray, count_n: float, mean_n: np.ndarray, cov_n: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Pooled mean and covariance of two components, eqs. 7.8-7.9.
 
     Parameters
@@ -183,8 +187,10 @@ def merge_moments(count_g: float, mean_g: np.ndarray, cov_g: np.ndarray, count_n
     total = count_g + count_n
     mean_g, mean_n = np.atleast_1d(mean_g), np.atleast_1d(mean_n)
     mean = (count_g * mean_g + count_n * mean_n) / total
-    second = (count_g * (np.atleast_2d(cov_g) + np.outer(mean_g, mean_g))
-              + count_n * (np.atleast_2d(cov_n) + np.outer(mean_n, mean_n))) / total
+    second = (
+        count_g * (np.atleast_2d(cov_g) + np.outer(mean_g, mean_g))
+        + count_n * (np.atleast_2d(cov_n) + np.outer(mean_n, mean_n))
+    ) / total
     return mean, second - np.outer(mean, mean)
 
 
@@ -215,8 +221,7 @@ class MixtureModel:
     @classmethod
     def single(cls, mean: np.ndarray, cov: np.ndarray, count: float = 1.0) -> MixtureModel:
         """A one-component (a priori) model."""
-        return cls(np.atleast_2d(mean).astype(float), np.atleast_2d(cov)[None].astype(float),
-                   np.array([float(count)]))
+        return cls(np.atleast_2d(mean).astype(float), np.atleast_2d(cov)[None].astype(float), np.array([float(count)]))
 
     @property
     def n_components(self) -> int:
@@ -238,8 +243,15 @@ class MixtureModel:
         """Index of the most likely component of each residual (eq. 7.1), shape (n,)."""
         return np.argmax(self.log_likelihoods(r), axis=1)
 
-    def adapt(self, samples: np.ndarray, labels: np.ndarray, *, alpha: float = 0.05, min_points: int = 2,
-              max_components: int = 20) -> dict:
+    def adapt(
+        self,
+        samples: np.ndarray,
+        labels: np.ndarray,
+        *,
+        alpha: float = 0.05,
+        min_points: int = 2,
+        max_components: int = 20,
+    ) -> dict:
         """Merge or add each cluster of ``samples`` (eqs. 7.4-7.12).
 
         Each cluster (``labels == c``) with at least ``min_points`` points is
@@ -280,8 +292,9 @@ class MixtureModel:
                 if ok and p > best_p:
                     best, best_p = k, p
             if best >= 0:
-                self.means[best], self.covs[best] = merge_moments(self.counts[best], self.means[best],
-                                                                  self.covs[best], m, mean_n, cov_n)
+                self.means[best], self.covs[best] = merge_moments(
+                    self.counts[best], self.means[best], self.covs[best], m, mean_n, cov_n
+                )
                 self.counts[best] += m
                 merged += 1
             elif self.n_components < max_components:
@@ -296,5 +309,9 @@ class MixtureModel:
 
     def snapshot(self) -> dict:
         """JSON-serialisable copy of the current model."""
-        return {"weights": self.weights.tolist(), "means": self.means.tolist(), "covs": self.covs.tolist(),
-                "counts": self.counts.tolist()}
+        return {
+            "weights": self.weights.tolist(),
+            "means": self.means.tolist(),
+            "covs": self.covs.tolist(),
+            "counts": self.counts.tolist(),
+        }

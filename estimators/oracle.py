@@ -19,6 +19,7 @@ Labels are row-aligned with the observation table; prepared rows (dropped and
 sorted by :func:`~estimators.measurement.prepare_ppp`) find theirs by (epoch, satellite).
 One Levenberg-Marquardt solve, as ``l2``.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
@@ -55,13 +56,18 @@ class Oracle(BatchGraphEstimator):
 
     def _prepare(self, data: ReceiverData):
         if self._labels is None:
-            raise SimbenchError("oracle", "needs the error labels", "run it through simbench.runner (real data has none)")
+            raise SimbenchError(
+                "oracle", "needs the error labels", "run it through simbench.runs.runner (real data has none)"
+            )
         lab = self._labels
         obs_tab = data.observations
-        if len(lab) != len(obs_tab) or not (np.array_equal(lab["epoch"].to_numpy(), obs_tab["epoch"].to_numpy())
-                                            and np.array_equal(lab["sat"].to_numpy(), obs_tab["sat"].to_numpy())):
-            raise SimbenchError("labels", "not row-aligned with the observations",
-                                "pass the labels of the same scenario")
+        if len(lab) != len(obs_tab) or not (
+            np.array_equal(lab["epoch"].to_numpy(), obs_tab["epoch"].to_numpy())
+            and np.array_equal(lab["sat"].to_numpy(), obs_tab["sat"].to_numpy())
+        ):
+            raise SimbenchError(
+                "labels", "not row-aligned with the observations", "pass the labels of the same scenario"
+            )
         los = ~lab["nlos"].to_numpy(bool)
         clean = replace(data, observations=obs_tab.loc[los].reset_index(drop=True))
         obs = prepare_ppp(clean, **self.config.prepare_kwargs())
@@ -70,13 +76,17 @@ class Oracle(BatchGraphEstimator):
     def _a_priori_sigmas(self, obs):
         lab = self._labels.set_index(["epoch", "sat"])
         rows = lab.reindex(pd.MultiIndex.from_arrays([obs.epoch, obs.sat]))
+
         def rms(col: str) -> float:
             return float(np.sqrt(np.mean(self._labels[col].to_numpy(float) ** 2)))
 
         orbit = rms("orbit_clock_error")
-        code = np.sqrt(rows["sigma_code_l1"].to_numpy(float) ** 2
-                       + rows["sigma_multipath_code_l1"].to_numpy(float) ** 2
-                       + rows["sample_grid_code_l1"].to_numpy(float) ** 2 + orbit**2)
+        code = np.sqrt(
+            rows["sigma_code_l1"].to_numpy(float) ** 2
+            + rows["sigma_multipath_code_l1"].to_numpy(float) ** 2
+            + rows["sample_grid_code_l1"].to_numpy(float) ** 2
+            + orbit**2
+        )
         phase = np.sqrt(rows["sigma_phase_l1"].to_numpy(float) ** 2 + rms("multipath_phase_l1") ** 2 + orbit**2)
         s = np.sqrt(self.config.prior_scale)
         return code * s, phase * s
@@ -84,5 +94,9 @@ class Oracle(BatchGraphEstimator):
     def _run(self, data, obs, g, structure):
         values = self._l2(g, structure)
         sc, sp = self._a_priori_sigmas(obs)
-        return values, {"iterations": 1, "median_code_sigma_m": float(np.median(sc)),
-                        "median_phase_sigma_m": float(np.median(sp)), "uses_labels": True}
+        return values, {
+            "iterations": 1,
+            "median_code_sigma_m": float(np.median(sc)),
+            "median_phase_sigma_m": float(np.median(sp)),
+            "uses_labels": True,
+        }

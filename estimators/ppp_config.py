@@ -7,17 +7,27 @@ with their one validation entry point. The motion and clock-drift model
 (:class:`MotionModelConfig`: random walk or constant velocity with Doppler and
 wheel odometry) is shared the same way.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
 from typing import Any
 
-from simbench.config import Choice, check_choices
 from simbench.contract import Need
 from simbench.errors import SimbenchError, require_at_least, require_positive
+from simbench.typed import Choice, check_choices
 
-__all__ = ["DIRECTION_MIN_SPEED_MPS", "STANDSTILL_MPS", "ClockModel", "GnssModelConfig", "MeasurementMode",
-           "MotionModel", "MotionModelConfig", "SigmaModel", "StochasticModelConfig"]
+__all__ = [
+    "DIRECTION_MIN_SPEED_MPS",
+    "STANDSTILL_MPS",
+    "ClockModel",
+    "GnssModelConfig",
+    "MeasurementMode",
+    "MotionModel",
+    "MotionModelConfig",
+    "SigmaModel",
+    "StochasticModelConfig",
+]
 
 
 class ClockModel(Choice):
@@ -101,21 +111,41 @@ class StochasticModelConfig:
             Config node name, e.g. ``estimator.l2``; prefixed to the field in the message.
         """
         check_choices(self, where)
-        for name in ("pos_sigma_m", "zwd_sigma_m", "clock_sigma_m", "ambiguity_sigma_m", "code_sigma_m",
-                     "phase_sigma_m", "iono_sigma_m", "isb_sigma_m"):
+        for name in (
+            "pos_sigma_m",
+            "zwd_sigma_m",
+            "clock_sigma_m",
+            "ambiguity_sigma_m",
+            "code_sigma_m",
+            "phase_sigma_m",
+            "iono_sigma_m",
+            "isb_sigma_m",
+        ):
             require_positive(f"{where}.{name}", getattr(self, name), "give a standard deviation in metres")
         for name in ("pos_rw_m_rts", "zwd_rw_m_rts", "clock_noise_m_rts", "iono_rw_m_rts", "isb_rw_m_rts"):
             require_at_least(f"{where}.{name}", getattr(self, name), 0, "give a noise density in m/sqrt(s)")
         if not 0.0 <= self.elevation_mask_deg < 90.0:
-            raise SimbenchError(f"{where}.elevation_mask_deg", f"must be within [0, 90) deg, got "
-                                f"{self.elevation_mask_deg}", "give an elevation mask in degrees, e.g. 7")
-        require_at_least(f"{where}.doppler_slip_m", self.doppler_slip_m, 0,
-                         "give a threshold in metres, e.g. 1, or 0 to break arcs at flags and gaps only")
+            raise SimbenchError(
+                f"{where}.elevation_mask_deg",
+                f"must be within [0, 90) deg, got {self.elevation_mask_deg}",
+                "give an elevation mask in degrees, e.g. 7",
+            )
+        require_at_least(
+            f"{where}.doppler_slip_m",
+            self.doppler_slip_m,
+            0,
+            "give a threshold in metres, e.g. 1, or 0 to break arcs at flags and gaps only",
+        )
         require_positive(f"{where}.cn0_ref_dbhz", self.cn0_ref_dbhz, "give a reference C/N0 in dB-Hz, e.g. 45")
-        require_at_least(f"{where}.min_satellites", self.min_satellites, 1,
-                         "give 4 for snapshot-solvable epochs only, or 1 to keep every epoch with a satellite")
-        require_at_least(f"{where}.max_gap_epochs", self.max_gap_epochs, 1,
-                         "1 means every epoch must be present within one arc")
+        require_at_least(
+            f"{where}.min_satellites",
+            self.min_satellites,
+            1,
+            "give 4 for snapshot-solvable epochs only, or 1 to keep every epoch with a satellite",
+        )
+        require_at_least(
+            f"{where}.max_gap_epochs", self.max_gap_epochs, 1, "1 means every epoch must be present within one arc"
+        )
 
     def needs(self) -> frozenset[Need]:
         """What the data must offer for this model: L2 for IF, carrier phase for ``code_phase``."""
@@ -126,11 +156,18 @@ class StochasticModelConfig:
 
     def prepare_kwargs(self) -> dict[str, Any]:
         """Keyword arguments of :func:`~estimators.measurement.prepare_ppp` for this config."""
-        return {"ionosphere_free": self.ionosphere_free, "code_sigma_m": self.code_sigma_m,
-                "phase_sigma_m": self.phase_sigma_m, "elevation_mask_deg": self.elevation_mask_deg,
-                "min_satellites": self.min_satellites, "max_gap_epochs": self.max_gap_epochs,
-                "measurements": self.measurements, "sigma_model": self.sigma_model,
-                "cn0_ref_dbhz": self.cn0_ref_dbhz, "doppler_slip_m": self.doppler_slip_m}
+        return {
+            "ionosphere_free": self.ionosphere_free,
+            "code_sigma_m": self.code_sigma_m,
+            "phase_sigma_m": self.phase_sigma_m,
+            "elevation_mask_deg": self.elevation_mask_deg,
+            "min_satellites": self.min_satellites,
+            "max_gap_epochs": self.max_gap_epochs,
+            "measurements": self.measurements,
+            "sigma_model": self.sigma_model,
+            "cn0_ref_dbhz": self.cn0_ref_dbhz,
+            "doppler_slip_m": self.doppler_slip_m,
+        }
 
 
 class MotionModel(Choice):
@@ -174,8 +211,14 @@ class MotionModelConfig(StochasticModelConfig):
     def validate(self, where: str) -> None:
         """The shared checks, then the motion-model densities and sigmas."""
         super().validate(where)
-        for name in ("accel_sigma_mps2_rts", "vel_sigma_mps", "doppler_sigma_mps", "drift_sigma_mps",
-                     "drift_rw_mps_rts", "nhc_sigma_mps"):
+        for name in (
+            "accel_sigma_mps2_rts",
+            "vel_sigma_mps",
+            "doppler_sigma_mps",
+            "drift_sigma_mps",
+            "drift_rw_mps_rts",
+            "nhc_sigma_mps",
+        ):
             require_positive(f"{where}.{name}", getattr(self, name), "give a positive sigma or density")
 
 
@@ -189,7 +232,7 @@ class GnssModelConfig:
     constant velocity, arcs also broken where the phase disagrees with the Doppler,
     every epoch with a satellite, ICE's mixture in units of the C/N0 sigma factor,
     one max-mixture outlier scale of 10 for batch and incremental MM:
-    the default run's). :func:`simbench.compose.register_schemas` makes each of these
+    the default run's). :func:`simbench.runs.compose.register_schemas` makes each of these
     fields of every estimator config that has it default to ``${gnss_model.<field>}``,
     so one setting reaches every estimator that has the field and
     ``estimator.<name>.<field>`` still overrides it for one.

@@ -99,6 +99,7 @@ first time at ``k`` (:meth:`PppGraph.new_values`). Pieces are also available
 separately (:meth:`motion_factors`, :meth:`prior_factors`, :meth:`measurement_factors`
 with ``rows=obs.epoch_slice(k)``) for estimators that gate or reweight measurements.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -115,14 +116,14 @@ from estimators.ppp_config import (
     MotionModel,
     MotionModelConfig,
 )
+from simbench.core import atmosphere
+from simbench.core.constants import C_LIGHT
+from simbench.core.frames import geodetic_from_ecef
 from simbench.errors import SimbenchError
 from simbench.gnss.doppler import doppler_velocities, range_rate
 from simbench.gnss.geometry import enu_basis, sagnac_range
 from simbench.gnss.spp import solve_epochs, system_clock_offsets
 from simbench.gnss.troposphere import troposphere_terms
-from simbench.sim import atmosphere
-from simbench.sim.constants import C_LIGHT
-from simbench.sim.frames import geodetic_from_ecef
 
 __all__ = [
     "ZERO_KEY",
@@ -255,17 +256,31 @@ class PppGraph:
         self.row_epoch = np.repeat(np.arange(nk), obs.epoch_stop - obs.epoch_start)
         # epochs without a trusted fit (four satellites in a bad geometry, NLOS) start from the
         # nearest trusted epoch's position; the graph does the rest
-        self.row_system = (np.zeros(n, np.int64) if obs.system_index is None
-                           else np.asarray(obs.system_index, np.int64))
-        spp = solve_epochs(self.row_epoch, obs.sat_pos, obs.code, n_epochs=nk, sigma=obs.sigma_code, el=obs.el,
-                           doy=obs.doy, system_index=self.row_system, fill_untrusted=True)
+        self.row_system = np.zeros(n, np.int64) if obs.system_index is None else np.asarray(obs.system_index, np.int64)
+        spp = solve_epochs(
+            self.row_epoch,
+            obs.sat_pos,
+            obs.code,
+            n_epochs=nk,
+            sigma=obs.sigma_code,
+            el=obs.el,
+            doy=obs.doy,
+            system_index=self.row_system,
+            fill_untrusted=True,
+        )
         self.spp_pos, self.spp_clock_m = spp.pos, spp.clock_m[:, 0]
         self.with_odometry = bool(self.constant_velocity and cfg.use_odometry and obs.odometry is not None)
         if self.constant_velocity:
             # one Doppler fix per epoch: the drift's start values and the odometry's direction of travel
-            doppler_vel, drift = doppler_velocities(self.row_epoch, obs.sat_pos, obs.sat_vel,
-                                                    self.spp_pos[self.row_epoch], obs.range_rate,
-                                                    cfg.doppler_sigma_mps * obs.sigma_scale, nk)
+            doppler_vel, drift = doppler_velocities(
+                self.row_epoch,
+                obs.sat_pos,
+                obs.sat_vel,
+                self.spp_pos[self.row_epoch],
+                obs.range_rate,
+                cfg.doppler_sigma_mps * obs.sigma_scale,
+                nk,
+            )
             self.drift0 = _carry_forward(drift)
             if self.with_odometry:
                 self.enu = enu_basis(self.spp_pos)
@@ -329,24 +344,31 @@ class PppGraph:
         cfg, obs = self.cfg, self.obs
         g = gtsam.NonlinearFactorGraph()
         if k == 0:
-            g.add(gtsam.PriorFactorPoint3(pos_key(0), gtsam.Point3(*self.spp_pos[0]),
-                                          gtsam.noiseModel.Isotropic.Sigma(3, cfg.pos_sigma_m)))
+            g.add(
+                gtsam.PriorFactorPoint3(
+                    pos_key(0), gtsam.Point3(*self.spp_pos[0]), gtsam.noiseModel.Isotropic.Sigma(3, cfg.pos_sigma_m)
+                )
+            )
             if self.constant_velocity:
-                g.add(gtsam.PriorFactorPoint3(vel_key(0), gtsam.Point3(0.0, 0.0, 0.0),
-                                              gtsam.noiseModel.Isotropic.Sigma(3, cfg.vel_sigma_mps)))
-                g.add(gtsam.PriorFactorDouble(drift_key(0), float(self.drift0[0]),
-                                              self._sigma1(cfg.drift_sigma_mps)))
+                g.add(
+                    gtsam.PriorFactorPoint3(
+                        vel_key(0), gtsam.Point3(0.0, 0.0, 0.0), gtsam.noiseModel.Isotropic.Sigma(3, cfg.vel_sigma_mps)
+                    )
+                )
+                g.add(gtsam.PriorFactorDouble(drift_key(0), float(self.drift0[0]), self._sigma1(cfg.drift_sigma_mps)))
             g.add(gtsam.PriorFactorDouble(zwd_key(0), self.zwd0, self._sigma1(cfg.zwd_sigma_m)))
             g.add(gtsam.PriorFactorDouble(ZERO_KEY, 0.0, self._sigma1(_ZERO_SIGMA)))
         if self.constant_velocity:  # the epoch's range rates (a measurement, but not reweighted)
             g.push_back(self._doppler_factor(k))
         if k == 0 or cfg.clock_model == ClockModel.white:
-            g.add(gtsam.PriorFactorDouble(clock_key(k), self.spp_clock_m[k] / C_LIGHT,
-                                          self._sigma1(cfg.clock_sigma_m / C_LIGHT)))
+            g.add(
+                gtsam.PriorFactorDouble(
+                    clock_key(k), self.spp_clock_m[k] / C_LIGHT, self._sigma1(cfg.clock_sigma_m / C_LIGHT)
+                )
+            )
         for s in range(1, obs.n_isb + 1):
             if k == 0:
-                g.add(gtsam.PriorFactorDouble(isb_key(s, 0), float(self.isb0_m[s - 1]),
-                                              self._sigma1(cfg.isb_sigma_m)))
+                g.add(gtsam.PriorFactorDouble(isb_key(s, 0), float(self.isb0_m[s - 1]), self._sigma1(cfg.isb_sigma_m)))
             g.add(self._isb_tie(s, k))
         rows = obs.epoch_slice(k)
         amb_noise = self._sigma1(cfg.ambiguity_sigma_m)
@@ -360,9 +382,16 @@ class PppGraph:
     def _isb_tie(self, s: int, k: int) -> gtsam.NonlinearFactor:
         """``c sysclock_s(k) - c clock(k) - isb_s(k) = 0``: a linear factor in GTSAM's native containers."""
         keys = (sysclock_key(s, k), clock_key(k), isb_key(s, k))
-        linear = gtsam.JacobianFactor(keys[0], np.array([[C_LIGHT]]), keys[1], np.array([[-C_LIGHT]]),
-                                      keys[2], np.array([[-1.0]]), np.zeros(1),
-                                      gtsam.noiseModel.Isotropic.Sigma(1, _ISB_TIE_SIGMA_M))
+        linear = gtsam.JacobianFactor(
+            keys[0],
+            np.array([[C_LIGHT]]),
+            keys[1],
+            np.array([[-C_LIGHT]]),
+            keys[2],
+            np.array([[-1.0]]),
+            np.zeros(1),
+            gtsam.noiseModel.Isotropic.Sigma(1, _ISB_TIE_SIGMA_M),
+        )
         return _linear(linear, dict.fromkeys(keys, 0.0))
 
     def motion_factors(self, k: int) -> gtsam.NonlinearFactorGraph:
@@ -375,23 +404,37 @@ class PppGraph:
         if self.constant_velocity:
             g.push_back(self._constant_velocity_factors(k, dt))
         else:
-            g.add(gtsam.BetweenFactorPoint3(pos_key(k - 1), pos_key(k), gtsam.Point3(0, 0, 0),
-                                            gtsam.noiseModel.Isotropic.Sigma(3, self._rw(cfg.pos_rw_m_rts, dt))))
-        g.add(gtsam.BetweenFactorDouble(zwd_key(k - 1), zwd_key(k), 0.0,
-                                        self._sigma1(self._rw(cfg.zwd_rw_m_rts, dt))))
+            g.add(
+                gtsam.BetweenFactorPoint3(
+                    pos_key(k - 1),
+                    pos_key(k),
+                    gtsam.Point3(0, 0, 0),
+                    gtsam.noiseModel.Isotropic.Sigma(3, self._rw(cfg.pos_rw_m_rts, dt)),
+                )
+            )
+        g.add(gtsam.BetweenFactorDouble(zwd_key(k - 1), zwd_key(k), 0.0, self._sigma1(self._rw(cfg.zwd_rw_m_rts, dt))))
         if cfg.clock_model == ClockModel.random_walk:
-            g.add(gtsam.BetweenFactorDouble(clock_key(k - 1), clock_key(k), 0.0,
-                                            self._sigma1(self._rw(cfg.clock_noise_m_rts, dt) / C_LIGHT)))
+            g.add(
+                gtsam.BetweenFactorDouble(
+                    clock_key(k - 1), clock_key(k), 0.0, self._sigma1(self._rw(cfg.clock_noise_m_rts, dt) / C_LIGHT)
+                )
+            )
         for s in range(1, obs.n_isb + 1):
-            g.add(gtsam.BetweenFactorDouble(isb_key(s, k - 1), isb_key(s, k), 0.0,
-                                            self._sigma1(self._rw(cfg.isb_rw_m_rts, dt))))
+            g.add(
+                gtsam.BetweenFactorDouble(
+                    isb_key(s, k - 1), isb_key(s, k), 0.0, self._sigma1(self._rw(cfg.isb_rw_m_rts, dt))
+                )
+            )
         if self.with_iono:
             rows = obs.epoch_slice(k)
             for r in np.flatnonzero(self.prev_row[rows] >= 0) + rows.start:
                 p = int(self.prev_row[r])
                 dti = float(obs.t[r] - obs.t[p])
-                g.add(gtsam.BetweenFactorDouble(iono_key(p), iono_key(int(r)), 0.0,
-                                                self._sigma1(self._rw(cfg.iono_rw_m_rts, dti))))
+                g.add(
+                    gtsam.BetweenFactorDouble(
+                        iono_key(p), iono_key(int(r)), 0.0, self._sigma1(self._rw(cfg.iono_rw_m_rts, dti))
+                    )
+                )
         return g
 
     def _constant_velocity_factors(self, k: int, dt: float) -> gtsam.NonlinearFactorGraph:
@@ -406,13 +449,27 @@ class PppGraph:
         q = cfg.accel_sigma_mps2_rts
         eye = np.eye(3)
         keys = (pos_key(k - 1), vel_key(k - 1), pos_key(k))
-        tie = gtsam.JacobianFactor(keys[0], -eye, keys[1], -dt * eye, keys[2], eye, np.zeros(3),
-                                   gtsam.noiseModel.Isotropic.Sigma(3, max(q * np.sqrt(dt**3 / 3.0), _MIN_RW_SIGMA)))
+        tie = gtsam.JacobianFactor(
+            keys[0],
+            -eye,
+            keys[1],
+            -dt * eye,
+            keys[2],
+            eye,
+            np.zeros(3),
+            gtsam.noiseModel.Isotropic.Sigma(3, max(q * np.sqrt(dt**3 / 3.0), _MIN_RW_SIGMA)),
+        )
         g.add(_linear(tie, {key: gtsam.Point3(0.0, 0.0, 0.0) for key in keys}))
-        g.add(gtsam.BetweenFactorPoint3(vel_key(k - 1), vel_key(k), gtsam.Point3(0, 0, 0),
-                                        gtsam.noiseModel.Isotropic.Sigma(3, self._rw(q, dt))))
-        g.add(gtsam.BetweenFactorDouble(drift_key(k - 1), drift_key(k), 0.0,
-                                        self._sigma1(self._rw(cfg.drift_rw_mps_rts, dt))))
+        g.add(
+            gtsam.BetweenFactorPoint3(
+                vel_key(k - 1), vel_key(k), gtsam.Point3(0, 0, 0), gtsam.noiseModel.Isotropic.Sigma(3, self._rw(q, dt))
+            )
+        )
+        g.add(
+            gtsam.BetweenFactorDouble(
+                drift_key(k - 1), drift_key(k), 0.0, self._sigma1(self._rw(cfg.drift_rw_mps_rts, dt))
+            )
+        )
         if self.with_odometry:
             g.push_back(self._odometry_factors(k, dt))
         return g
@@ -438,23 +495,47 @@ class PppGraph:
         sig_s = float(np.sqrt(max(var_speed, 1e-6)))
         zero = gtsam.Point3(0.0, 0.0, 0.0)
         if abs(speed) < STANDSTILL_MPS:
-            g.add(_linear(gtsam.JacobianFactor(vel_key(k), horizontal, np.zeros(2),
-                                               gtsam.noiseModel.Isotropic.Sigma(2, sig_s)), {vel_key(k): zero}))
+            g.add(
+                _linear(
+                    gtsam.JacobianFactor(
+                        vel_key(k), horizontal, np.zeros(2), gtsam.noiseModel.Isotropic.Sigma(2, sig_s)
+                    ),
+                    {vel_key(k): zero},
+                )
+            )
         elif np.isfinite(self.heading_ref[k]).all():
             u = self.heading_ref[k]
             across = np.cross(self.enu[k, 2], u)
-            g.add(_linear(gtsam.JacobianFactor(vel_key(k), np.vstack([u, across]), np.array([abs(speed), 0.0]),
-                                               gtsam.noiseModel.Diagonal.Sigmas(
-                                                   np.array([sig_s, self.cfg.nhc_sigma_mps]))), {vel_key(k): zero}))
+            g.add(
+                _linear(
+                    gtsam.JacobianFactor(
+                        vel_key(k),
+                        np.vstack([u, across]),
+                        np.array([abs(speed), 0.0]),
+                        gtsam.noiseModel.Diagonal.Sigmas(np.array([sig_s, self.cfg.nhc_sigma_mps])),
+                    ),
+                    {vel_key(k): zero},
+                )
+            )
         prev_speed = odo[k - 1, 0]
         if np.isfinite(yaw_rate) and np.isfinite(prev_speed) and abs(prev_speed) >= STANDSTILL_MPS and dt > 0:
             turn = yaw_rate * dt
             rot = np.array([[np.cos(turn), np.sin(turn)], [-np.sin(turn), np.cos(turn)]])
             ratio = speed / prev_speed
             sigma = float(np.sqrt(2.0 * var_speed + (speed * dt) ** 2 * max(var_yaw, 0.0)) + 1e-3)
-            g.add(_linear(gtsam.JacobianFactor(vel_key(k - 1), -ratio * rot @ self.enu[k - 1, :2], vel_key(k),
-                                               horizontal, np.zeros(2), gtsam.noiseModel.Isotropic.Sigma(2, sigma)),
-                          {vel_key(k - 1): zero, vel_key(k): zero}))
+            g.add(
+                _linear(
+                    gtsam.JacobianFactor(
+                        vel_key(k - 1),
+                        -ratio * rot @ self.enu[k - 1, :2],
+                        vel_key(k),
+                        horizontal,
+                        np.zeros(2),
+                        gtsam.noiseModel.Isotropic.Sigma(2, sigma),
+                    ),
+                    {vel_key(k - 1): zero, vel_key(k): zero},
+                )
+            )
         return g
 
     def _directions_of_travel(self, vel: np.ndarray) -> np.ndarray:
@@ -485,8 +566,14 @@ class PppGraph:
         pos = np.broadcast_to(self.spp_pos[k], (use.size, 3))
         rdot0, _, d_vel = range_rate(obs.sat_pos[use], obs.sat_vel[use], pos, np.zeros((use.size, 3)))
         sigma = self.cfg.doppler_sigma_mps * obs.sigma_scale[use]
-        linear = gtsam.JacobianFactor(vel_key(k), d_vel, drift_key(k), np.ones((use.size, 1)),
-                                      obs.range_rate[use] - rdot0, gtsam.noiseModel.Diagonal.Sigmas(sigma))
+        linear = gtsam.JacobianFactor(
+            vel_key(k),
+            d_vel,
+            drift_key(k),
+            np.ones((use.size, 1)),
+            obs.range_rate[use] - rdot0,
+            gtsam.noiseModel.Diagonal.Sigmas(sigma),
+        )
         g.add(_linear(linear, {vel_key(k): gtsam.Point3(0.0, 0.0, 0.0), drift_key(k): 0.0}))
         return g
 
@@ -500,13 +587,19 @@ class PppGraph:
 
     # ------------------------------------------------------------------ measurement factors
 
-    def measurement_factors(self, rows: slice | np.ndarray | None = None, *,
-                            code_sigma: np.ndarray | None = None, phase_sigma: np.ndarray | None = None,
-                            code_phase_cov: np.ndarray | None = None, code_offset: np.ndarray | None = None,
-                            phase_offset: np.ndarray | None = None,
-                            robust: gtsam.noiseModel.mEstimator.Base | None = None,
-                            use_code: np.ndarray | None = None,
-                            use_phase: np.ndarray | None = None) -> gtsam.NonlinearFactorGraph:
+    def measurement_factors(
+        self,
+        rows: slice | np.ndarray | None = None,
+        *,
+        code_sigma: np.ndarray | None = None,
+        phase_sigma: np.ndarray | None = None,
+        code_phase_cov: np.ndarray | None = None,
+        code_offset: np.ndarray | None = None,
+        phase_offset: np.ndarray | None = None,
+        robust: gtsam.noiseModel.mEstimator.Base | None = None,
+        use_code: np.ndarray | None = None,
+        use_phase: np.ndarray | None = None,
+    ) -> gtsam.NonlinearFactorGraph:
         """Code and phase factors of the selected rows.
 
         Parameters
@@ -552,8 +645,9 @@ class PppGraph:
         up = ones if use_phase is None else np.asarray(use_phase, bool)
         up = up & self.has_phase[idx]  # a row without carrier phase has a code factor only
         if np.any(~(sc[uc] > 0)) or np.any(~(sp[up] > 0)):
-            raise SimbenchError("measurement sigma", "non-positive or NaN standard deviation",
-                                "give positive per-row sigmas")
+            raise SimbenchError(
+                "measurement sigma", "non-positive or NaN standard deviation", "give positive per-row sigmas"
+            )
         iono_c = self.iono_rows[idx].astype(float)
         selected = idx.tolist()
         pk, ck, wk, ikeys, bk = ([keys[r] for r in selected] for keys in self._row_keys)
@@ -604,16 +698,45 @@ class PppGraph:
         g = gtsam.NonlinearFactorGraph()
         for j in np.flatnonzero(uc).tolist():
             if coupled[j]:
-                g.add(gtsam.UndifferencedCarrierPhaseFactor(
-                    pk[j], ck[j], wk[j], ikeys[j], bk[j], code_meas[j], sat[j], mw[j], code_iono[j], code_bias[j],
-                    0.0, noise(code_sig[j])))
+                g.add(
+                    gtsam.UndifferencedCarrierPhaseFactor(
+                        pk[j],
+                        ck[j],
+                        wk[j],
+                        ikeys[j],
+                        bk[j],
+                        code_meas[j],
+                        sat[j],
+                        mw[j],
+                        code_iono[j],
+                        code_bias[j],
+                        0.0,
+                        noise(code_sig[j]),
+                    )
+                )
             else:
-                g.add(gtsam.UndifferencedPseudorangeFactor(
-                    pk[j], ck[j], wk[j], ikeys[j], code_meas[j], sat[j], mw[j], iono_c[j], 0.0, noise(code_sig[j])))
+                g.add(
+                    gtsam.UndifferencedPseudorangeFactor(
+                        pk[j], ck[j], wk[j], ikeys[j], code_meas[j], sat[j], mw[j], iono_c[j], 0.0, noise(code_sig[j])
+                    )
+                )
         for j in np.flatnonzero(up).tolist():
-            g.add(gtsam.UndifferencedCarrierPhaseFactor(
-                pk[j], ck[j], wk[j], ikeys[j], bk[j], phase_meas[j], sat[j], mw[j], phase_iono[j], phase_bias[j],
-                0.0, noise(phase_sig[j])))
+            g.add(
+                gtsam.UndifferencedCarrierPhaseFactor(
+                    pk[j],
+                    ck[j],
+                    wk[j],
+                    ikeys[j],
+                    bk[j],
+                    phase_meas[j],
+                    sat[j],
+                    mw[j],
+                    phase_iono[j],
+                    phase_bias[j],
+                    0.0,
+                    noise(phase_sig[j]),
+                )
+            )
         return g
 
     # ------------------------------------------------------------------ values
@@ -658,8 +781,11 @@ class PppGraph:
             if self.arc_start[r]:
                 insert_double(v, amb_key(int(obs.arc[r])), self._amb0(r))
             if self.iono_rows[r]:
-                iono = previous.atDouble(iono_key(p)) if (previous is not None and p >= 0
-                                                          and previous.exists(iono_key(p))) else 0.0
+                iono = (
+                    previous.atDouble(iono_key(p))
+                    if (previous is not None and p >= 0 and previous.exists(iono_key(p)))
+                    else 0.0
+                )
                 insert_double(v, iono_key(r), iono)
         return v
 
@@ -670,8 +796,9 @@ class PppGraph:
             v.insert(self.new_values(k))
         return v
 
-    def epoch_factors(self, k: int, previous: gtsam.Values | None = None, **measurement_kwargs: Any
-                      ) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
+    def epoch_factors(
+        self, k: int, previous: gtsam.Values | None = None, **measurement_kwargs: Any
+    ) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
         """New factors and new values of epoch ``k`` for an incremental solver.
 
         ``measurement_kwargs`` go to :meth:`measurement_factors` (aligned with the epoch's rows).
@@ -689,9 +816,10 @@ class PppGraph:
         clocks first, sequential Cholesky (:func:`gauss_newton_step`) eliminates their
         ``c``-sized columns before anything else and was slightly faster than plain COLAMD.
         """
-        clocks = gtsam.KeyVector([clock_key(k) for k in range(self.obs.n_epochs)]
-                                 + [sysclock_key(s, k) for s in range(1, self.obs.n_isb + 1)
-                                    for k in range(self.obs.n_epochs)])
+        clocks = gtsam.KeyVector(
+            [clock_key(k) for k in range(self.obs.n_epochs)]
+            + [sysclock_key(s, k) for s in range(1, self.obs.n_isb + 1) for k in range(self.obs.n_epochs)]
+        )
         return gtsam.Ordering.ColamdConstrainedFirstNonlinearFactorGraph(graph, clocks)
 
     # ------------------------------------------------------------------ read-out
@@ -705,8 +833,10 @@ class PppGraph:
 
         Keyed by system letter (``obs.systems[1:]``); empty for single-system data.
         """
-        return {name: [values.atDouble(isb_key(s, k)) for k in range(self.obs.n_epochs)]
-                for s, name in enumerate(self.obs.systems[1:], start=1)}
+        return {
+            name: [values.atDouble(isb_key(s, k)) for k in range(self.obs.n_epochs)]
+            for s, name in enumerate(self.obs.systems[1:], start=1)
+        }
 
     def residuals(self, values: gtsam.Values) -> tuple[np.ndarray, np.ndarray]:
         """Code and phase residuals ``measured - predicted`` per row [m] (a-priori measurements).
@@ -725,8 +855,10 @@ class PppGraph:
         for r in np.flatnonzero(self.iono_rows).tolist():
             iono[r] = values.atDouble(iono_keys[r])
         e = self.row_epoch
-        clocks = np.column_stack([clock] + [clock + np.array([values.atDouble(isb_key(s, k)) for k in range(nk)])
-                                            for s in range(1, obs.n_isb + 1)])
+        clocks = np.column_stack(
+            [clock]
+            + [clock + np.array([values.atDouble(isb_key(s, k)) for k in range(nk)]) for s in range(1, obs.n_isb + 1)]
+        )
         geo = sagnac_range(obs.sat_pos, pos[e]) + clocks[e, self.row_system] + zwd[e] * self.wet_mapping
         bias = np.where(self.has_phase, amb[np.maximum(obs.arc, 0)] if amb.size else 0.0, np.nan)
         return self.code_z - (geo + iono), self.phase_z - (geo - iono + bias)
@@ -770,8 +902,9 @@ def _clip_rho(rho: np.ndarray) -> np.ndarray:
     return np.where(near, np.where(rho <= 1.0, 1.0 - _RHO_GAP, 1.0 + _RHO_GAP), rho)
 
 
-def solve(graph: gtsam.NonlinearFactorGraph, initial: gtsam.Values, *, max_iterations: int = 100,
-          relative_tol: float = 1e-6) -> gtsam.Values:
+def solve(
+    graph: gtsam.NonlinearFactorGraph, initial: gtsam.Values, *, max_iterations: int = 100, relative_tol: float = 1e-6
+) -> gtsam.Values:
     """Levenberg-Marquardt from ``initial`` with QR elimination (COLAMD ordering); see the module notes."""
     params = gtsam.LevenbergMarquardtParams()
     params.setLinearSolverType("MULTIFRONTAL_QR")
@@ -781,8 +914,9 @@ def solve(graph: gtsam.NonlinearFactorGraph, initial: gtsam.Values, *, max_itera
     return gtsam.LevenbergMarquardtOptimizer(graph, initial, params).optimize()
 
 
-def gauss_newton_step(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, ordering: gtsam.Ordering
-                      ) -> tuple[gtsam.Values, float]:
+def gauss_newton_step(
+    graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, ordering: gtsam.Ordering
+) -> tuple[gtsam.Values, float]:
     """One Gauss-Newton step: the exact re-solve of a PPP graph from a nearby warm start.
 
     The model is linear in everything but the position, and the range's curvature

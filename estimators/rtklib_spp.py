@@ -4,9 +4,9 @@
 (Debian package ``rtklib``, 2.4.3) and scores its solutions like any other
 estimator's: on a log read from RINEX the raw files it was read from
 (:class:`~simbench.contract.RinexFiles`); on a simulated scenario the files
-:func:`simbench.export.write_receiver_rinex` writes from the receiver's view
+:func:`simbench.data.export.write_receiver_rinex` writes from the receiver's view
 into a temporary directory (observations as simulated, the broadcast orbits the
-signals came from; see :mod:`simbench.export.rinex`). RTKLIB's single mode (``pntpos``) is an independent
+signals came from; see :mod:`simbench.data.export.rinex`). RTKLIB's single mode (``pntpos``) is an independent
 implementation of what a receiver does: per epoch, weighted least squares on
 the L1 code (GPS C/A, BeiDou B1I) with broadcast orbits and clocks, the
 Klobuchar ionosphere and the Saastamoinen troposphere, one clock offset per
@@ -30,6 +30,7 @@ The pieces (:func:`rnx2rtkp_options`, :func:`run_rnx2rtkp`,
 :func:`simbench.data.rtklib_pos.parse_rtklib_pos`, :func:`match_to_epochs`) take
 files and times, not scenarios, so other RINEX sources can reuse them.
 """
+
 from __future__ import annotations
 
 import shutil
@@ -46,15 +47,22 @@ import pandas as pd
 
 from estimators import register
 from estimators.base import Estimator, solution_frame
-from simbench.config import Choice, check_choices
 from simbench.contract import Need, ReceiverData
+from simbench.data.export import write_receiver_rinex
 from simbench.data.rtklib_pos import parse_rtklib_pos
 from simbench.data.solution_times import match_receiver_epochs
 from simbench.errors import SimbenchError, require_positive
-from simbench.export import write_receiver_rinex
+from simbench.typed import Choice, check_choices
 
-__all__ = ["EXECUTABLE", "IonosphereModel", "RtklibSpp", "RtklibSppConfig", "TroposphereModel",
-           "rnx2rtkp_options", "run_rnx2rtkp"]
+__all__ = [
+    "EXECUTABLE",
+    "IonosphereModel",
+    "RtklibSpp",
+    "RtklibSppConfig",
+    "TroposphereModel",
+    "rnx2rtkp_options",
+    "run_rnx2rtkp",
+]
 
 #: The RTKLIB post-processing program.
 EXECUTABLE = "rnx2rtkp"
@@ -100,8 +108,11 @@ class RtklibSppConfig:
         """
         check_choices(self, where)
         if not 0.0 <= self.elevation_mask_deg < 90.0:
-            raise SimbenchError(f"{where}.elevation_mask_deg", f"must be within [0, 90) deg, got "
-                                f"{self.elevation_mask_deg}", "give an elevation mask in degrees, e.g. 10")
+            raise SimbenchError(
+                f"{where}.elevation_mask_deg",
+                f"must be within [0, 90) deg, got {self.elevation_mask_deg}",
+                "give an elevation mask in degrees, e.g. 10",
+            )
         require_positive(f"{where}.timeout_s", self.timeout_s, "give a wall-time limit in seconds, e.g. 300")
 
 
@@ -121,17 +132,31 @@ def rnx2rtkp_options(config: RtklibSppConfig, systems: str) -> dict[str, str]:
     """
     unknown = sorted(set(systems) - set(NAVSYS_BITS))
     if not systems or unknown:
-        raise SimbenchError("scenario.systems", f"RTKLIB knows no system {unknown or repr(systems)}",
-                            f"use letters of '{''.join(NAVSYS_BITS)}'")
+        raise SimbenchError(
+            "scenario.systems",
+            f"RTKLIB knows no system {unknown or repr(systems)}",
+            f"use letters of '{''.join(NAVSYS_BITS)}'",
+        )
     return {
-        "pos1-posmode": "single", "pos1-frequency": "l1", "pos1-soltype": "forward",
-        "pos1-elmask": f"{config.elevation_mask_deg:g}", "pos1-snrmask_r": "off",
-        "pos1-dynamics": "off", "pos1-tidecorr": "off", "pos1-sateph": "brdc",
-        "pos1-ionoopt": _IONO_WORD[config.ionosphere], "pos1-tropopt": _TROPO_WORD[config.troposphere],
-        "pos1-posopt5": "on" if config.raim_fde else "off", "pos1-exclsats": "",
+        "pos1-posmode": "single",
+        "pos1-frequency": "l1",
+        "pos1-soltype": "forward",
+        "pos1-elmask": f"{config.elevation_mask_deg:g}",
+        "pos1-snrmask_r": "off",
+        "pos1-dynamics": "off",
+        "pos1-tidecorr": "off",
+        "pos1-sateph": "brdc",
+        "pos1-ionoopt": _IONO_WORD[config.ionosphere],
+        "pos1-tropopt": _TROPO_WORD[config.troposphere],
+        "pos1-posopt5": "on" if config.raim_fde else "off",
+        "pos1-exclsats": "",
         "pos1-navsys": str(sum(NAVSYS_BITS[s] for s in set(systems))),
-        "out-solformat": "xyz", "out-outhead": "on", "out-timesys": "gpst", "out-timeform": "tow",
-        "out-timendec": "3", "out-outstat": "off",
+        "out-solformat": "xyz",
+        "out-outhead": "on",
+        "out-timesys": "gpst",
+        "out-timeform": "tow",
+        "out-timendec": "3",
+        "out-outstat": "off",
     }
 
 
@@ -168,29 +193,43 @@ def run_rnx2rtkp(obs: str, navs: Sequence[str], options: Mapping[str, str], time
     """
     for key, path in (("obs", obs), *(("nav", n) for n in navs)):
         if not Path(path).is_file():
-            raise SimbenchError(f"scenario.rinex.{key}", f"'{path}' does not exist",
-                                "rerun from the RINEX files (the cached scenario points to moved files)")
+            raise SimbenchError(
+                f"scenario.rinex.{key}",
+                f"'{path}' does not exist",
+                "rerun from the RINEX files (the cached scenario points to moved files)",
+            )
     with tempfile.TemporaryDirectory(prefix="rtklib_spp-") as tmp:
         conf, out = Path(tmp) / "spp.conf", Path(tmp) / "out.pos"
         conf.write_text("".join(f"{k}={v}\n" for k, v in options.items()))
         cmd = [EXECUTABLE, "-k", str(conf), "-o", str(out), obs, *navs]
         try:
             # check=False: a failed run is reported below with the tool's own last line
-            proc = subprocess.run(cmd, cwd=tmp, capture_output=True, text=True, errors="replace", timeout=timeout_s,
-                                  check=False)
+            proc = subprocess.run(
+                cmd, cwd=tmp, capture_output=True, text=True, errors="replace", timeout=timeout_s, check=False
+            )
         except FileNotFoundError:
-            raise SimbenchError("rtklib_spp", f"{EXECUTABLE} is not on PATH",
-                                "install RTKLIB (apt-get install rtklib)") from None
+            raise SimbenchError(
+                "rtklib_spp", f"{EXECUTABLE} is not on PATH", "install RTKLIB (apt-get install rtklib)"
+            ) from None
         except subprocess.TimeoutExpired:
-            raise SimbenchError("estimator.rtklib_spp.timeout_s", f"{EXECUTABLE} ran longer than {timeout_s:g} s",
-                                "raise timeout_s or shorten the log") from None
+            raise SimbenchError(
+                "estimator.rtklib_spp.timeout_s",
+                f"{EXECUTABLE} ran longer than {timeout_s:g} s",
+                "raise timeout_s or shorten the log",
+            ) from None
         text = out.read_text(errors="replace") if out.is_file() else ""
     if proc.returncode != 0:
-        raise SimbenchError("rtklib_spp", f"{EXECUTABLE} exited with code {proc.returncode}: "
-                            f"{_last_line(proc.stderr)}", "check the RINEX files with rnx2rtkp by hand")
+        raise SimbenchError(
+            "rtklib_spp",
+            f"{EXECUTABLE} exited with code {proc.returncode}: {_last_line(proc.stderr)}",
+            "check the RINEX files with rnx2rtkp by hand",
+        )
     if not any(ln.strip() and not ln.startswith("%") for ln in text.splitlines()):
-        raise SimbenchError("rtklib_spp", f"{EXECUTABLE} wrote no solution: {_last_line(proc.stderr)}",
-                            "check that the navigation files cover the observations and the systems match")
+        raise SimbenchError(
+            "rtklib_spp",
+            f"{EXECUTABLE} wrote no solution: {_last_line(proc.stderr)}",
+            "check that the navigation files cover the observations and the systems match",
+        )
     return text
 
 
@@ -219,12 +258,16 @@ class RtklibSpp(Estimator):
         si, ei, _ = match_receiver_epochs(data, pos["t_gps"].to_numpy())
         matched = pos.iloc[si]
         update_s = (time.perf_counter() - start) / max(si.size, 1)
-        epochs = solution_frame(ei, data.epoch_times[ei], matched[["x", "y", "z"]].to_numpy(),
-                                np.full(si.size, update_s))
+        epochs = solution_frame(
+            ei, data.epoch_times[ei], matched[["x", "y", "z"]].to_numpy(), np.full(si.size, update_s)
+        )
         program = next((ln.split(":", 1)[1].strip() for ln in text.splitlines() if ln.startswith("% program")), "")
         diagnostics = {
-            "program": program, "options": options, "files": "raw" if data.rinex is not None else "exported",
-            "n_solutions": len(pos), "n_matched": int(si.size),
+            "program": program,
+            "options": options,
+            "files": "raw" if data.rinex is not None else "exported",
+            "n_solutions": len(pos),
+            "n_matched": int(si.size),
             "quality_counts": {str(k): int(v) for k, v in matched["q"].value_counts().sort_index().items()},
             "median_satellites": float(matched["ns"].median()) if len(matched) else float("nan"),
         }

@@ -11,7 +11,7 @@ Factors, all whitened:
 * GTSAM ``CombinedImuFactor`` between consecutive states (IMU preintegration,
   see :mod:`estimators.ins_mechanisation`), linearised natively in C++ (one
   call per pair; whitening and assembly are batched over the window,
-  :func:`_pair_terms`);
+  :func:`pair_terms`);
 * a two-state receiver clock model (bias and drift, Allan h0 / h-2);
 * per satellite an L1 pseudorange (:class:`estimators.gnss_ins_data.GnssEpoch`)
   and a Doppler range rate ``-lambda D + satellite drift = rdot + receiver drift``,
@@ -58,6 +58,7 @@ information form; with L = 1 and Algorithm 1 it is the iterated EKF.
 The prior's Jacobian w.r.t. the first state is taken as the identity (the
 Pose3 local-coordinate Jacobian at a small offset from the prior mean).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
@@ -78,12 +79,19 @@ from estimators.ins_mechanisation import (
     preintegration_params,
     rotate_about_vertical,
 )
+from simbench.core.constants import C_LIGHT, DEG
 from simbench.gnss.doppler import range_rate
 from simbench.gnss.geometry import sagnac_range_gradient
-from simbench.sim.constants import C_LIGHT, DEG
 
 __all__ = [
-    "BA", "BG", "CLK", "DRIFT", "NS", "POS", "ROT", "VEL",
+    "BA",
+    "BG",
+    "CLK",
+    "DRIFT",
+    "NS",
+    "POS",
+    "ROT",
+    "VEL",
     "GnssTerms",
     "NormalEquations",
     "WindowNode",
@@ -107,11 +115,11 @@ def soft_threshold(c: np.ndarray, lam: np.ndarray | float) -> np.ndarray:
 def initial_sigmas(cfg: GnssInsConfig) -> np.ndarray:
     """A priori sigmas of the first state in the 17 error-state units (rad, m, m/s, m/s^2, rad/s, m, m/s)."""
     s = np.empty(NS)
-    s[ROT:ROT + 3] = [cfg.roll_pitch_sigma_deg * DEG, cfg.roll_pitch_sigma_deg * DEG, cfg.yaw_sigma_deg * DEG]
-    s[POS:POS + 3] = cfg.pos_sigma_m
-    s[VEL:VEL + 3] = cfg.vel_sigma_mps
-    s[BA:BA + 3] = cfg.accel_bias_sigma_mps2
-    s[BG:BG + 3] = cfg.gyro_bias_sigma_dph * DEG_PER_HOUR
+    s[ROT : ROT + 3] = [cfg.roll_pitch_sigma_deg * DEG, cfg.roll_pitch_sigma_deg * DEG, cfg.yaw_sigma_deg * DEG]
+    s[POS : POS + 3] = cfg.pos_sigma_m
+    s[VEL : VEL + 3] = cfg.vel_sigma_mps
+    s[BA : BA + 3] = cfg.accel_bias_sigma_mps2
+    s[BG : BG + 3] = cfg.gyro_bias_sigma_dph * DEG_PER_HOUR
     s[CLK], s[DRIFT] = cfg.clock_sigma_m, cfg.drift_sigma_mps
     return s
 
@@ -139,7 +147,7 @@ class WindowNode:
 
     def retract(self, d: np.ndarray) -> WindowNode:
         """The node moved by the error-state step ``d`` (shape (17,)), S copied as in :meth:`copy`."""
-        return _retracted([self], d)[0]
+        return retracted([self], d)[0]
 
     def _with_state(self, pose: gtsam.Pose3, vel: np.ndarray, bias: np.ndarray, clk: np.ndarray) -> WindowNode:
         """A node with this one's factors, a copy of its S and the given (new, unshared) state."""
@@ -171,8 +179,8 @@ def _local(mean: WindowNode, node: WindowNode) -> np.ndarray:
     """Tangent-space difference ``node - mean`` (GTSAM Pose3 local coordinates for the pose)."""
     d = np.empty(NS)
     d[:6] = mean.pose.localCoordinates(node.pose)
-    d[VEL:VEL + 3] = node.vel - mean.vel
-    d[BA:BG + 3] = node.bias - mean.bias
+    d[VEL : VEL + 3] = node.vel - mean.vel
+    d[BA : BG + 3] = node.bias - mean.bias
     d[CLK:] = node.clk - mean.clk
     return d
 
@@ -217,21 +225,44 @@ def _gnss_layout(nodes: list[WindowNode]) -> _GnssLayout:
     bounds = [(i, int(b - c), int(b)) for i, b, c in zip(idx, stops, counts)]
     if not idx:
         none = np.zeros(0)
-        return _GnssLayout(idx=idx, node=np.zeros(0, int), bounds=bounds, counts=counts, width=0,
-                           padded=np.zeros(0, int), sat_pos=np.zeros((0, 3)), sat_vel=np.zeros((0, 3)), z_code=none,
-                           z_rr=none, w=none, used=np.zeros(0, bool))
+        return _GnssLayout(
+            idx=idx,
+            node=np.zeros(0, int),
+            bounds=bounds,
+            counts=counts,
+            width=0,
+            padded=np.zeros(0, int),
+            sat_pos=np.zeros((0, 3)),
+            sat_vel=np.zeros((0, 3)),
+            z_code=none,
+            z_rr=none,
+            w=none,
+            used=np.zeros(0, bool),
+        )
     width = int(counts.max())
     slot = np.arange(stops[-1]) - np.repeat(stops - counts, counts)  # row number within its node
     first = np.repeat(2 * width * np.arange(len(idx)), counts) + slot
     w = np.concatenate([np.concatenate([g.w_code for g in gs]), np.concatenate([g.w_rr for g in gs])])
     w.flags.writeable = False  # handed out in every GnssTerms of the window
-    return _GnssLayout(idx, np.array(idx), bounds, counts, width, np.concatenate([first, first + width]),
-                       np.concatenate([g.sat_pos for g in gs]), np.concatenate([g.sat_vel for g in gs]),
-                       np.concatenate([g.code for g in gs]), np.concatenate([g.rr for g in gs]), w, w > 0)
+    return _GnssLayout(
+        idx,
+        np.array(idx),
+        bounds,
+        counts,
+        width,
+        np.concatenate([first, first + width]),
+        np.concatenate([g.sat_pos for g in gs]),
+        np.concatenate([g.sat_vel for g in gs]),
+        np.concatenate([g.code for g in gs]),
+        np.concatenate([g.rr for g in gs]),
+        w,
+        w > 0,
+    )
 
 
-def window_gnss_terms(nodes: list[WindowNode], jacobian: bool = True,
-                      layout: _GnssLayout | None = None) -> GnssTerms | None:
+def window_gnss_terms(
+    nodes: list[WindowNode], jacobian: bool = True, layout: _GnssLayout | None = None
+) -> GnssTerms | None:
     """Whitened GNSS errors (and Jacobian) of every node, vectorised over the window; None without GNSS.
 
     ``layout`` is :func:`_gnss_layout` of ``nodes`` when the caller keeps it.
@@ -252,10 +283,10 @@ def window_gnss_terms(nodes: list[WindowNode], jacobian: bool = True,
     rot = np.repeat(poses[:, :3, :3], lay.counts, axis=0)
     J = np.zeros((2 * R, NS))
     # the Pose3 tangent moves the position along body axes: dp = R dt
-    J[:R, POS:POS + 3] = np.einsum("rj,rjk->rk", grad, rot)
+    J[:R, POS : POS + 3] = np.einsum("rj,rjk->rk", grad, rot)
     J[:R, CLK] = 1.0
-    J[R:, POS:POS + 3] = np.einsum("rj,rjk->rk", d_pos, rot)
-    J[R:, VEL:VEL + 3] = d_vel
+    J[R:, POS : POS + 3] = np.einsum("rj,rjk->rk", d_pos, rot)
+    J[R:, VEL : VEL + 3] = d_vel
     J[R:, DRIFT] = 1.0
     J *= lay.w[:, None]
     return GnssTerms(e, J, lay.w, lay.bounds)
@@ -271,8 +302,7 @@ def _sequential_sum(values: np.ndarray) -> float:
     return float(np.add.accumulate(values)[-1])
 
 
-def _gnss_blocks(g: GnssTerms, b: np.ndarray,
-                 lay: _GnssLayout) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _gnss_blocks(g: GnssTerms, b: np.ndarray, lay: _GnssLayout) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Normal-equation terms of each GNSS node's code and range-rate rows.
 
     The rows are scattered into a zero-padded (node, code / range rate, row, 17)
@@ -318,7 +348,7 @@ def _s_of(nodes: list[WindowNode]) -> np.ndarray:
 #: vel_j, bias_i and bias_j: each range transposed is the column-major (15, k) array GTSAM writes into.
 _IMU_BLOCKS = ((0, 6), (6, 9), (9, 15), (15, 18), (18, 24), (24, 30))
 #: Column of a pair's Jacobian (the 17 error states of node i-1, then those of node i) of each of those 30 columns.
-_IMU_COLUMNS = np.r_[ROT:VEL + 3, NS + ROT:NS + VEL + 3, BA:BG + 3, NS + BA:NS + BG + 3]
+_IMU_COLUMNS = np.r_[ROT : VEL + 3, NS + ROT : NS + VEL + 3, BA : BG + 3, NS + BA : NS + BG + 3]
 
 
 class _WindowFactors(NamedTuple):
@@ -337,7 +367,7 @@ class _WindowFactors(NamedTuple):
     outputs: list[list[np.ndarray]]  #: per pair, the six column-major views of its slab GTSAM writes into
 
 
-def _window_factors(nodes: list[WindowNode]) -> _WindowFactors:
+def window_factors(nodes: list[WindowNode]) -> _WindowFactors:
     """:class:`_WindowFactors` of a window (node ``k >= 1`` holds the factors from node ``k - 1``)."""
     later = nodes[1:]
     # stacked column-major like each factor (a transposed Cholesky factor): the batched products then run the
@@ -356,13 +386,14 @@ class _Linearisation(NamedTuple):
 
     R0: np.ndarray  #: (17, 17) Jacobian of the prior w.r.t. the first node
     b0: np.ndarray  #: (17,) minus the prior's whitened error
-    A: np.ndarray  #: (n - 1, 17, 34) IMU and clock Jacobians of each pair (:func:`_pair_terms`)
+    A: np.ndarray  #: (n - 1, 17, 34) IMU and clock Jacobians of each pair (:func:`pair_terms`)
     b: np.ndarray  #: (n - 1, 17) minus their whitened errors
     gnss: GnssTerms | None  #: GNSS rows with their Jacobian, None without GNSS
 
 
-def _pair_terms(nodes: list[WindowNode], factors: _WindowFactors,
-                jacobian: bool = True) -> tuple[np.ndarray | None, np.ndarray]:
+def pair_terms(
+    nodes: list[WindowNode], factors: _WindowFactors, jacobian: bool = True
+) -> tuple[np.ndarray | None, np.ndarray]:
     """IMU and clock factors of every two consecutive nodes, stacked over the window.
 
     GTSAM evaluates each ``CombinedImuFactor`` (one C++ call per pair: every
@@ -391,8 +422,9 @@ def _pair_terms(nodes: list[WindowNode], factors: _WindowFactors,
     err = np.empty((pairs, 15))
     for k in range(pairs):
         a, b = nodes[k], nodes[k + 1]
-        err[k] = b.imu.evaluateError(a.pose, a.vel, b.pose, b.vel, biases[k], biases[k + 1],
-                                     *(factors.outputs[k] if jacobian else ()))
+        err[k] = b.imu.evaluateError(
+            a.pose, a.vel, b.pose, b.vel, biases[k], biases[k + 1], *(factors.outputs[k] if jacobian else ())
+        )
     clk = np.array([n.clk for n in nodes])
     rhs = np.empty((pairs, NS))
     rhs[:, :15] = -_mv(factors.W, err)
@@ -401,8 +433,8 @@ def _pair_terms(nodes: list[WindowNode], factors: _WindowFactors,
         return None, rhs
     A = np.zeros((pairs, NS, 2 * NS))
     A[:, :15, _IMU_COLUMNS] = factors.W @ factors.slab.swapaxes(-1, -2)
-    A[:, 15:, CLK:CLK + 2] = -factors.Wc @ factors.F
-    A[:, 15:, NS + CLK:NS + CLK + 2] = factors.Wc
+    A[:, 15:, CLK : CLK + 2] = -factors.Wc @ factors.F
+    A[:, 15:, NS + CLK : NS + CLK + 2] = factors.Wc
     return A, rhs
 
 
@@ -466,7 +498,7 @@ class NormalEquations(NamedTuple):
         return H.reshape(NS * n, NS * n)
 
 
-def _upper_cholesky(info: np.ndarray) -> np.ndarray:
+def upper_cholesky(info: np.ndarray) -> np.ndarray:
     """Upper triangular ``R`` with ``R^T R = info`` for a marginal information matrix.
 
     The Schur complement of a window whose states span metres and
@@ -484,12 +516,12 @@ def _upper_cholesky(info: np.ndarray) -> np.ndarray:
         return np.linalg.cholesky((v * w) @ v.T + jitter).T
 
 
-def _retracted(nodes: list[WindowNode], dx: np.ndarray) -> list[WindowNode]:
+def retracted(nodes: list[WindowNode], dx: np.ndarray) -> list[WindowNode]:
     """The nodes moved by the error-state step ``dx`` (shape (17 n,)); S copied as in :meth:`WindowNode.copy`."""
     d = dx.reshape(len(nodes), NS)
     # the vector states move in one addition each; only the pose retraction (GTSAM) is per node
-    vel = np.array([n.vel for n in nodes]) + d[:, VEL:VEL + 3]
-    bias = np.array([n.bias for n in nodes]) + d[:, BA:BG + 3]
+    vel = np.array([n.vel for n in nodes]) + d[:, VEL : VEL + 3]
+    bias = np.array([n.bias for n in nodes]) + d[:, BA : BG + 3]
     clk = np.array([n.clk for n in nodes]) + d[:, CLK:]
     return [n._with_state(n.pose.retract(dn[:6]), v, b, c) for n, dn, v, b, c in zip(nodes, d, vel, bias, clk)]
 
@@ -520,16 +552,21 @@ class WindowSolver:
         Convergence threshold on ``|dX|_2`` and ``|dS|_2``.
     """
 
-    def __init__(self, cfg: GnssInsConfig, window: int, lambdas: tuple[float, float], max_iterations: int,
-                 tol: float) -> None:
+    def __init__(
+        self, cfg: GnssInsConfig, window: int, lambdas: tuple[float, float], max_iterations: int, tol: float
+    ) -> None:
         self.cfg = cfg
         self.window = window
         self.lam_rho, self.lam_d = lambdas
         self.max_iterations = max_iterations
         self.tol = tol
-        self.noise = ImuNoise.from_datasheet(cfg.accel_noise_mps2_rthz, cfg.gyro_noise_dph_rthz,
-                                             cfg.accel_bias_instability_mps2, cfg.gyro_bias_instability_dph,
-                                             cfg.bias_tau_s)
+        self.noise = ImuNoise.from_datasheet(
+            cfg.accel_noise_mps2_rthz,
+            cfg.gyro_noise_dph_rthz,
+            cfg.accel_bias_instability_mps2,
+            cfg.gyro_bias_instability_dph,
+            cfg.bias_tau_s,
+        )
         self.nodes: list[WindowNode] = []
         self.prior_mean: WindowNode | None = None
         self.prior_R = np.eye(NS)
@@ -567,10 +604,17 @@ class WindowSolver:
         n = len(self.nodes)
         total = float(np.sum(dt))
         F, sqrt_info = _clock_model(total, self.cfg.clock_h0, self.cfg.clock_h_2)
-        return WindowNode(pose=ns.pose(), vel=np.asarray(ns.velocity()), bias=last.bias.copy(), clk=F @ last.clk,
-                          imu=gtsam.CombinedImuFactor(X(n - 1), V(n - 1), X(n), V(n), B(n - 1), B(n), pim),
-                          clk_sqrt_info=sqrt_info, dt=total, params=params,
-                          imu_sqrt_info=np.linalg.cholesky(np.linalg.inv(pim.preintMeasCov())).T)
+        return WindowNode(
+            pose=ns.pose(),
+            vel=np.asarray(ns.velocity()),
+            bias=last.bias.copy(),
+            clk=F @ last.clk,
+            imu=gtsam.CombinedImuFactor(X(n - 1), V(n - 1), X(n), V(n), B(n - 1), B(n), pim),
+            clk_sqrt_info=sqrt_info,
+            dt=total,
+            params=params,
+            imu_sqrt_info=np.linalg.cholesky(np.linalg.inv(pim.preintMeasCov())).T,
+        )
 
     def append(self, node: WindowNode, gnss: GnssEpoch | None) -> None:
         """Add a predicted node with its GNSS epoch; marginalise the oldest when the window overflows."""
@@ -593,9 +637,9 @@ class WindowSolver:
         self._ne, self._lin, self._factors, self._s_penalty = None, None, None, None
 
     def _stacked_factors(self) -> _WindowFactors:
-        """:func:`_window_factors` of the current nodes, kept until :meth:`_factors_changed`."""
+        """:func:`window_factors` of the current nodes, kept until :meth:`_factors_changed`."""
         if self._factors is None:
-            self._factors = _window_factors(self.nodes)
+            self._factors = window_factors(self.nodes)
         return self._factors
 
     # ---------------------------------------------------------------- linearisation
@@ -608,7 +652,7 @@ class WindowSolver:
     def _linearise(self, nodes: list[WindowNode], factors: _WindowFactors) -> _Linearisation:
         """Every factor of a window with the given factors, linearised at its states."""
         R, b0 = self._prior_terms(nodes)
-        A, b = _pair_terms(nodes, factors)
+        A, b = pair_terms(nodes, factors)
         return _Linearisation(R, b0, A, b, window_gnss_terms(nodes, layout=factors.gnss))
 
     def _linearised(self) -> _Linearisation:
@@ -617,8 +661,9 @@ class WindowSolver:
             self._lin = self._linearise(self.nodes, self._stacked_factors())
         return self._lin
 
-    def _normal_equations(self, nodes: list[WindowNode], lin: _Linearisation, factors: _WindowFactors,
-                          gnss_nodes: set[int] | None = None) -> NormalEquations:
+    def _normal_equations(
+        self, nodes: list[WindowNode], lin: _Linearisation, factors: _WindowFactors, gnss_nodes: set[int] | None = None
+    ) -> NormalEquations:
         """:class:`NormalEquations` of a window from its linearisation and S (GNSS of ``gnss_nodes`` only)."""
         n = len(nodes)
         D = np.zeros((n, NS, NS))
@@ -662,7 +707,7 @@ class WindowSolver:
         """``|z - g(X) - S|^2 + 2 sum lambda |S|`` of the window."""
         nodes = self.nodes if nodes is None else nodes
         _, b0 = self._prior_terms(nodes)
-        _, b = _pair_terms(nodes, _window_factors(nodes), jacobian=False)
+        _, b = pair_terms(nodes, window_factors(nodes), jacobian=False)
         sq = float(b0 @ b0) + float(np.sum(b * b))
         g = window_gnss_terms(nodes, jacobian=False)
         if g is not None:
@@ -685,7 +730,7 @@ class WindowSolver:
         self._ne = None
         # a step below the tolerance cannot change the cost beyond round-off: take it as is
         if not line_search or step < self.tol:
-            self.nodes, self._lin = _retracted(self.nodes, dx), None
+            self.nodes, self._lin = retracted(self.nodes, dx), None
             return float(np.sqrt(ne.sq)), step
         if self._s_penalty is None:  # S is fixed during X steps: one sum per S step
             self._s_penalty = 2.0 * self._weighted_s_l1(self.nodes)
@@ -694,7 +739,7 @@ class WindowSolver:
         factors = self._stacked_factors()  # a retraction keeps the factors
         alpha = 1.0
         for _ in range(6):
-            trial = _retracted(self.nodes, alpha * dx)
+            trial = retracted(self.nodes, alpha * dx)
             lin = self._linearise(trial, factors)
             trial_ne = self._normal_equations(trial, lin, factors)
             if trial_ne.sq + s_pen <= c0 * (1.0 + 1e-12):
@@ -714,7 +759,7 @@ class WindowSolver:
         new = soft_threshold(-g.e, lam) * (g.w > 0)  # c = z - g(X), whitened
         old = _s_of(self.nodes)
         for i, lo, hi in g.bounds:
-            self.nodes[i].s_code, self.nodes[i].s_rr = new[lo:hi], new[R + lo:R + hi]
+            self.nodes[i].s_code, self.nodes[i].s_rr = new[lo:hi], new[R + lo : R + hi]
         self._ne, self._s_penalty = None, None
         return float(np.linalg.norm(new - old))
 
@@ -764,14 +809,15 @@ class WindowSolver:
         g = lin.gnss
         R = len(g.e) // 2
         _, lo, hi = g.bounds[-1]
-        rows = np.r_[lo:hi, R + lo:R + hi]
+        rows = np.r_[lo:hi, R + lo : R + hi]
         e, J, w = g.e[rows], g.J[rows], g.w[rows]
         var = np.einsum("ij,jk,ik->i", J, P, J) + (w > 0)
         bad = (np.abs(e) > gate * np.sqrt(np.maximum(var, 1e-30))) & (w > 0)
         if bad.any():
             k = len(node.gnss.code)
-            node.gnss = replace(node.gnss, w_code=np.where(bad[:k], 0.0, node.gnss.w_code),
-                                w_rr=np.where(bad[k:], 0.0, node.gnss.w_rr))
+            node.gnss = replace(
+                node.gnss, w_code=np.where(bad[:k], 0.0, node.gnss.w_code), w_rr=np.where(bad[k:], 0.0, node.gnss.w_rr)
+            )
             self._factors_changed()
         self.x_step(line_search=False)
         return int(bad.sum())
@@ -789,13 +835,13 @@ class WindowSolver:
         pair = [n.copy() for n in self.nodes[:2]]
         for n in pair:
             n.gnss = n.without_outliers()
-        factors = _window_factors(pair)
+        factors = window_factors(pair)
         ne = self._normal_equations(pair, self._linearise(pair, factors), factors)
         H00, H01, H11 = ne.D[0], ne.U[0], ne.D[1]
         c = cho_factor(H00 + 1e-12 * np.eye(NS))
         lam = H11 - H01.T @ cho_solve(c, H01)
         eta1 = ne.eta[NS:] - H01.T @ cho_solve(c, ne.eta[:NS])
-        R = _upper_cholesky(0.5 * (lam + lam.T))
+        R = upper_cholesky(0.5 * (lam + lam.T))
         self.prior_R = R
         self.prior_r = solve_triangular(R, eta1, trans="T")
         self.prior_mean = self.nodes[1].copy()

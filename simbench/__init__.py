@@ -1,54 +1,28 @@
 """simbench: simulation-and-benchmark harness for robust GNSS and GNSS/INS estimation.
 
 The notebook entry points are :func:`simulate` (one scenario) and :func:`run`
-(a study: estimators x seeds, scored, with a report; :mod:`simbench.study`); the
-command line is ``python -m simbench`` (a Hydra app, configs in the repository's ``conf/``).
+(a study: estimators x seeds, scored, with a report), both in :mod:`simbench.api`;
+the command line is ``python -m simbench`` (:mod:`simbench.cli`, a Hydra app, configs
+in the repository's ``conf/``).
+
+Layers, bottom up, each importing only those below it (``tests/test_layering.py``):
+``errors``/``typed``/``contract`` (the shared base), :mod:`simbench.core` (physics),
+:mod:`simbench.gnss` (measurement model), :mod:`simbench.sim` beside :mod:`simbench.data`
+(scenario sources), ``estimators``, :mod:`simbench.analysis`, :mod:`simbench.runs`,
+:mod:`simbench.report`, then :mod:`simbench.api` and :mod:`simbench.cli`.
+The attributes below load on first use (``lazy_loader``): importing
+``simbench.core.frames`` must not load Hydra, GTSAM and every estimator.
 """
+
 from __future__ import annotations
 
-from typing import Any
+import lazy_loader
 
-from simbench.contract import NavInfo, ReceiverData, Scenario
-from simbench.errors import SimbenchError
-
-__all__ = ["simulate", "run", "StudyResult", "Scenario", "ReceiverData", "NavInfo", "SimbenchError"]
-
-
-def __getattr__(name: str) -> Any:
-    """:func:`run` and :class:`StudyResult` on first use: they load Hydra and every estimator."""
-    if name in ("run", "StudyResult"):
-        from simbench import study
-
-        return getattr(study, name)
-    raise AttributeError(f"module 'simbench' has no attribute '{name}'")
-
-
-def simulate(scenario: str = "urban", receiver: str = "low", seed: int = 0, imu: str = "consumer",
-             **overrides: Any) -> Scenario:
-    """Generate a scenario from the presets in ``conf/``.
-
-    Parameters
-    ----------
-    scenario : str
-        A file name in ``conf/scenario/`` (``urban``, ``open_sky``, ``flight``, ``replay``).
-    receiver : str
-        A tracking preset in ``conf/receiver/`` (``low``, ``high``, ``geodetic``).
-    seed : int
-        Random seed; the scenario is a deterministic function of config and seed.
-    imu : str
-        IMU grade in ``conf/imu/`` (``consumer``, ``industrial``, ``tactical``).
-    **overrides
-        Dotted config keys, e.g. ``**{"scenario.duration_s": 60}``, or with
-        ``__`` for dots: ``scenario__duration_s=60``.
-
-    Returns
-    -------
-    Scenario
-    """
-    from simbench.compose import compose_config, overrides_from_kwargs
-    from simbench.scenarios import sim_config
-    from simbench.sim.generator import generate
-
-    cfg = compose_config([f"scenario={scenario}", f"receiver={receiver}", f"imu={imu}", f"seed={seed}",
-                          *overrides_from_kwargs(overrides)])
-    return generate(sim_config(cfg))
+__getattr__, __dir__, __all__ = lazy_loader.attach(
+    __name__,
+    submod_attrs={
+        "api": ["simulate", "run", "StudyResult"],
+        "contract": ["Scenario", "ReceiverData", "NavInfo"],
+        "errors": ["SimbenchError"],
+    },
+)

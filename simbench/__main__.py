@@ -1,3 +1,3 @@
-from simbench.cli import main
+from simbench.cli.main import main
 
 main()

@@ -11,6 +11,7 @@ estimator whose :class:`Need` a scenario does not offer (:func:`available_needs`
 Every column, its unit and its meaning is listed in the ``*_COLUMNS`` dicts
 below; README's data-contract tables restate them (tests/test_readme.py checks every column is there).
 """
+
 from __future__ import annotations
 
 import json
@@ -54,10 +55,12 @@ OBSERVATION_COLUMNS: dict[str, str] = {
 #: IMU table, one row per IMU sample; body axes x forward, y right, z down.
 IMU_COLUMNS: dict[str, str] = {
     "t": "s, sample time since scenario start",
-    "ax": "m/s^2, specific force along body x", "ay": "m/s^2, specific force along body y",
+    "ax": "m/s^2, specific force along body x",
+    "ay": "m/s^2, specific force along body y",
     "az": "m/s^2, specific force along body z",
     "gx": "rad/s, angular rate about body x (w.r.t. inertial space)",
-    "gy": "rad/s, angular rate about body y", "gz": "rad/s, angular rate about body z",
+    "gy": "rad/s, angular rate about body y",
+    "gz": "rad/s, angular rate about body z",
 }
 
 #: Odometry table, one row per odometry sample (wheel speed and yaw rate, e.g. libRSF ``odom3``);
@@ -66,17 +69,24 @@ ODOMETRY_COLUMNS: dict[str, str] = {
     "t": "s, sample time since scenario start (GPS time scale; may precede the first epoch)",
     "speed": "m/s, speed over ground along body x (forward; negative when reversing)",
     "yaw_rate": "rad/s, turn rate about body z (down) w.r.t. the Earth: positive turning right "
-                "(clockwise seen from above)",
+    "(clockwise seen from above)",
     "var_speed": "m^2/s^2, variance of speed as the vehicle reports it (not the true error)",
     "var_yaw_rate": "rad^2/s^2, variance of yaw_rate as the vehicle reports it",
 }
 
 #: Truth trajectory, one row per GNSS epoch.
 TRUTH_COLUMNS: dict[str, str] = {
-    "epoch": "int, GNSS epoch index", "t": "s, time since scenario start",
-    "x": "m, antenna ECEF x", "y": "m, antenna ECEF y", "z": "m, antenna ECEF z",
-    "vx": "m/s, ECEF velocity x", "vy": "m/s, ECEF velocity y", "vz": "m/s, ECEF velocity z",
-    "roll": "rad, body roll w.r.t. local NED", "pitch": "rad, body pitch", "yaw": "rad, heading from north",
+    "epoch": "int, GNSS epoch index",
+    "t": "s, time since scenario start",
+    "x": "m, antenna ECEF x",
+    "y": "m, antenna ECEF y",
+    "z": "m, antenna ECEF z",
+    "vx": "m/s, ECEF velocity x",
+    "vy": "m/s, ECEF velocity y",
+    "vz": "m/s, ECEF velocity z",
+    "roll": "rad, body roll w.r.t. local NED",
+    "pitch": "rad, body pitch",
+    "yaw": "rad, heading from north",
     "rx_clock": "m, true receiver clock offset times c",
     "zwd": "m, true zenith wet delay",
     "n_visible": "int, satellites above the elevation mask before any masking",
@@ -84,7 +94,8 @@ TRUTH_COLUMNS: dict[str, str] = {
 
 #: Error labels, one row per observation row (same order, same epoch and sat).
 LABEL_COLUMNS: dict[str, str] = {
-    "epoch": "int, GNSS epoch index", "sat": "str, satellite id",
+    "epoch": "int, GNSS epoch index",
+    "sat": "str, satellite id",
     "sigma_code_l1": "m, true DLL tracking jitter std of this observation",
     "sigma_phase_l1": "m, true PLL tracking jitter std",
     "multipath_code_l1": "m, true code multipath error (diffuse process + the DLL's error on the canyon rays)",
@@ -131,7 +142,7 @@ class NavInfo:
         libRSF files); the broadcast Klobuchar delay must not be removed again.
     ephemeris : str
         The broadcast orbits the satellite states come from, for tools that need
-        a navigation file (:mod:`simbench.export`): ``'nominal'`` (the simulator's
+        a navigation file (:mod:`simbench.data.export`): ``'nominal'`` (the simulator's
         nominal constellation), the path of a RINEX GPS navigation file, or
         ``''`` when unknown (libRSF logs, whose files carry satellite positions only).
     """
@@ -178,8 +189,9 @@ class ReceiverData:
     odometry: pd.DataFrame = field(default_factory=empty_odometry)
 
     def __post_init__(self) -> None:
-        leaked = (set(self.observations.columns) | set(self.imu.columns)
-                  | set(self.odometry.columns)) - RECEIVER_COLUMNS
+        leaked = (
+            set(self.observations.columns) | set(self.imu.columns) | set(self.odometry.columns)
+        ) - RECEIVER_COLUMNS
         if leaked:
             raise ValueError(f"receiver data carries non-receiver columns {sorted(leaked)}")
 
@@ -243,8 +255,11 @@ class Scenario:
         """
         out = Path(directory)
         out.mkdir(parents=True, exist_ok=True)
-        meta = {"nav": self.nav.__dict__, "meta": self.meta,
-                "rinex": None if self.rinex is None else self.rinex.__dict__}
+        meta = {
+            "nav": self.nav.__dict__,
+            "meta": self.meta,
+            "rinex": None if self.rinex is None else self.rinex.__dict__,
+        }
         for name in ("observations", "imu", "truth", "labels", "odometry"):
             table = getattr(self, name)
             if table is not None:
@@ -252,22 +267,33 @@ class Scenario:
         return out
 
     @classmethod
-    def load(cls, directory: str | Path) -> "Scenario":
+    def load(cls, directory: str | Path) -> Scenario:
         """Read a scenario written by :meth:`save`."""
         src = Path(directory)
         if not (src / "observations.parquet").is_file():
-            raise SimbenchError("scenario", f"no observations.parquet in {src}",
-                                "point to a directory written by Scenario.save")
-        tables = {n: pd.read_parquet(src / f"{n}.parquet") if (src / f"{n}.parquet").is_file() else None
-                  for n in ("observations", "imu", "truth", "labels", "odometry")}
+            raise SimbenchError(
+                "scenario", f"no observations.parquet in {src}", "point to a directory written by Scenario.save"
+            )
+        tables = {
+            n: pd.read_parquet(src / f"{n}.parquet") if (src / f"{n}.parquet").is_file() else None
+            for n in ("observations", "imu", "truth", "labels", "odometry")
+        }
         meta = read_parquet_metadata(src / "observations.parquet")["simbench.scenario"]
         nav = meta["nav"]
         nav = NavInfo(**{**nav, "iono_alpha": tuple(nav["iono_alpha"]), "iono_beta": tuple(nav["iono_beta"])})
         rinex = meta.get("rinex")
         rinex = None if rinex is None else RinexFiles(**{**rinex, "nav": tuple(rinex["nav"])})
         odometry = tables["odometry"] if tables["odometry"] is not None else empty_odometry()
-        return cls(tables["observations"], tables["imu"], tables["truth"], tables["labels"], nav, meta["meta"],
-                   rinex=rinex, odometry=odometry)
+        return cls(
+            tables["observations"],
+            tables["imu"],
+            tables["truth"],
+            tables["labels"],
+            nav,
+            meta["meta"],
+            rinex=rinex,
+            odometry=odometry,
+        )
 
 
 class Need(str, Enum):
@@ -288,7 +314,7 @@ class Need(str, Enum):
     #: L2 code and phase (``nav.dual_frequency`` and any finite ``code_l2``).
     dual_frequency = "dual_frequency"
     #: RINEX files for external tools: those a log was read from (``Scenario.rinex``), or written by
-    #: :mod:`simbench.export` from the observations and the broadcast orbits (``NavInfo.ephemeris``).
+    #: :mod:`simbench.data.export` from the observations and the broadcast orbits (``NavInfo.ephemeris``).
     rinex_files = "rinex_files"
 
 
@@ -299,7 +325,7 @@ MISSING_NEED_REASONS: dict[Need, str] = {
     Need.labels: "needs error labels; the scenario (real data) has none",
     Need.dual_frequency: "needs L2 code and phase; the observations are single-frequency",
     Need.rinex_files: "needs RINEX files; the scenario was not read from RINEX and has no broadcast orbits to "
-                      "export (a libRSF log)",
+    "export (a libRSF log)",
 }
 
 
@@ -322,8 +348,7 @@ def available_needs(scenario: Scenario) -> frozenset[Need]:
         offered.add(Need.imu)
     if scenario.labels is not None:
         offered.add(Need.labels)
-    if (scenario.nav.dual_frequency and "code_l2" in obs
-            and np.isfinite(obs["code_l2"].to_numpy(dtype=float)).any()):
+    if scenario.nav.dual_frequency and "code_l2" in obs and np.isfinite(obs["code_l2"].to_numpy(dtype=float)).any():
         offered.add(Need.dual_frequency)
     if scenario.rinex is not None or scenario.nav.ephemeris:
         offered.add(Need.rinex_files)

@@ -4,7 +4,10 @@ Every check of user input raises :class:`SimbenchError` with a one-line message
 that names the offending field and says how to fix it; the CLI prints the
 message alone instead of a traceback.
 """
+
 from __future__ import annotations
+
+import traceback
 
 
 class SimbenchError(ValueError):
@@ -25,3 +28,12 @@ def require_at_least(field: str, value: float, low: float, fix: str) -> None:
     """Raise a one-line :class:`SimbenchError` naming ``field`` unless ``value >= low`` (NaN fails)."""
     if not value >= low:
         raise SimbenchError(field, f"must be at least {low}, got {value}", fix)
+
+
+def one_line(exc: BaseException) -> str:
+    """``exc`` as one line: a :class:`SimbenchError` as it is, anything else as type, message and where it rose."""
+    if isinstance(exc, SimbenchError):
+        return str(exc)
+    where = traceback.extract_tb(exc.__traceback__)[-1] if exc.__traceback__ else None
+    loc = f" (at {where.filename.rsplit('/', 1)[-1]}:{where.lineno})" if where else ""
+    return f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}{loc}"

@@ -5,6 +5,7 @@ fixture. When the directory is missing such a test fails with one line (CI must
 not pass by skipping it), unless ``SIMBENCH_ALLOW_MISSING_SHARED`` is set, for
 machines that knowingly run without the data; then it is skipped.
 """
+
 from __future__ import annotations
 
 import os
@@ -41,8 +42,10 @@ def require_shared(path: Path, environ: Mapping[str, str] = os.environ) -> Path:
     """
     if path.is_dir():
         return path
-    message = (f"shared data directory {path} not found -- put shared/ beside the repository, "
-               f"or set {ALLOW_MISSING_SHARED}=1 to skip the tests that need it")
+    message = (
+        f"shared data directory {path} not found -- put shared/ beside the repository, "
+        f"or set {ALLOW_MISSING_SHARED}=1 to skip the tests that need it"
+    )
     if environ.get(ALLOW_MISSING_SHARED, "") not in ("", "0"):
         pytest.skip(message)
     pytest.fail(message, pytrace=False)

@@ -1,4 +1,5 @@
 """Checks of the Klobuchar, Saastamoinen and Niell models against independent numbers."""
+
 from __future__ import annotations
 
 import math
@@ -6,15 +7,15 @@ import math
 import numpy as np
 import pytest
 
-from simbench.errors import SimbenchError
-from simbench.sim.atmosphere import (
+from simbench.core.atmosphere import (
     klobuchar_l1_delay_m,
     niell_mapping,
     saastamoinen_zenith_m,
     standard_atmosphere,
     tropo_slant_m,
 )
-from simbench.sim.constants import C_LIGHT
+from simbench.core.constants import C_LIGHT
+from simbench.errors import SimbenchError
 
 # Klobuchar coefficients of wvu_drives/brdc.18n (ConstellationConfig defaults).
 ALPHA = (8.382e-09, -1.490e-08, -5.960e-08, 1.192e-07)
@@ -69,11 +70,19 @@ def test_klobuchar_worked_example():
     # phi_m = 0.264271; t = 46651.3 s (12:57 local); AMP = 2.4820e-9 s;
     # PER = 72000 s (clamped); x = -0.32714; F = 1.76742;
     # T = F (5e-9 + AMP (1 - x^2/2 + x^4/24)) = 12.991 ns -> 3.8947 m.
-    got = klobuchar_l1_delay_m(SOW_NOON + 6 * 3600.0, math.radians(LAT_DEG), math.radians(LON_DEG),
-                               math.radians(30.0), math.radians(135.0), ALPHA, BETA)
+    got = klobuchar_l1_delay_m(
+        SOW_NOON + 6 * 3600.0,
+        math.radians(LAT_DEG),
+        math.radians(LON_DEG),
+        math.radians(30.0),
+        math.radians(135.0),
+        ALPHA,
+        BETA,
+    )
     assert got == pytest.approx(3.8947, abs=5e-4)
-    assert got == pytest.approx(klobuchar_scalar(SOW_NOON + 6 * 3600.0, LAT_DEG, LON_DEG, 30.0, 135.0,
-                                                 ALPHA, BETA), rel=1e-12)
+    assert got == pytest.approx(
+        klobuchar_scalar(SOW_NOON + 6 * 3600.0, LAT_DEG, LON_DEG, 30.0, 135.0, ALPHA, BETA), rel=1e-12
+    )
 
 
 def test_klobuchar_matches_scalar_reference_with_broadcasting():
@@ -86,11 +95,14 @@ def test_klobuchar_matches_scalar_reference_with_broadcasting():
     az = rng.uniform(0.0, 360.0, (n, m))
     # Southern-hemisphere-like coefficients make AMP < 0 and PER > 72000 somewhere too.
     for alpha, beta in ((ALPHA, BETA), ((2.0e-8, 3.0e-8, -1.2e-7, 0.0), (1.4e5, 1.0e5, -6.0e5, 2.0e5))):
-        got = klobuchar_l1_delay_m(sow, np.radians(lat), np.radians(lon), np.radians(el), np.radians(az),
-                                   alpha, beta)
+        got = klobuchar_l1_delay_m(sow, np.radians(lat), np.radians(lon), np.radians(el), np.radians(az), alpha, beta)
         assert got.shape == (n, m)
-        want = np.array([[klobuchar_scalar(sow[i, 0], lat[i, 0], lon[i, 0], el[i, j], az[i, j], alpha, beta)
-                          for j in range(m)] for i in range(n)])
+        want = np.array(
+            [
+                [klobuchar_scalar(sow[i, 0], lat[i, 0], lon[i, 0], el[i, j], az[i, j], alpha, beta) for j in range(m)]
+                for i in range(n)
+            ]
+        )
         np.testing.assert_allclose(got, want, rtol=1e-9)
 
 
@@ -98,8 +110,9 @@ def test_klobuchar_night_is_5ns_times_obliquity():
     el = np.array([5.0, 10.0, 20.0, 45.0, 70.0, 90.0])
     # 02:00 local: |t - 50400| ~ 43200 s > 1.57/(2 pi) * PER for PER = 72000 s.
     sow = SOW_NOON + (2.0 - LON_DEG / 15.0 - 12.0) * 3600.0
-    got = klobuchar_l1_delay_m(sow, math.radians(LAT_DEG), math.radians(LON_DEG), np.radians(el),
-                               math.radians(60.0), ALPHA, BETA)
+    got = klobuchar_l1_delay_m(
+        sow, math.radians(LAT_DEG), math.radians(LON_DEG), np.radians(el), math.radians(60.0), ALPHA, BETA
+    )
     np.testing.assert_allclose(got, C_LIGHT * 5e-9 * obliquity(el), rtol=1e-12)
     # the slant factor F at 5 deg is about 3.0 (1.5 m night floor * 3)
     assert got[0] / got[-1] == pytest.approx(obliquity(5.0) / obliquity(90.0), rel=1e-12)
@@ -110,8 +123,9 @@ def test_klobuchar_zenith_afternoon_and_elevation_growth():
     lam_sc = LON_DEG / 180.0
     # 14:00 local time at the receiver longitude (t = 4.32e4 lam + sow = 50400 mod 86400).
     sow = SOW_NOON - SOW_NOON % 86_400.0 + (50_400.0 - 4.32e4 * lam_sc) % 86_400.0
-    zenith = float(klobuchar_l1_delay_m(sow, math.radians(LAT_DEG), math.radians(LON_DEG), math.pi / 2, 0.0,
-                                        ALPHA, BETA))
+    zenith = float(
+        klobuchar_l1_delay_m(sow, math.radians(LAT_DEG), math.radians(LON_DEG), math.pi / 2, 0.0, ALPHA, BETA)
+    )
     assert 1.0 < zenith < 15.0
     assert zenith == pytest.approx(2.125, abs=0.005)  # 7.09 ns: 5 ns floor + AMP 2.09 ns
     assert zenith > C_LIGHT * 5e-9  # above the night floor in daytime
@@ -291,4 +305,3 @@ def test_tropo_slant_combines_parts():
     got = tropo_slant_m(el, lat, h, doy, 0.12)
     np.testing.assert_allclose(got, zhd * m_h + 0.12 * m_w, rtol=1e-14)
     assert got[0, 2] == pytest.approx(2.307 * 0.966 + 0.12, abs=0.02)  # ~300 m up: 3.4 % less air
-

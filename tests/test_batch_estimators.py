@@ -1,4 +1,5 @@
 """The shared PPP graph, the residual clustering and the batch robust estimators."""
+
 from __future__ import annotations
 
 import gtsam
@@ -20,8 +21,8 @@ from estimators.ekf_ppp import EkfPpp
 from estimators.measurement import prepare_ppp
 from estimators.oracle import Oracle
 from estimators.ppp_graph import PppGraph, PppGraphConfig, gauss_newton_step, solve
+from simbench.analysis.metrics import enu_errors
 from simbench.contract import Scenario
-from simbench.metrics import enu_errors
 from simbench.gnss.geometry import sagnac_range
 
 
@@ -73,8 +74,9 @@ def test_coupled_code_phase_factors_give_the_mahalanobis_distance(solved) -> Non
     for sc, sp, cov in ((2.0, 0.05, 0.06), (0.3, 0.2, 0.05), (1.0, 0.8, -0.7)):
         sigma = np.array([[sc**2, cov], [cov, sp**2]])
         mean = np.array([0.4, -0.01])
-        f = g.measurement_factors(rows, code_sigma=sc, phase_sigma=sp, code_phase_cov=cov,
-                                  code_offset=mean[0], phase_offset=mean[1])
+        f = g.measurement_factors(
+            rows, code_sigma=sc, phase_sigma=sp, code_phase_cov=cov, code_offset=mean[0], phase_offset=mean[1]
+        )
         for j, row in enumerate(rows):
             r = np.array([r_c[row], r_p[row]]) - mean
             expected = r @ np.linalg.solve(sigma, r)
@@ -95,12 +97,21 @@ def test_one_gauss_newton_step_resolves_a_reweighted_graph(solved) -> None:
     rng = np.random.default_rng(1002)
     # a BCE-like re-weighting: per-row covariances and offsets of three "clusters"
     label = rng.integers(0, 3, n)
-    sc, sp, cov = np.array([1.0, 4.0, 0.5])[label], np.array([0.02, 0.5, 0.01])[label], np.array(
-        [0.005, 1.5, -0.002])[label]
+    sc, sp, cov = (
+        np.array([1.0, 4.0, 0.5])[label],
+        np.array([0.02, 0.5, 0.01])[label],
+        np.array([0.005, 1.5, -0.002])[label],
+    )
     reweighted = gtsam.NonlinearFactorGraph(g.structure_factors())
-    reweighted.push_back(g.measurement_factors(code_sigma=sc, phase_sigma=sp, code_phase_cov=cov,
-                                               code_offset=np.array([0.0, 3.0, 0.2])[label],
-                                               phase_offset=np.array([0.0, 2.0, 0.0])[label]))
+    reweighted.push_back(
+        g.measurement_factors(
+            code_sigma=sc,
+            phase_sigma=sp,
+            code_phase_cov=cov,
+            code_offset=np.array([0.0, 3.0, 0.2])[label],
+            phase_offset=np.array([0.0, 2.0, 0.0])[label],
+        )
+    )
     ordering = g.elimination_ordering(reweighted)
     stepped, err = gauss_newton_step(reweighted, values, ordering)
     assert err == pytest.approx(reweighted.error(stepped), rel=1e-12)
@@ -172,7 +183,7 @@ def _with_injected_nlos(scen: Scenario, fraction: float, seed: int) -> Scenario:
         idx = np.flatnonzero(sats == s)
         for start in range(0, len(idx), 10):
             if rng.random() < fraction:
-                bad[idx[start:start + 10]] = True
+                bad[idx[start : start + 10]] = True
     delay = rng.uniform(10.0, 60.0, len(obs)) * bad
     obs["code_l1"] += delay
     obs["phase_l1"] += delay
@@ -188,8 +199,14 @@ def test_robust_estimators_beat_l2_and_the_oracle_is_best() -> None:
     data = scen.receiver_view()
     median = {}
     # a few robust iterations suffice to separate 10-60 m delays; keeps the test fast
-    for est in (L2Batch(), DcsBatch(), MmBatch(MmConfig(max_iterations=10)), Bce(BceConfig(max_iterations=10)),
-                BceAd(BceAdConfig(max_iterations=10)), Oracle()):
+    for est in (
+        L2Batch(),
+        DcsBatch(),
+        MmBatch(MmConfig(max_iterations=10)),
+        Bce(BceConfig(max_iterations=10)),
+        BceAd(BceAdConfig(max_iterations=10)),
+        Oracle(),
+    ):
         if est.uses_labels:
             est.attach_labels(scen.labels)
         sol = est.estimate(data)

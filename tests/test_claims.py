@@ -4,6 +4,7 @@ Each rule gets rows built so that the verdict is known by construction (one
 case that holds, one that does not) and its measured number is checked; a run
 without the claim's sweep leaves every claim ``not measured``.
 """
+
 from __future__ import annotations
 
 from typing import Any
@@ -13,31 +14,50 @@ import pandas as pd
 import pytest
 
 from estimators.ice import AdaptiveNoiseModel, IceConfig
-from simbench.claims import CLAIMS, CONVERGENCE_S, adaptation_outcome, claims_table
-from simbench.runner import SUMMARY_COLUMNS
-from simbench.variants import overrides_json, variant_label
+from simbench.analysis.claims import CLAIMS, CONVERGENCE_S, adaptation_outcome, claims_table
+from simbench.analysis.variants import overrides_json, variant_label
+from simbench.runs.runner import SUMMARY_COLUMNS
 
 NO_EPOCHS = pd.DataFrame(columns=["sweep", "t", "estimator", "seed", "error_3d"])
 #: Per-seed multipliers around 1 (seed to seed spread, so bootstrap intervals are not degenerate).
 BASE = 5.0 + np.random.default_rng(0).normal(0, 0.3, 12)
 
 
-def _rows(sweep: str, values: dict[str, Any], column: str = "horizontal_median", receiver: str = "low",
-          overrides: dict[str, Any] | None = None) -> pd.DataFrame:
+def _rows(
+    sweep: str,
+    values: dict[str, Any],
+    column: str = "horizontal_median",
+    receiver: str = "low",
+    overrides: dict[str, Any] | None = None,
+) -> pd.DataFrame:
     """Summary rows with status ok: one per (estimator, seed), ``values[estimator][seed]`` in ``column``.
 
     Every other column of :data:`SUMMARY_COLUMNS` exists and is empty, as in a real summary.
     """
     overrides = overrides or {}
-    return pd.DataFrame([{"sweep": sweep, "scenario": "urban", "receiver": receiver, "seed": seed,
-                          "estimator": name, "overrides": overrides_json(overrides),
-                          "variant": variant_label(overrides), "status": "ok", column: float(value)}
-                         for name, per_seed in values.items() for seed, value in enumerate(per_seed)],
-                        columns=list(SUMMARY_COLUMNS))
+    return pd.DataFrame(
+        [
+            {
+                "sweep": sweep,
+                "scenario": "urban",
+                "receiver": receiver,
+                "seed": seed,
+                "estimator": name,
+                "overrides": overrides_json(overrides),
+                "variant": variant_label(overrides),
+                "status": "ok",
+                column: float(value),
+            }
+            for name, per_seed in values.items()
+            for seed, value in enumerate(per_seed)
+        ],
+        columns=list(SUMMARY_COLUMNS),
+    )
 
 
-def _verdict(summary: pd.DataFrame, claim_id: str, epochs: pd.DataFrame = NO_EPOCHS,
-             diagnostics: dict | None = None) -> pd.Series:
+def _verdict(
+    summary: pd.DataFrame, claim_id: str, epochs: pd.DataFrame = NO_EPOCHS, diagnostics: dict | None = None
+) -> pd.Series:
     return claims_table(summary, epochs, diagnostics).set_index("claim_id").loc[claim_id]
 
 
@@ -47,9 +67,20 @@ def _scaled(**factors: float) -> dict[str, np.ndarray]:
 
 
 def test_every_claim_has_a_test_here() -> None:
-    tested = {"ch4_convergence", "ch4_overall_median", "ch5_bce_low", "ch5_high_comparable", "ch5_sensitivity",
-              "ch5_runtime", "ch6_bce_ad", "ch7_ice_low", "ch7_high_comparable", "ch7_adaptations",
-              "crt_accuracy_order", "crt_window"}
+    tested = {
+        "ch4_convergence",
+        "ch4_overall_median",
+        "ch5_bce_low",
+        "ch5_high_comparable",
+        "ch5_sensitivity",
+        "ch5_runtime",
+        "ch6_bce_ad",
+        "ch7_ice_low",
+        "ch7_high_comparable",
+        "ch7_adaptations",
+        "crt_accuracy_order",
+        "crt_window",
+    }
     assert {c.claim_id for c in CLAIMS} == tested
 
 
@@ -63,10 +94,20 @@ def test_without_the_papers_sweeps_every_claim_is_not_measured() -> None:
 
 def _convergence_epochs(isam2_early: float, ekf_early: float) -> pd.DataFrame:
     t = np.array([0.0, 300.0, 600.0, CONVERGENCE_S, 1500.0])
-    rows = [pd.DataFrame({"sweep": "ch4_convergence", "estimator": name, "seed": seed, "t": t,
-                          # after the window both are 100 m: only the first 15 minutes may count
-                          "error_3d": np.where(t < CONVERGENCE_S, early * BASE[seed], 100.0)})
-            for name, early in (("isam2_ppp", isam2_early), ("ekf_ppp", ekf_early)) for seed in range(6)]
+    rows = [
+        pd.DataFrame(
+            {
+                "sweep": "ch4_convergence",
+                "estimator": name,
+                "seed": seed,
+                "t": t,
+                # after the window both are 100 m: only the first 15 minutes may count
+                "error_3d": np.where(t < CONVERGENCE_S, early * BASE[seed], 100.0),
+            }
+        )
+        for name, early in (("isam2_ppp", isam2_early), ("ekf_ppp", ekf_early))
+        for seed in range(6)
+    ]
     return pd.concat(rows, ignore_index=True)
 
 
@@ -98,8 +139,10 @@ def test_ch5_bce_low_holds_only_when_bce_is_clearly_lower() -> None:
     same = _rows("ch5_bce", _scaled(bce=1.0, l2=1.01, dcs=1.1, mm=1.0))
     assert _verdict(same, "ch5_bce_low")["holds"] == "does not hold"
     # the high receiver's rows are another claim's
-    assert _verdict(_rows("ch5_bce", _scaled(bce=0.7, l2=1.0, dcs=1.1, mm=0.9), receiver="high"),
-                    "ch5_bce_low")["holds"] == "not measured"
+    assert (
+        _verdict(_rows("ch5_bce", _scaled(bce=0.7, l2=1.0, dcs=1.1, mm=0.9), receiver="high"), "ch5_bce_low")["holds"]
+        == "not measured"
+    )
 
 
 def test_ch5_high_comparable_holds_within_15_percent() -> None:
@@ -116,29 +159,32 @@ def _sensitivity(medians: dict[str, list[float]]) -> pd.DataFrame:
     frames = []
     for i, scale in enumerate((0.1, 1.0, 10.0)):
         overrides = {} if scale == 1.0 else {"prior_scale": scale}
-        frames.append(_rows("ch5_sensitivity", {name: [v[i]] * 3 for name, v in medians.items()},
-                            overrides=overrides))
+        frames.append(_rows("ch5_sensitivity", {name: [v[i]] * 3 for name, v in medians.items()}, overrides=overrides))
     return pd.concat(frames, ignore_index=True)
 
 
 def test_ch5_sensitivity_holds_when_bce_varies_least_over_the_prior_scales() -> None:
-    flat = _sensitivity({"bce": [5.0, 5.0, 5.0], "l2": [4.0, 5.0, 8.0], "dcs": [5.0, 6.0, 7.0],
-                         "mm": [5.0, 5.5, 6.0]})
+    flat = _sensitivity({"bce": [5.0, 5.0, 5.0], "l2": [4.0, 5.0, 8.0], "dcs": [5.0, 6.0, 7.0], "mm": [5.0, 5.5, 6.0]})
     row = _verdict(flat, "ch5_sensitivity")
     assert row["holds"] == "holds" and row["measured"] == pytest.approx(1.0 / 1.2) and row["n_seeds"] == 3
-    steep = _sensitivity({"bce": [3.0, 5.0, 9.0], "l2": [4.0, 5.0, 8.0], "dcs": [5.0, 6.0, 7.0],
-                          "mm": [5.0, 5.5, 6.0]})
+    steep = _sensitivity({"bce": [3.0, 5.0, 9.0], "l2": [4.0, 5.0, 8.0], "dcs": [5.0, 6.0, 7.0], "mm": [5.0, 5.5, 6.0]})
     row = _verdict(steep, "ch5_sensitivity")
     assert row["holds"] == "does not hold" and row["measured"] == pytest.approx(3.0 / 1.2)
 
 
 def test_ch5_runtime_holds_when_bce_is_the_slowest() -> None:
-    slow = _rows("ch5_bce", {name: BASE * f * 1e-5 for name, f in (("bce", 4.0), ("l2", 1.0), ("dcs", 2.0),
-                                                                    ("mm", 1.5))}, "time_per_obs_s")
+    slow = _rows(
+        "ch5_bce",
+        {name: BASE * f * 1e-5 for name, f in (("bce", 4.0), ("l2", 1.0), ("dcs", 2.0), ("mm", 1.5))},
+        "time_per_obs_s",
+    )
     row = _verdict(slow, "ch5_runtime")
     assert row["holds"] == "holds" and row["measured"] == pytest.approx(2.0)
-    fast = _rows("ch5_bce", {name: BASE * f * 1e-5 for name, f in (("bce", 1.0), ("l2", 1.0), ("dcs", 2.0),
-                                                                    ("mm", 1.5))}, "time_per_obs_s")
+    fast = _rows(
+        "ch5_bce",
+        {name: BASE * f * 1e-5 for name, f in (("bce", 1.0), ("l2", 1.0), ("dcs", 2.0), ("mm", 1.5))},
+        "time_per_obs_s",
+    )
     row = _verdict(fast, "ch5_runtime")
     assert row["holds"] == "does not hold" and row["measured"] == pytest.approx(0.5)
 
@@ -205,9 +251,18 @@ def test_crt_accuracy_order_holds_for_crt_below_iekf_below_ekf_at_the_default_wi
 
 def _windows(p95_by_window: dict[int, float]) -> pd.DataFrame:
     """crt_window rows of CRT-LSS: window 10 is the dataclass default, so its rows carry no override."""
-    return pd.concat([_rows("crt_window", {"crt_lss": [p95] * 3}, "error_3d_p95",
-                            overrides={} if window == 10 else {"window": window})
-                      for window, p95 in p95_by_window.items()], ignore_index=True)
+    return pd.concat(
+        [
+            _rows(
+                "crt_window",
+                {"crt_lss": [p95] * 3},
+                "error_3d_p95",
+                overrides={} if window == 10 else {"window": window},
+            )
+            for window, p95 in p95_by_window.items()
+        ],
+        ignore_index=True,
+    )
 
 
 def test_crt_window_reads_the_window_from_the_overrides_column() -> None:
@@ -224,12 +279,23 @@ def test_crt_window_reads_the_window_from_the_overrides_column() -> None:
 
 
 def test_convergence_statistics_use_the_first_15_minutes_only() -> None:
-    from simbench.tables import convergence_statistics
+    from simbench.analysis.tables import convergence_statistics
 
     t = np.arange(1800.0)
-    rows = [pd.DataFrame({"estimator": name, "variant": "", "overrides": "{}", "seed": seed, "t": t,
-                          "error_3d": np.where(t < 900.0, early + seed, 0.1)})
-            for name, early in (("slow", 2.0), ("fast", 1.0)) for seed in range(3)]
+    rows = [
+        pd.DataFrame(
+            {
+                "estimator": name,
+                "variant": "",
+                "overrides": "{}",
+                "seed": seed,
+                "t": t,
+                "error_3d": np.where(t < 900.0, early + seed, 0.1),
+            }
+        )
+        for name, early in (("slow", 2.0), ("fast", 1.0))
+        for seed in range(3)
+    ]
     table = convergence_statistics(pd.concat(rows)).set_index("estimator")
     assert table.loc["slow", "error_3d_mean"] == 3.0 and table.loc["fast", "error_3d_mean"] == 2.0
     assert table.loc["slow", "error_3d_max"] == 3.0 and table.loc["slow", "n_seeds"] == 3
@@ -242,13 +308,24 @@ def _on(world: str, rows: pd.DataFrame) -> pd.DataFrame:
 
 
 def test_each_claim_gets_one_verdict_per_world_from_that_worlds_rows_alone() -> None:
-    from simbench.claims import NOT_RUN, claims_by_world
+    from simbench.analysis.claims import NOT_RUN, claims_by_world
 
-    summary = pd.concat([_on("urban", _rows("ch5_bce", _scaled(bce=0.7, l2=1.0, dcs=1.1, mm=0.9))),
-                         _on("morgantown1", _rows("ch5_bce", _scaled(bce=1.2, l2=1.0, dcs=1.1, mm=0.9))),
-                         _on("flight", _rows("ch4_convergence", _scaled(isam2_ppp=1.05, ekf_ppp=1.0),
-                                             "error_3d_median", overrides={"ionosphere_free": True}))],
-                        ignore_index=True)
+    summary = pd.concat(
+        [
+            _on("urban", _rows("ch5_bce", _scaled(bce=0.7, l2=1.0, dcs=1.1, mm=0.9))),
+            _on("morgantown1", _rows("ch5_bce", _scaled(bce=1.2, l2=1.0, dcs=1.1, mm=0.9))),
+            _on(
+                "flight",
+                _rows(
+                    "ch4_convergence",
+                    _scaled(isam2_ppp=1.05, ekf_ppp=1.0),
+                    "error_3d_median",
+                    overrides={"ionosphere_free": True},
+                ),
+            ),
+        ],
+        ignore_index=True,
+    )
     epochs = _convergence_epochs(0.25, 1.0).assign(scenario="flight")
     table = claims_table(summary, epochs, {}).set_index(["claim_id", "world"])
     assert table.loc[("ch5_bce_low", "urban"), "holds"] == "holds"
@@ -264,7 +341,8 @@ def test_each_claim_gets_one_verdict_per_world_from_that_worlds_rows_alone() -> 
     wide = claims_by_world(claims_table(summary, epochs, {})).set_index("claim_id")
     assert list(wide.columns) == ["published", "flight", "morgantown1", "urban"]
     assert wide.loc["ch5_bce_low", "urban"].startswith("0.778 [") and wide.loc["ch5_bce_low", "urban"].endswith(
-        "] holds")
+        "] holds"
+    )
     assert wide.loc["ch5_bce_low", "morgantown1"].endswith("does not hold")
     assert wide.loc["ch5_bce_low", "flight"] == NOT_RUN and wide.loc["ch4_overall_median", "urban"] == NOT_RUN
     assert wide.loc["ch4_overall_median", "flight"] == "1.05 [1.05, 1.05] holds"
@@ -276,13 +354,20 @@ def test_diagnostics_and_prior_scales_are_split_by_world() -> None:
         diag = {"n_adaptations": adaptations, "naive_adaptations": naive}
         return [{"job": {"sweep": "ch7_ice", "scenario": world}, "diagnostics": diag}] * 2
 
-    flat = _on("urban", _sensitivity({"bce": [5.0, 5.0, 5.0], "l2": [4.0, 5.0, 8.0], "dcs": [5.0, 6.0, 7.0],
-                                      "mm": [5.0, 5.5, 6.0]}))
-    steep = _on("urban_deep", _sensitivity({"bce": [3.0, 5.0, 9.0], "l2": [4.0, 5.0, 8.0],
-                                            "dcs": [5.0, 6.0, 7.0], "mm": [5.0, 5.5, 6.0]}))
+    flat = _on(
+        "urban",
+        _sensitivity({"bce": [5.0, 5.0, 5.0], "l2": [4.0, 5.0, 8.0], "dcs": [5.0, 6.0, 7.0], "mm": [5.0, 5.5, 6.0]}),
+    )
+    steep = _on(
+        "urban_deep",
+        _sensitivity({"bce": [3.0, 5.0, 9.0], "l2": [4.0, 5.0, 8.0], "dcs": [5.0, 6.0, 7.0], "mm": [5.0, 5.5, 6.0]}),
+    )
     ice = pd.concat([_on(w, _rows("ch7_ice", _scaled(ice=1.0))) for w in ("urban", "urban_deep")])
-    table = claims_table(pd.concat([flat, steep, ice], ignore_index=True), NO_EPOCHS,
-                         {"ice": jobs("urban", 3, 12) + jobs("urban_deep", 12, 12)}).set_index(["claim_id", "world"])
+    table = claims_table(
+        pd.concat([flat, steep, ice], ignore_index=True),
+        NO_EPOCHS,
+        {"ice": jobs("urban", 3, 12) + jobs("urban_deep", 12, 12)},
+    ).set_index(["claim_id", "world"])
     assert table.loc[("ch5_sensitivity", "urban"), "measured"] == pytest.approx(1.0 / 1.2)
     assert table.loc[("ch5_sensitivity", "urban_deep"), "measured"] == pytest.approx(3.0 / 1.2)
     assert table.loc[("ch7_adaptations", "urban"), "measured"] == pytest.approx(0.25)

@@ -1,4 +1,5 @@
 """``python -m simbench`` end to end, and its one-line errors."""
+
 from __future__ import annotations
 
 import subprocess
@@ -8,17 +9,18 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from simbench.compose import available, config_groups
 from estimators.rtklib_spp import RtklibSpp
 from simbench.contract import read_parquet_metadata
-from simbench.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS
+from simbench.runs.compose import available, config_groups
+from simbench.runs.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
 def _run(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "simbench", *args], cwd=ROOT, capture_output=True, text=True,
-                          timeout=600)
+    return subprocess.run(
+        [sys.executable, "-m", "simbench", *args], cwd=ROOT, capture_output=True, text=True, timeout=600
+    )
 
 
 def test_cli_writes_store_and_report(tmp_path: Path) -> None:
@@ -46,8 +48,9 @@ def test_cli_writes_store_and_report(tmp_path: Path) -> None:
 
 def test_cli_overrides_scenario_and_receiver(tmp_path: Path) -> None:
     out = tmp_path / "flight"
-    proc = _run("scenario=flight", "receiver=high", "seed=3", "scenario.duration_s=90", f"results_dir={out}",
-                "progress=false")
+    proc = _run(
+        "scenario=flight", "receiver=high", "seed=3", "scenario.duration_s=90", f"results_dir={out}", "progress=false"
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     summary = pd.read_parquet(out / "summary.parquet")
     assert (summary["scenario"] == "flight").all() and (summary["receiver"] == "high").all()
@@ -94,8 +97,15 @@ def test_cli_sweep_records_a_scenario_failure_and_goes_on(tmp_path: Path) -> Non
     bad = tmp_path / "bad.txt"
     bad.write_text("garbage line\n")
     out = tmp_path / "sweep"
-    proc = _run("-m", "scenario=librsf", f"scenario.obs={bad}", "seed=0,1", "estimator=[ekf_ppp,l2]",
-                f"results_dir={out}", "progress=false")
+    proc = _run(
+        "-m",
+        "scenario=librsf",
+        f"scenario.obs={bad}",
+        "seed=0,1",
+        "estimator=[ekf_ppp,l2]",
+        f"results_dir={out}",
+        "progress=false",
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     summary = pd.read_parquet(out / "summary.parquet")
     assert len(summary) == 4 and (summary["status"] == "failed").all()
@@ -103,8 +113,15 @@ def test_cli_sweep_records_a_scenario_failure_and_goes_on(tmp_path: Path) -> Non
     assert summary["message"].str.contains("unknown line types").all()
 
 
-@pytest.mark.parametrize("args", [("estimator=[nosuch]",), ("estimator=nosuch",), ("estimator=[ekf_ppp,nosuch]",),
-                                  ("-m", "estimator=[ekf_ppp],[nosuch]")])
+@pytest.mark.parametrize(
+    "args",
+    [
+        ("estimator=[nosuch]",),
+        ("estimator=nosuch",),
+        ("estimator=[ekf_ppp,nosuch]",),
+        ("-m", "estimator=[ekf_ppp],[nosuch]"),
+    ],
+)
 def test_cli_unknown_estimator_names_the_known_ones(args: tuple[str, ...]) -> None:
     line = _one_error_line(_run(*args))
     assert line.startswith("error: estimator: unknown estimator 'nosuch'")
@@ -122,7 +139,7 @@ def test_cli_help_says_what_simbench_is_and_lists_the_groups() -> None:
     assert proc.returncode == 0, proc.stderr[-2000:]
     text = proc.stdout
     assert text.startswith("simbench -- a simulation-and-benchmark harness")
-    for command in ("pip install -e . && python -m simbench", "+sweep=smoke", "python -m simbench.report"):
+    for command in ("pip install -e . && python -m simbench", "+sweep=smoke", "python -m simbench report"):
         assert command in text
     assert "schema" not in text and "powered by Hydra" not in text
     lines = text.splitlines()

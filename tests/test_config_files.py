@@ -10,6 +10,7 @@ IMU presets are overrides by nature (a preset *is* its values), so they need
 no comment; for them every key must be a schema field and every value must
 type-check, which composing them checks.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -23,10 +24,11 @@ from omegaconf import OmegaConf
 
 import estimators
 from estimators.ppp_config import GnssModelConfig, MotionModel, SigmaModel
-from simbench.compose import CONF_DIR, available, compose_config, estimator_yaml
-from simbench.config import ScenarioSource, SimConfig, TrajectoryKind, check_choices, to_typed, validate_sim
 from simbench.errors import SimbenchError
-from simbench.store import config_key
+from simbench.runs.compose import CONF_DIR, available, compose_config, estimator_yaml
+from simbench.runs.store import config_key
+from simbench.sim.config import ScenarioSource, SimConfig, TrajectoryKind, validate_sim
+from simbench.typed import check_choices, to_typed
 
 NAMES = sorted(estimators.registered())
 #: Estimators with a YAML file: every built-in's conf/estimator/<name>.yaml, a plug-in's shipped one.
@@ -75,8 +77,10 @@ def estimator_yaml_problems(text: str, name: str, config: type) -> list[str]:
         if value == getattr(defaults, key):
             problems.append(f"{key}: restates the dataclass default {getattr(defaults, key)!r}; delete it")
         elif not documented:
-            problems.append(f"{key}: {value!r} differs from the default {getattr(defaults, key)!r} without a "
-                            "'# override: <reason>' comment")
+            problems.append(
+                f"{key}: {value!r} differs from the default {getattr(defaults, key)!r} without a "
+                "'# override: <reason>' comment"
+            )
     return problems
 
 
@@ -95,8 +99,7 @@ def test_the_yaml_rule_catches_each_kind_of_violation() -> None:
     head = "defaults:\n  - l2_schema\n  - _self_\n\n"
     assert config().prior_scale == 1.0 and config().max_iterations == 100  # the cases below rely on these
     assert estimator_yaml_problems(head + "l2: {}\n", "l2", config) == []
-    assert estimator_yaml_problems(head + "l2:\n  prior_scale: 3.0  # override: Fig. 5.3.7 point\n", "l2",
-                                   config) == []
+    assert estimator_yaml_problems(head + "l2:\n  prior_scale: 3.0  # override: Fig. 5.3.7 point\n", "l2", config) == []
     undocumented = estimator_yaml_problems(head + "l2:\n  prior_scale: 3.0  # larger\n", "l2", config)
     assert len(undocumented) == 1 and "prior_scale: 3.0 differs" in undocumented[0]
     restated = estimator_yaml_problems(head + "l2:\n  max_iterations: 100  # override: same\n", "l2", config)
@@ -116,11 +119,18 @@ def test_composed_estimator_configs_are_the_dataclass_defaults_but_for_the_gnss_
     exactly in the :class:`GnssModelConfig` fields, and an estimator's own setting still wins."""
     dissertation = compose_config(["gnss_model=dissertation"])
     urban = compose_config([])
-    profile = {f.name: getattr(to_typed(OmegaConf.to_container(urban.gnss_model), GnssModelConfig, "gnss_model"),
-                               f.name) for f in dataclasses.fields(GnssModelConfig)}
-    assert profile == {"motion_model": MotionModel.constant_velocity, "sigma_model": SigmaModel.cn0,
-                       "doppler_slip_m": 1.0, "min_satellites": 1, "scaled_mixture": True,
-                       "outlier_scale": 10.0}
+    profile = {
+        f.name: getattr(to_typed(OmegaConf.to_container(urban.gnss_model), GnssModelConfig, "gnss_model"), f.name)
+        for f in dataclasses.fields(GnssModelConfig)
+    }
+    assert profile == {
+        "motion_model": MotionModel.constant_velocity,
+        "sigma_model": SigmaModel.cn0,
+        "doppler_slip_m": 1.0,
+        "min_satellites": 1,
+        "scaled_mixture": True,
+        "outlier_scale": 10.0,
+    }
     shared = 0
     for name in NAMES:
         cls = estimators.get(name).Config
@@ -134,8 +144,12 @@ def test_composed_estimator_configs_are_the_dataclass_defaults_but_for_the_gnss_
     assert one.dcs.sigma_model == "elevation" and one.l2.sigma_model == "cn0"
     assert urban.estimator.ice.scaled_mixture and "scaled_mixture" not in urban.estimator.l2
     # one field, two published values: None resolves to each max-mixture's own default
-    assert [to_typed(OmegaConf.to_container(dissertation.estimator[n], resolve=True), estimators.get(n).Config,
-                     n).outlier_scale for n in ("mm", "isam2_mm")] == [1e6, 10.0]
+    assert [
+        to_typed(
+            OmegaConf.to_container(dissertation.estimator[n], resolve=True), estimators.get(n).Config, n
+        ).outlier_scale
+        for n in ("mm", "isam2_mm")
+    ] == [1e6, 10.0]
 
 
 @pytest.mark.parametrize("sweep", available("sweep"))
@@ -143,8 +157,11 @@ def test_sweeps_compose_and_their_estimator_overrides_apply(sweep: str) -> None:
     cfg = compose_config([f"+sweep={sweep}"])
     for name in cfg.estimator:
         to_typed(OmegaConf.to_container(cfg.estimator[name], resolve=True), estimators.get(name).Config, name)
-    params = ((yaml.safe_load((CONF_DIR / "sweep" / f"{sweep}.yaml").read_text()).get("hydra") or {})
-              .get("sweeper", {}).get("params", {}))
+    params = (
+        (yaml.safe_load((CONF_DIR / "sweep" / f"{sweep}.yaml").read_text()).get("hydra") or {})
+        .get("sweeper", {})
+        .get("params", {})
+    )
     for key, values in params.items():
         if not key.startswith("estimator."):
             continue
@@ -164,9 +181,11 @@ def test_presets_compose_into_the_typed_schema(group: str) -> None:
 
 
 def test_a_bad_choice_on_the_command_line_is_one_line_with_the_allowed_values() -> None:
-    for override, key, allowed in (("scenario.trajectory.kind=boat", "scenario.trajectory.kind", "urban_drive"),
-                                   ("scenario.source=sp3", "scenario.source", "librsf"),
-                                   ("estimator.l2.clock_model=pink", "estimator.l2.clock_model", "random_walk")):
+    for override, key, allowed in (
+        ("scenario.trajectory.kind=boat", "scenario.trajectory.kind", "urban_drive"),
+        ("scenario.source=sp3", "scenario.source", "librsf"),
+        ("estimator.l2.clock_model=pink", "estimator.l2.clock_model", "random_walk"),
+    ):
         with pytest.raises(SimbenchError) as info:
             compose_config([override])
         message = str(info.value)
@@ -176,8 +195,11 @@ def test_a_bad_choice_on_the_command_line_is_one_line_with_the_allowed_values() 
 def test_a_bad_choice_set_in_python_is_one_line_with_the_allowed_values() -> None:
     cfg = SimConfig()
     cfg.scenario.trajectory.kind = "boat"  # type: ignore[assignment]
-    with pytest.raises(SimbenchError, match=r"^scenario.trajectory.kind: unknown value 'boat' -- use one of "
-                                            r"urban_drive, flight, replay$"):
+    with pytest.raises(
+        SimbenchError,
+        match=r"^scenario.trajectory.kind: unknown value 'boat' -- use one of "
+        r"urban_drive, flight, replay$",
+    ):
         validate_sim(cfg)
     cfg = SimConfig()
     cfg.scenario.source = "rinex"  # a plain string equal to a member is fine

@@ -1,5 +1,6 @@
 """Receiver physics at the correlator: band-limited correlation, the DLL on a sum of rays,
 canyon rays (diffraction, Fresnel reflection), channel lock states, and the presets in the generator."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -7,11 +8,11 @@ import pytest
 from scipy.integrate import quad
 
 import simbench
-from simbench.compose import compose_config
-from simbench.config import FacadeMaterial, NlosConfig, ReceiverConfig, to_typed
+from simbench.core.constants import CHIP_LENGTH_CA, CHIP_RATE_CA, DEG
 from simbench.errors import SimbenchError
+from simbench.runs.compose import compose_config
 from simbench.sim.canyon import canyon_rays, fresnel_circular, knife_edge_loss_db
-from simbench.sim.constants import CHIP_LENGTH_CA, CHIP_RATE_CA, DEG
+from simbench.sim.config import FacadeMaterial, NlosConfig, ReceiverConfig
 from simbench.sim.processes import stream
 from simbench.sim.tracking import (
     band_limited_correlation,
@@ -21,6 +22,7 @@ from simbench.sim.tracking import (
     multipath_error_envelope_chips,
     pll_dynamic_stress_deg,
 )
+from simbench.typed import to_typed
 
 WIDE_BAND_HZ = 1e9  # ~1000 chip rates: the correlation is the ideal triangle to 1e-3
 PHASES = np.linspace(0.0, 2.0 * np.pi, 72, endpoint=False)
@@ -94,8 +96,9 @@ def test_lone_reflection_is_tracked_at_its_full_delay() -> None:
     """NLOS-only reception: the DLL locks to the reflection, error = the whole extra path."""
     for name in ("low", "high"):
         spacing, bw = _preset(name)
-        tau, prompt, _ = dll_tracking_point(np.array([[0.0, 0.4]]), np.array([[0.0, 0.11]]), np.array([[0.0, 2.0]]),
-                                            np.array([0.11]), spacing, bw)
+        tau, prompt, _ = dll_tracking_point(
+            np.array([[0.0, 0.4]]), np.array([[0.0, 0.11]]), np.array([[0.0, 2.0]]), np.array([0.11]), spacing, bw
+        )
         assert tau[0] == pytest.approx(0.11, abs=1e-6)
         assert prompt[0] == pytest.approx(0.4, rel=1e-6)  # C/N0 drops by 20 log10(0.4) = 8 dB
 
@@ -121,8 +124,9 @@ def test_carrier_multipath_is_the_phase_of_the_composite() -> None:
     # one reflection at delay well inside the correlator: psi = atan(a sin t / (1 + a cos t))
     alpha, theta = 0.5, np.array([0.5, 1.5, 2.5])
     amp = np.tile([1.0, alpha], (3, 1))
-    _, prompt, phase = dll_tracking_point(amp, np.tile([0.0, 0.001], (3, 1)), np.stack([0 * theta, theta], 1),
-                                          np.zeros(3), 0.5, WIDE_BAND_HZ)
+    _, prompt, phase = dll_tracking_point(
+        amp, np.tile([0.0, 0.001], (3, 1)), np.stack([0 * theta, theta], 1), np.zeros(3), 0.5, WIDE_BAND_HZ
+    )
     np.testing.assert_allclose(phase, np.arctan2(alpha * np.sin(theta), 1 + alpha * np.cos(theta)), atol=2e-3)
     np.testing.assert_allclose(prompt, np.abs(1 + alpha * np.exp(1j * theta)), atol=2e-3)
 
@@ -147,8 +151,7 @@ def test_canyon_rays_geometry() -> None:
     az = np.full((1, 4), 90 * DEG)  # east, across a north-south street
     one = np.ones(1)
     cfg = NlosConfig(reflection_probability=1.0 - 1e-12, facade_relief_sigma_m=1e-9)
-    rays = canyon_rays(el, az, 0 * one, 20 * one, 10 * one, 60 * one, 10 * one, np.zeros(1), cfg, 1.0,
-                       stream(0, "t"))
+    rays = canyon_rays(el, az, 0 * one, 20 * one, 10 * one, 60 * one, 10 * one, np.zeros(1), cfg, 1.0, stream(0, "t"))
     k = np.tan(el[0])  # |sin(az - heading)| = 1
     np.testing.assert_array_equal(rays.blocked[0], [True, True, False, False])  # masked below 45 deg
     # one bounce: masked satellites (original rule), and at 60 deg the bounce point 35 m is below the 60 m roof
@@ -188,8 +191,11 @@ def test_pll_dynamic_stress_kaplan() -> None:
 @pytest.fixture(scope="module")
 def canyon_by_preset() -> dict[str, simbench.Scenario]:
     """One urban scenario received by each preset: diffuse multipath and thermal noise off."""
-    quiet = {"scenario.duration_s": 300, "scenario.errors.multipath.enabled": False,
-             "scenario.errors.tracking_noise": False}
+    quiet = {
+        "scenario.duration_s": 300,
+        "scenario.errors.multipath.enabled": False,
+        "scenario.errors.tracking_noise": False,
+    }
     return {rx: simbench.simulate("urban", rx, seed=1, **quiet) for rx in ("low", "high")}
 
 

@@ -1,4 +1,5 @@
 """CRT-LSS: S step, batch-smoother agreement, outliers in S, window Jacobians and normal equations, validation."""
+
 from __future__ import annotations
 
 import copy
@@ -23,16 +24,16 @@ from estimators.window_solver import (
     VEL,
     WindowNode,
     WindowSolver,
-    _pair_terms,
-    _retracted,
-    _upper_cholesky,
-    _window_factors,
+    pair_terms,
+    retracted,
     soft_threshold,
+    upper_cholesky,
+    window_factors,
     window_gnss_terms,
 )
+from simbench.analysis.metrics import enu_errors
 from simbench.contract import Need, ReceiverData
 from simbench.errors import SimbenchError
-from simbench.metrics import enu_errors
 
 DURATION_S = 50.0
 #: seconds to the injected outlier: after the heading reset, inside the drive
@@ -76,14 +77,24 @@ def test_soft_threshold_is_the_closed_form_minimiser() -> None:
     rng = np.random.default_rng(0)
     c = rng.normal(0.0, 4.0, 40)
     lam = 1.7
-    brute = np.array([minimize_scalar(lambda s, ci=ci: (ci - s) ** 2 + 2 * lam * abs(s),
-                                      bounds=(-30, 30), method="bounded", options={"xatol": 1e-9}).x for ci in c])
+    brute = np.array(
+        [
+            minimize_scalar(
+                lambda s, ci=ci: (ci - s) ** 2 + 2 * lam * abs(s),
+                bounds=(-30, 30),
+                method="bounded",
+                options={"xatol": 1e-9},
+            ).x
+            for ci in c
+        ]
+    )
     np.testing.assert_allclose(soft_threshold(c, lam), brute, atol=1e-5)
     assert np.all(soft_threshold(c, lam)[np.abs(c) <= lam] == 0.0)
 
 
-def test_s_step_equals_soft_threshold_of_whitened_residuals(clean: simbench.Scenario,
-                                                            monkeypatch: pytest.MonkeyPatch) -> None:
+def test_s_step_equals_soft_threshold_of_whitened_residuals(
+    clean: simbench.Scenario, monkeypatch: pytest.MonkeyPatch
+) -> None:
     captured = {}
     orig = WindowSolver.s_step
 
@@ -91,8 +102,12 @@ def test_s_step_equals_soft_threshold_of_whitened_residuals(clean: simbench.Scen
         e, _, w, _ = window_gnss_terms(self.nodes, jacobian=False)
         out = orig(self)
         captured["c"], captured["w"] = -e, w
-        captured["s"] = np.concatenate([np.concatenate([n.s_code for n in self.nodes if n.gnss is not None]),
-                                        np.concatenate([n.s_rr for n in self.nodes if n.gnss is not None])])
+        captured["s"] = np.concatenate(
+            [
+                np.concatenate([n.s_code for n in self.nodes if n.gnss is not None]),
+                np.concatenate([n.s_rr for n in self.nodes if n.gnss is not None]),
+            ]
+        )
         captured["lam"] = (self.lam_rho, self.lam_d)
         return out
 
@@ -157,17 +172,21 @@ def test_window_gnss_jacobian_matches_central_differences(clean: simbench.Scenar
     prep = prepare_gnss_ins(clean.receiver_view(), _cfg())
     truth = clean.truth.set_index("epoch")
     e = 20
-    node = WindowNode(pose=gtsam.Pose3(gtsam.Rot3.Ypr(0.3, 0.02, -0.01), truth.loc[e, ["x", "y", "z"]].to_numpy(float)),
-                      vel=truth.loc[e, ["vx", "vy", "vz"]].to_numpy(float), bias=np.zeros(6),
-                      clk=np.array([truth.loc[e, "rx_clock"], 0.0]))
+    node = WindowNode(
+        pose=gtsam.Pose3(gtsam.Rot3.Ypr(0.3, 0.02, -0.01), truth.loc[e, ["x", "y", "z"]].to_numpy(float)),
+        vel=truth.loc[e, ["vx", "vy", "vz"]].to_numpy(float),
+        bias=np.zeros(6),
+        clk=np.array([truth.loc[e, "rx_clock"], 0.0]),
+    )
     node.attach_gnss(prep.gnss[e])
     J = window_gnss_terms([node]).J
-    for col, step in [(POS, 1.0), (POS + 1, 1.0), (POS + 2, 1.0), (VEL, 0.1), (VEL + 2, 0.1), (CLK, 1.0),
-                      (DRIFT, 0.1)]:
+    for col, step in [(POS, 1.0), (POS + 1, 1.0), (POS + 2, 1.0), (VEL, 0.1), (VEL + 2, 0.1), (CLK, 1.0), (DRIFT, 0.1)]:
         d = np.zeros(NS)
         d[col] = step
-        numeric = (window_gnss_terms([node.retract(d)], jacobian=False).e
-                   - window_gnss_terms([node.retract(-d)], jacobian=False).e) / (2 * step)
+        numeric = (
+            window_gnss_terms([node.retract(d)], jacobian=False).e
+            - window_gnss_terms([node.retract(-d)], jacobian=False).e
+        ) / (2 * step)
         np.testing.assert_allclose(J[:, col], numeric, rtol=0, atol=1e-7, err_msg=f"column {col}")
 
 
@@ -181,22 +200,28 @@ def test_crt_lss_declares_the_imu_and_validates_its_config() -> None:
 def test_stacked_pair_terms_are_a_loop_over_the_gtsam_factors(full_window: WindowSolver) -> None:
     """Bit for bit: the batched whitening and placement make the BLAS calls of a per-pair loop."""
     nodes = full_window.nodes
-    A, b = _pair_terms(nodes, full_window._stacked_factors())
+    A, b = pair_terms(nodes, full_window._stacked_factors())
     for k in range(len(nodes) - 1):
         a, n = nodes[k], nodes[k + 1]
         H = np.zeros((15, 30), order="F")
-        e = n.imu.evaluateError(a.pose, a.vel, n.pose, n.vel, gtsam.imuBias.ConstantBias(a.bias[:3], a.bias[3:]),
-                                gtsam.imuBias.ConstantBias(n.bias[:3], n.bias[3:]),
-                                *(H[:, lo:hi] for lo, hi in ((0, 6), (6, 9), (9, 15), (15, 18), (18, 24), (24, 30))))
+        e = n.imu.evaluateError(
+            a.pose,
+            a.vel,
+            n.pose,
+            n.vel,
+            gtsam.imuBias.ConstantBias(a.bias[:3], a.bias[3:]),
+            gtsam.imuBias.ConstantBias(n.bias[:3], n.bias[3:]),
+            *(H[:, lo:hi] for lo, hi in ((0, 6), (6, 9), (9, 15), (15, 18), (18, 24), (24, 30))),
+        )
         WH = n.imu_sqrt_info @ H
         F = np.array([[1.0, n.dt], [0.0, 1.0]])
         expected = np.zeros((NS, 2 * NS))
-        expected[:15, ROT:VEL + 3] = WH[:, 0:9]  # GTSAM's key order: pose_i, vel_i, pose_j, vel_j, bias_i, bias_j
-        expected[:15, NS + ROT:NS + VEL + 3] = WH[:, 9:18]
-        expected[:15, BA:BG + 3] = WH[:, 18:24]
-        expected[:15, NS + BA:NS + BG + 3] = WH[:, 24:30]
-        expected[15:, CLK:CLK + 2] = -n.clk_sqrt_info @ F
-        expected[15:, NS + CLK:NS + CLK + 2] = n.clk_sqrt_info
+        expected[:15, ROT : VEL + 3] = WH[:, 0:9]  # GTSAM's key order: pose_i, vel_i, pose_j, vel_j, bias_i, bias_j
+        expected[:15, NS + ROT : NS + VEL + 3] = WH[:, 9:18]
+        expected[:15, BA : BG + 3] = WH[:, 18:24]
+        expected[:15, NS + BA : NS + BG + 3] = WH[:, 24:30]
+        expected[15:, CLK : CLK + 2] = -n.clk_sqrt_info @ F
+        expected[15:, NS + CLK : NS + CLK + 2] = n.clk_sqrt_info
         np.testing.assert_array_equal(A[k], expected, err_msg=f"pair {k}")
         np.testing.assert_array_equal(b[k], np.r_[-n.imu_sqrt_info @ e, -n.clk_sqrt_info @ (n.clk - F @ a.clk)])
 
@@ -206,7 +231,7 @@ def test_window_normal_equations_are_the_cost_gradient_and_solve_banded(full_win
     s = full_window
     rng = np.random.default_rng(1)
     # away from the solution, so that every factor (the IMU ones above all) has a sizeable residual
-    nodes = _retracted(s.nodes, 1e-3 * rng.normal(size=NS * len(s.nodes)))
+    nodes = retracted(s.nodes, 1e-3 * rng.normal(size=NS * len(s.nodes)))
     ne = s._normal_equations(nodes, s._linearise(nodes, s._stacked_factors()), s._stacked_factors())
     assert ne.sq + 2.0 * s._weighted_s_l1(nodes) == pytest.approx(s.cost(nodes), rel=1e-12)
     assert s.s_l1_norm() > 0.0
@@ -214,7 +239,7 @@ def test_window_normal_equations_are_the_cost_gradient_and_solve_banded(full_win
     for _ in range(5):
         v = rng.normal(size=NS * len(nodes))
         v[:NS] = 0.0  # the prior's Jacobian is taken as the identity: exact only at its mean
-        slope = (s.cost(_retracted(nodes, h * v)) - s.cost(_retracted(nodes, -h * v))) / (2 * h)
+        slope = (s.cost(retracted(nodes, h * v)) - s.cost(retracted(nodes, -h * v))) / (2 * h)
         assert slope == pytest.approx(-2.0 * ne.eta @ v, rel=1e-3)
     H = ne.dense()
     np.testing.assert_allclose(H, H.T, rtol=0, atol=1e-12 * np.abs(H).max())
@@ -229,7 +254,7 @@ def test_a_window_without_gnss_rows_solves_on_the_imu_and_clock_alone(full_windo
     for n in nodes:
         n.gnss = None
     assert window_gnss_terms(nodes) is None
-    factors = _window_factors(nodes)
+    factors = window_factors(nodes)
     ne = s._normal_equations(nodes, s._linearise(nodes, factors), factors)
     assert ne.sq == pytest.approx(s.cost(nodes), rel=1e-12)
     assert np.all(np.isfinite(ne.solve()))
@@ -242,12 +267,12 @@ def test_marginal_information_left_indefinite_by_rounding_still_factors() -> Non
     q, _ = np.linalg.qr(rng.standard_normal((NS, NS)))
     w = np.logspace(-4, 10, NS)
     info = (q * w) @ q.T
-    np.testing.assert_array_equal(_upper_cholesky(info), np.linalg.cholesky(info + 1e-12 * np.eye(NS)).T)
+    np.testing.assert_array_equal(upper_cholesky(info), np.linalg.cholesky(info + 1e-12 * np.eye(NS)).T)
     w[0] = -1e-3
     bad = (q * w) @ q.T
     with pytest.raises(np.linalg.LinAlgError):
         np.linalg.cholesky(bad + 1e-12 * np.eye(NS))
-    r = _upper_cholesky(bad)
+    r = upper_cholesky(bad)
     assert np.allclose(np.tril(r, -1), 0.0)
     floored = (q * np.maximum(w, 1e-9 * w.max())) @ q.T
     np.testing.assert_allclose(r.T @ r, floored, rtol=0, atol=1e-6 * w.max())

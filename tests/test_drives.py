@@ -1,4 +1,5 @@
 """The dissertation's Morgantown drives as scenarios: roadside buildings and the published-median table."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -6,11 +7,11 @@ import pandas as pd
 import pytest
 
 import simbench
-from simbench.config import NlosConfig, ReplayConfig
+from simbench.analysis.published import CH6_DRIVE_MEDIANS_M, DRIVE_MEDIANS_M
+from simbench.analysis.tables import drive_comparison
 from simbench.errors import SimbenchError
-from simbench.published import CH6_DRIVE_MEDIANS_M, DRIVE_MEDIANS_M
+from simbench.sim.config import NlosConfig, ReplayConfig
 from simbench.sim.trajectory import replay, roadside_street
-from simbench.tables import drive_comparison
 
 
 @pytest.fixture(scope="module")
@@ -20,8 +21,9 @@ def drive_1(shared_data):
 
 
 def test_roadside_buildings_follow_the_route_in_segments(drive_1) -> None:
-    nlos = NlosConfig(building_height_m=(4.0, 12.0), wall_distance_m=(10.0, 25.0), open_fraction=0.5,
-                      roadside_segment_m=40.0)
+    nlos = NlosConfig(
+        building_height_m=(4.0, 12.0), wall_distance_m=(10.0, 25.0), open_fraction=0.5, roadside_segment_m=40.0
+    )
     street = roadside_street(drive_1, nlos, np.random.default_rng(3))
     step = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(drive_1.pos, axis=0), axis=1))]
     changes = np.flatnonzero(np.diff(street.height_left_m) != 0.0) + 1
@@ -54,16 +56,31 @@ def test_morgantown_scenario_has_suburban_nlos(shared_data) -> None:
 
 
 def _row(scenario: str, receiver: str, estimator: str, seed: int, median: float, status: str = "ok") -> dict:
-    return {"sweep": "ch5_bce_morgantown", "scenario": scenario, "receiver": receiver, "estimator": estimator,
-            "seed": seed, "status": status, "availability": 0.9, "horizontal_median_ref": median,
-            "overrides": "{}", "variant": ""}
+    return {
+        "sweep": "ch5_bce_morgantown",
+        "scenario": scenario,
+        "receiver": receiver,
+        "estimator": estimator,
+        "seed": seed,
+        "status": status,
+        "availability": 0.9,
+        "horizontal_median_ref": median,
+        "overrides": "{}",
+        "variant": "",
+    }
 
 
 def test_drive_comparison_sets_our_medians_beside_the_published() -> None:
-    summary = pd.DataFrame([_row("morgantown2", "low", "dcs", 0, 1.0), _row("morgantown2", "low", "dcs", 1, 3.0),
-                            _row("morgantown2", "low", "dcs", 2, 9.0, status="failed"),
-                            _row("morgantown3", "high", "isam2_mm", 0, 0.5),
-                            _row("urban", "low", "dcs", 0, 7.0), _row("morgantown1", "low", "bce_ad", 0, 7.0)])
+    summary = pd.DataFrame(
+        [
+            _row("morgantown2", "low", "dcs", 0, 1.0),
+            _row("morgantown2", "low", "dcs", 1, 3.0),
+            _row("morgantown2", "low", "dcs", 2, 9.0, status="failed"),
+            _row("morgantown3", "high", "isam2_mm", 0, 0.5),
+            _row("urban", "low", "dcs", 0, 7.0),
+            _row("morgantown1", "low", "bce_ad", 0, 7.0),
+        ]
+    )
     table = drive_comparison(summary)
     assert len(table) == 2
     dcs = table[table["estimator"] == "dcs"].iloc[0]
@@ -74,9 +91,10 @@ def test_drive_comparison_sets_our_medians_beside_the_published() -> None:
     assert mm["published_as"] == "MM" and mm["published"] == DRIVE_MEDIANS_M[("high", 3)]["MM"]
     assert drive_comparison(summary[summary["scenario"] == "urban"]).empty
     # BCE-AD's study is set beside Ch.6's own table (low receiver only), not beside Ch.7's
-    ch6 = pd.DataFrame([{**_row("morgantown3", "low", name, 0, 4.0), "sweep": "ch6_bce_ad"}
-                        for name in ("bce_ad", "l2")] + [{**_row("morgantown3", "high", "l2", 0, 4.0),
-                                                          "sweep": "ch6_bce_ad"}])
+    ch6 = pd.DataFrame(
+        [{**_row("morgantown3", "low", name, 0, 4.0), "sweep": "ch6_bce_ad"} for name in ("bce_ad", "l2")]
+        + [{**_row("morgantown3", "high", "l2", 0, 4.0), "sweep": "ch6_bce_ad"}]
+    )
     table = drive_comparison(ch6).set_index("estimator")
     assert list(table.index) == ["bce_ad", "l2"] and table.loc["bce_ad", "published_as"] == "BCE-AD"
     assert table.loc["bce_ad", "published"] == CH6_DRIVE_MEDIANS_M[("low", 3)]["BCE-AD"] == 3.25

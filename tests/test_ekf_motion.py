@@ -2,6 +2,7 @@
 
 Evaluation seeds only (0, 1); no parameter was tuned on them.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -27,8 +28,11 @@ def _run(sc: simbench.Scenario, **config) -> tuple[EkfTrack, np.ndarray, np.ndar
     truth = sc.truth.set_index("epoch").loc[obs.epoch_ids]
     true_pos = truth[["x", "y", "z"]].to_numpy()
     enu = np.einsum("kij,kj->ki", enu_basis(true_pos), track.pos - true_pos)
-    vel_err = (np.full(obs.n_epochs, np.nan) if track.vel is None
-               else np.linalg.norm(track.vel - truth[["vx", "vy", "vz"]].to_numpy(), axis=1))
+    vel_err = (
+        np.full(obs.n_epochs, np.nan)
+        if track.vel is None
+        else np.linalg.norm(track.vel - truth[["vx", "vy", "vz"]].to_numpy(), axis=1)
+    )
     return track, np.hypot(enu[:, 0], enu[:, 1]), vel_err
 
 
@@ -37,10 +41,10 @@ def open_sky() -> simbench.Scenario:
     return simbench.simulate("open_sky", "high", seed=0, **{"scenario.duration_s": 120})
 
 
-@pytest.mark.parametrize("measurements, clock_model", [("code", "white"), ("auto", "white"),
-                                                        ("code", "random_walk")])
-def test_constant_velocity_tracks_the_velocity(open_sky: simbench.Scenario, measurements: str,
-                                               clock_model: str) -> None:
+@pytest.mark.parametrize("measurements, clock_model", [("code", "white"), ("auto", "white"), ("code", "random_walk")])
+def test_constant_velocity_tracks_the_velocity(
+    open_sky: simbench.Scenario, measurements: str, clock_model: str
+) -> None:
     """White clock: the drift is seen by the Doppler only; random-walk clock: offset and drift are one
     two-state clock (measured 0.087 m/s velocity median against 0.12 with the white clock)."""
     _, rw, _ = _run(open_sky, measurements=measurements, clock_model=clock_model)
@@ -59,8 +63,9 @@ def test_constant_velocity_tracks_the_velocity(open_sky: simbench.Scenario, meas
 
 def test_missing_doppler_rows_are_skipped(open_sky: simbench.Scenario) -> None:
     obs = open_sky.observations
-    half = dataclasses.replace(open_sky, observations=obs.assign(
-        doppler_l1=obs["doppler_l1"].where(obs.index % 2 == 0)))
+    half = dataclasses.replace(
+        open_sky, observations=obs.assign(doppler_l1=obs["doppler_l1"].where(obs.index % 2 == 0))
+    )
     none = dataclasses.replace(open_sky, observations=obs.assign(doppler_l1=np.nan))
     full_track, full, _ = _run(open_sky, measurements="code", **CV)
     half_track, half_err, half_vel = _run(half, measurements="code", **CV)
@@ -95,8 +100,9 @@ def test_wheel_odometry_lowers_the_horizontal_p95(urban_drives: list[simbench.Sc
     assert track.diagnostics["n_odometry_updates"] == 0 and track.vel is None
 
 
-@pytest.mark.parametrize("field, value", [("accel_sigma_mps2_rts", 0.0), ("doppler_sigma_mps", -1.0),
-                                          ("motion_model", "ballistic")])
+@pytest.mark.parametrize(
+    "field, value", [("accel_sigma_mps2_rts", 0.0), ("doppler_sigma_mps", -1.0), ("motion_model", "ballistic")]
+)
 def test_bad_motion_config_is_one_line(field: str, value: object) -> None:
     with pytest.raises(SimbenchError) as info:
         EkfPpp(EkfPppConfig(**{field: value}))

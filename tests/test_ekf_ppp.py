@@ -1,4 +1,5 @@
 """EKF PPP: convergence on exact synthetic data, fresh biases for new arcs, configuration."""
+
 from __future__ import annotations
 
 import importlib.util
@@ -12,8 +13,8 @@ import pytest
 import estimators
 import simbench
 from estimators.ekf_ppp import EkfPpp, EkfPppConfig
+from simbench.core.constants import IF_A1, IF_A2, LAMBDA_L1, LAMBDA_L2
 from simbench.errors import SimbenchError
-from simbench.sim.constants import IF_A1, IF_A2, LAMBDA_L1, LAMBDA_L2
 
 # the synthetic-data builder lives with the measurement-model tests
 if "test_measurement" not in sys.modules:
@@ -21,7 +22,7 @@ if "test_measurement" not in sys.modules:
     _mod = importlib.util.module_from_spec(_spec)
     sys.modules["test_measurement"] = _mod
     _spec.loader.exec_module(_mod)
-from test_measurement import horizontal_error, synthetic_data  # noqa: E402
+from test_measurement import horizontal_error, synthetic_data
 
 
 @pytest.mark.parametrize("dual", [True, False])
@@ -65,11 +66,10 @@ def test_code_only_filter() -> None:
 
 def test_random_walk_clock_model_agrees() -> None:
     data, truth = synthetic_data(300, dual=True, seed=4)
-    err = horizontal_error(EkfPpp(EkfPppConfig(ionosphere_free=True, clock_model="random_walk")).estimate(data)
-                           .epochs, truth)
+    err = horizontal_error(
+        EkfPpp(EkfPppConfig(ionosphere_free=True, clock_model="random_walk")).estimate(data).epochs, truth
+    )
     assert err[150:].max() < 0.3
-
-
 
 
 def test_errors_and_registry() -> None:
@@ -92,15 +92,22 @@ def test_iono_states_absorb_code_phase_divergence() -> None:
 
 
 def test_open_sky_dual_frequency_converges_below_a_metre() -> None:
-    sc = simbench.simulate("open_sky", "high", seed=11, **{
-        "scenario.duration_s": 900, "scenario.dual_frequency": True,
-        "++scenario.errors.nlos.enabled": False, "++scenario.errors.attitude_masking.enabled": False})
+    sc = simbench.simulate(
+        "open_sky",
+        "high",
+        seed=11,
+        **{
+            "scenario.duration_s": 900,
+            "scenario.dual_frequency": True,
+            "++scenario.errors.nlos.enabled": False,
+            "++scenario.errors.attitude_masking.enabled": False,
+        },
+    )
     ep = EkfPpp(EkfPppConfig(ionosphere_free=True)).estimate(sc.receiver_view()).epochs
     assert len(ep) >= 0.95 * sc.n_epochs
     truth = sc.truth.set_index("epoch").loc[ep["epoch"]]
     lat, lon, h = pymap3d.ecef2geodetic(truth["x"].iloc[0], truth["y"].iloc[0], truth["z"].iloc[0])
     est = np.array(pymap3d.ecef2enu(ep["x"].to_numpy(), ep["y"].to_numpy(), ep["z"].to_numpy(), lat, lon, h))
-    ref = np.array(pymap3d.ecef2enu(truth["x"].to_numpy(), truth["y"].to_numpy(), truth["z"].to_numpy(),
-                                    lat, lon, h))
+    ref = np.array(pymap3d.ecef2enu(truth["x"].to_numpy(), truth["y"].to_numpy(), truth["z"].to_numpy(), lat, lon, h))
     horizontal = np.hypot(*(est - ref)[:2])
-    assert np.median(horizontal[len(horizontal) // 2:]) < 1.0
+    assert np.median(horizontal[len(horizontal) // 2 :]) < 1.0

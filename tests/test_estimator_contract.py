@@ -3,6 +3,7 @@
 Registered means built-in and plug-in alike (``estimators.registered()``); each runs
 with the config the default run composes for it (``conf/estimator/`` or its package).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -15,8 +16,6 @@ from omegaconf import OmegaConf
 import estimators
 import simbench
 from estimators.base import SOLUTION_COLUMNS, Solution
-from simbench.compose import compose_config
-from simbench.config import to_typed
 from simbench.contract import (
     MISSING_NEED_REASONS,
     NavInfo,
@@ -25,7 +24,9 @@ from simbench.contract import (
     available_needs,
 )
 from simbench.errors import SimbenchError
-from simbench.runner import run_estimators
+from simbench.runs.compose import compose_config
+from simbench.runs.runner import run_estimators
+from simbench.typed import to_typed
 
 NAMES = sorted(estimators.registered())
 #: The estimator configs of the default run: every registered estimator's.
@@ -164,8 +165,7 @@ def test_needs_follow_the_config() -> None:
     assert cls(cls.Config(measurements="code_phase")).needs() == {Need.phase}
     assert cls(cls.Config(ionosphere_free=True)).needs() == {Need.dual_frequency}
     l2 = estimators.get("l2")
-    assert l2(l2.Config(ionosphere_free=True, measurements="code_phase")).needs() == {Need.phase,
-                                                                                       Need.dual_frequency}
+    assert l2(l2.Config(ionosphere_free=True, measurements="code_phase")).needs() == {Need.phase, Need.dual_frequency}
 
 
 def test_the_simulated_scenario_offers_phase_imu_and_labels(scenario: simbench.Scenario) -> None:
@@ -184,8 +184,7 @@ def test_unmet_need_is_skipped_with_a_reason(name: str, need: Need, scenario: si
     assert row["n_solved"] == 0 and res.epochs.empty
 
 
-def test_runner_skips_gnss_ins_without_imu_and_phase_estimators_on_code_only_data(
-        scenario: simbench.Scenario) -> None:
+def test_runner_skips_gnss_ins_without_imu_and_phase_estimators_on_code_only_data(scenario: simbench.Scenario) -> None:
     no_imu = run_estimators(_without(scenario, Need.imu), {"ekf_ins": None, "crt_lss": None}, progress=False)
     assert list(no_imu.summary["status"]) == ["skipped", "skipped"]
     assert no_imu.summary["message"].str.contains("IMU").all()
@@ -198,17 +197,26 @@ def test_runner_skips_gnss_ins_without_imu_and_phase_estimators_on_code_only_dat
     # by default (measurements=auto) they have nothing missing and run on the code
     rows = run_estimators(code_only, dict.fromkeys(phase_users), progress=False).summary.set_index("estimator")
     assert (rows["status"] == "ok").all() and (rows["n_solved"] > 0).all()
-    single = run_estimators(_without(scenario, Need.dual_frequency), {"l2": {"ionosphere_free": True}},
-                            progress=False).summary.iloc[0]
+    single = run_estimators(
+        _without(scenario, Need.dual_frequency), {"l2": {"ionosphere_free": True}}, progress=False
+    ).summary.iloc[0]
     assert single["status"] == "skipped" and single["message"] == MISSING_NEED_REASONS[Need.dual_frequency]
 
 
 def test_invalid_config_fails_at_construction() -> None:
-    for name, field, value in (("ekf_ppp", "code_sigma_m", 0.0), ("l2", "min_satellites", 0),
-                               ("mm", "outlier_weight", 1.5), ("isam2_dcs", "phi", -1.0), ("ice", "alpha", 2.0),
-                               ("bce_ad", "n_features", 9), ("isam2_ppp", "lag_s", -1.0),
-                               ("isam2_mm", "outlier_weight", 0.0), ("bce", "fit_sample", -1),
-                               ("dcs", "lm_max_iterations", 0), ("isam2_ppp", "relinearize_skip", 0)):
+    for name, field, value in (
+        ("ekf_ppp", "code_sigma_m", 0.0),
+        ("l2", "min_satellites", 0),
+        ("mm", "outlier_weight", 1.5),
+        ("isam2_dcs", "phi", -1.0),
+        ("ice", "alpha", 2.0),
+        ("bce_ad", "n_features", 9),
+        ("isam2_ppp", "lag_s", -1.0),
+        ("isam2_mm", "outlier_weight", 0.0),
+        ("bce", "fit_sample", -1),
+        ("dcs", "lm_max_iterations", 0),
+        ("isam2_ppp", "relinearize_skip", 0),
+    ):
         cls = estimators.get(name)
         with pytest.raises(SimbenchError, match=f"estimator.{name}.{field}") as info:
             cls(cls.Config(**{field: value}))

@@ -1,4 +1,5 @@
-"""simbench.export: RINEX and libRSF files of simulated scenarios, read back by simbench, georinex and RTKLIB."""
+"""simbench.data.export: RINEX and libRSF files of simulated scenarios, read back by simbench, georinex and RTKLIB."""
+
 from __future__ import annotations
 
 import os
@@ -11,24 +12,25 @@ import pandas as pd
 import pytest
 
 from estimators.rtklib_spp import EXECUTABLE
-from simbench.compose import compose_config
-from simbench.config import SimConfig, to_typed
+from simbench.analysis.metrics import enu_errors
+from simbench.cli.export import main as export_main
 from simbench.contract import NavInfo, Need, Scenario, available_needs
+from simbench.core import atmosphere
+from simbench.core.constants import C_LIGHT, DEG, SECONDS_PER_WEEK
+from simbench.core.frames import geodetic_from_ecef
+from simbench.core.gpstime import day_of_year
+from simbench.core.orbits import NominalConstellation
+from simbench.data.export import export_scenario, write_receiver_rinex
+from simbench.data.export.rinex import write_broadcast_navigation, write_nominal_navigation
 from simbench.data.librsf import load_librsf
-from simbench.data.navigation import read_gps_navigation
 from simbench.data.rinex import load_rinex
-from simbench.export import export_scenario, write_receiver_rinex
-from simbench.export.__main__ import main as export_main
-from simbench.export.rinex import write_broadcast_navigation, write_nominal_navigation
+from simbench.gnss.navigation import read_gps_navigation
 from simbench.gnss.spp import solve_epochs
-from simbench.metrics import enu_errors
-from simbench.runner import run_estimators
-from simbench.scenarios import build_scenario
-from simbench.sim import atmosphere
-from simbench.sim.constants import C_LIGHT, DEG, SECONDS_PER_WEEK
-from simbench.sim.frames import geodetic_from_ecef
-from simbench.sim.gpstime import day_of_year
-from simbench.sim.orbits import NominalConstellation
+from simbench.runs.compose import compose_config
+from simbench.runs.runner import run_estimators
+from simbench.runs.scenarios import build_scenario
+from simbench.sim.config import SimConfig
+from simbench.typed import to_typed
 
 #: Compared columns of the round trip and their tolerances: code and phase 1 mm, Doppler 1 mHz, C/N0 0.001 dB-Hz
 #: (RINEX F14.3 rounds each to half of that).
@@ -44,8 +46,13 @@ def _scenario(*overrides: str) -> Scenario:
 def urban() -> Scenario:
     # no orbit/clock product error, so the satellite states the reader recomputes from the navigation file
     # must equal the table's
-    return _scenario("scenario=urban", "receiver=low", "seed=3", "scenario.duration_s=60",
-                     "scenario.errors.orbit_clock.enabled=false")
+    return _scenario(
+        "scenario=urban",
+        "receiver=low",
+        "seed=3",
+        "scenario.duration_s=60",
+        "scenario.errors.orbit_clock.enabled=false",
+    )
 
 
 def _require_rnx2rtkp() -> None:
@@ -70,10 +77,11 @@ def test_rinex_round_trip(urban: Scenario, tmp_path: Path) -> None:
         np.testing.assert_allclose(b[col], a[col], rtol=0, atol=tol, err_msg=col)
     assert a["lli_l1"].any() and (a["lli_l1"].to_numpy() == b["lli_l1"].to_numpy()).all()
     # the reader's transmit time comes from the tag and the code, which holds the receiver clock offset dt_r
-    # (the tag is true GPS time, see simbench.export.rinex): the satellite moves by at most 4 km/s * dt_r,
+    # (the tag is true GPS time, see simbench.data.export.rinex): the satellite moves by at most 4 km/s * dt_r,
     # plus < 1 mm for the atmosphere in the code
-    sat_err = np.linalg.norm(b[["sat_x", "sat_y", "sat_z"]].to_numpy() - a[["sat_x", "sat_y", "sat_z"]].to_numpy(),
-                             axis=1)
+    sat_err = np.linalg.norm(
+        b[["sat_x", "sat_y", "sat_z"]].to_numpy() - a[["sat_x", "sat_y", "sat_z"]].to_numpy(), axis=1
+    )
     dt_r = np.abs(urban.truth.set_index("epoch").loc[a["epoch"], "rx_clock"].to_numpy()) / C_LIGHT
     assert sat_err.max() > 1e-3 and (sat_err < 4.0e3 * dt_r + 1e-3).all()
     np.testing.assert_allclose(b["sat_clock"], a["sat_clock"], rtol=0, atol=1e-5)
@@ -97,8 +105,9 @@ def test_rinex_files_are_read_by_georinex(urban: Scenario, tmp_path: Path) -> No
 
 def test_dual_frequency_round_trip(tmp_path: Path) -> None:
     """L2 code and phase (RINEX C2W L2W) and their loss-of-lock flags come back within 1 mm."""
-    sc = _scenario("scenario=open_sky", "seed=1000", "scenario.duration_s=30",
-                   "scenario.errors.cycle_slips.rate_per_s=0.05")
+    sc = _scenario(
+        "scenario=open_sky", "seed=1000", "scenario.duration_s=30", "scenario.errors.cycle_slips.rate_per_s=0.05"
+    )
     obs_path, nav_path, _ = export_scenario(sc, "rinex", tmp_path, "os")
     assert "G    6 C1C L1C D1C S1C C2W L2W" in obs_path.read_text().split("END OF HEADER")[0]
     back = load_rinex(obs_path, nav_path)
@@ -126,8 +135,14 @@ def test_nominal_navigation_reproduces_the_orbits(tmp_path: Path) -> None:
 
 def test_broadcast_navigation_is_rewritten_with_zero_tgd(shared_data: Path, tmp_path: Path) -> None:
     src = shared_data / "wvu_drives" / "brdc.18n"
-    nav = NavInfo(gps_week=2032, start_sow_s=475_200.0, iono_alpha=(1e-8,) * 4, iono_beta=(1e5,) * 4,
-                  dual_frequency=False, ephemeris=str(src))
+    nav = NavInfo(
+        gps_week=2032,
+        start_sow_s=475_200.0,
+        iono_alpha=(1e-8,) * 4,
+        iono_beta=(1e5,) * 4,
+        dual_frequency=False,
+        ephemeris=str(src),
+    )
     out = read_gps_navigation(write_broadcast_navigation(tmp_path / "b.nav", nav, src))
     ref = read_gps_navigation(src)
     t = 2032 * SECONDS_PER_WEEK + 475_200.0 + np.arange(0.0, 3600.0, 60.0)
@@ -152,16 +167,20 @@ def test_librsf_round_trip(tmp_path: Path) -> None:
     removed = (a["code_l1"] + a["sat_clock"] - b["code_l1"]).to_numpy()
     assert (removed > 1.5).all() and (removed < 40.0).all()
     assert len(back.odometry) == len(sc.odometry) > 0
-    np.testing.assert_allclose(back.odometry[["speed", "yaw_rate"]], sc.odometry[["speed", "yaw_rate"]],
-                               rtol=0, atol=1e-6)
+    np.testing.assert_allclose(
+        back.odometry[["speed", "yaw_rate"]], sc.odometry[["speed", "yaw_rate"]], rtol=0, atol=1e-6
+    )
     np.testing.assert_allclose(back.truth[["x", "y", "z"]], sc.truth[["x", "y", "z"]], rtol=0, atol=1e-4)
 
 
 def test_cli_writes_files_and_refuses_bad_input(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     args = ["scenario=urban", "seed=1000", "scenario.duration_s=3"]
     assert export_main([*args, f"out={tmp_path}"]) == 0
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["urban_low_1000.nav", "urban_low_1000.obs",
-                                                           "urban_low_1000_truth.csv"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "urban_low_1000.nav",
+        "urban_low_1000.obs",
+        "urban_low_1000_truth.csv",
+    ]
     assert "scenario=rinex" in capsys.readouterr().err
     assert export_main([*args, "format=csv", f"out={tmp_path}"]) == 2
     assert export_main(args) == 2
@@ -183,12 +202,17 @@ def test_rtklib_recovers_an_error_free_scenario(tmp_path: Path) -> None:
     """No error source at all: RTKLIB on the exported files must land on the truth (checks orbits, time tags,
     Earth rotation and the sign conventions end to end)."""
     _require_rnx2rtkp()
-    sc = _scenario("scenario=open_sky", "seed=1000", "scenario.duration_s=20",
-                   *(f"scenario.errors.{k}.enabled=false" for k in ("troposphere", "ionosphere", "orbit_clock",
-                                                                     "multipath")),
-                   "scenario.errors.tracking_noise=false", "scenario.errors.sample_grid=false")
-    row = run_estimators(sc, {"rtklib_spp": {"troposphere": "none", "ionosphere": "none"}},
-                         progress=False).summary.iloc[0]
+    sc = _scenario(
+        "scenario=open_sky",
+        "seed=1000",
+        "scenario.duration_s=20",
+        *(f"scenario.errors.{k}.enabled=false" for k in ("troposphere", "ionosphere", "orbit_clock", "multipath")),
+        "scenario.errors.tracking_noise=false",
+        "scenario.errors.sample_grid=false",
+    )
+    row = run_estimators(
+        sc, {"rtklib_spp": {"troposphere": "none", "ionosphere": "none"}}, progress=False
+    ).summary.iloc[0]
     assert row["status"] == "ok", row["message"]
     assert row["availability"] == 1.0 and row["error_3d_max"] < 0.01
 
@@ -205,13 +229,20 @@ def _wls_rtklib_weights(sc: Scenario, mask_deg: float) -> pd.DataFrame:
     sat, epoch = o[["sat_x", "sat_y", "sat_z"]].to_numpy(), o["epoch"].to_numpy()
     rough = solve_epochs(epoch, sat, code, n_epochs=sc.n_epochs, el=el, doy=doy)
     lat, lon, _ = geodetic_from_ecef(rough.pos[epoch])
-    iono = atmosphere.klobuchar_l1_delay_m(sc.nav.start_sow_s + o["t"].to_numpy(), lat, lon, el, az,
-                                           np.asarray(sc.nav.iono_alpha), np.asarray(sc.nav.iono_beta))
+    iono = atmosphere.klobuchar_l1_delay_m(
+        sc.nav.start_sow_s + o["t"].to_numpy(),
+        lat,
+        lon,
+        el,
+        az,
+        np.asarray(sc.nav.iono_alpha),
+        np.asarray(sc.nav.iono_beta),
+    )
     var = 0.09 * (1.0 + 1.0 / np.sin(el)) + 2.4**2 + 0.09 + (0.5 * iono) ** 2 + (0.3 / (np.sin(el) + 0.1)) ** 2
-    sol = solve_epochs(epoch, sat, code - iono, n_epochs=sc.n_epochs, sigma=np.sqrt(var), el=el, doy=doy,
-                       x0=rough.pos)
-    solved = pd.DataFrame({"epoch": np.arange(sc.n_epochs), "x": sol.pos[:, 0], "y": sol.pos[:, 1],
-                           "z": sol.pos[:, 2]})[sol.trusted]
+    sol = solve_epochs(epoch, sat, code - iono, n_epochs=sc.n_epochs, sigma=np.sqrt(var), el=el, doy=doy, x0=rough.pos)
+    solved = pd.DataFrame(
+        {"epoch": np.arange(sc.n_epochs), "x": sol.pos[:, 0], "y": sol.pos[:, 1], "z": sol.pos[:, 2]}
+    )[sol.trusted]
     return enu_errors(solved, sc.truth)
 
 

@@ -1,10 +1,11 @@
 """Frame conversions against pymap3d and against each other."""
+
 from __future__ import annotations
 
 import numpy as np
 import pymap3d
 
-from simbench.sim.frames import dcm_body_to_ned, ecef_from_geodetic, euler_from_dcm, geodetic_from_ecef
+from simbench.core.frames import dcm_body_to_ned, ecef_from_geodetic, euler_from_dcm, geodetic_from_ecef
 
 
 def test_geodetic_round_trip_against_pymap3d() -> None:

@@ -1,4 +1,5 @@
 """The generator against its own formulas: noise statistics, correlation, determinism, isolation."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -7,9 +8,9 @@ import pytest
 
 import simbench
 from simbench.contract import IMU_COLUMNS, LABEL_COLUMNS, OBSERVATION_COLUMNS, TRUTH_COLUMNS, ReceiverData, Scenario
+from simbench.core.constants import LAMBDA_L1
 from simbench.errors import SimbenchError
 from simbench.sim import tracking
-from simbench.sim.constants import LAMBDA_L1
 from simbench.sim.processes import gauss_markov, stream
 
 SHORT = {"scenario.duration_s": 300}
@@ -61,8 +62,13 @@ def test_code_and_phase_noise_follow_dll_pll_formulas(long_open_sky: Scenario) -
     sc = long_open_sky
     lab, obs = sc.labels, sc.observations
     rx = sc.meta["config"]["receiver"]
-    expected = tracking.dll_jitter_m(obs["cn0_l1"].to_numpy(), rx["dll_bw_hz"], rx["correlator_spacing_chips"],
-                                     rx["front_end_bw_mhz"] * 1e6, rx["integration_s"])
+    expected = tracking.dll_jitter_m(
+        obs["cn0_l1"].to_numpy(),
+        rx["dll_bw_hz"],
+        rx["correlator_spacing_chips"],
+        rx["front_end_bw_mhz"] * 1e6,
+        rx["integration_s"],
+    )
     np.testing.assert_allclose(lab["sigma_code_l1"], expected, rtol=1e-9)
     z_code = lab["noise_code_l1"] / lab["sigma_code_l1"]
     z_phase = lab["noise_phase_l1"] / lab["sigma_phase_l1"]
@@ -77,9 +83,15 @@ def test_observables_close_to_their_model(urban: Scenario) -> None:
     """code - phase = 2 I + multipath difference - lambda N + noise: checks the sign conventions."""
     obs, lab = urban.observations, urban.labels
     cmp = (obs["code_l1"] - obs["phase_l1"]).to_numpy()
-    model = (2 * lab["iono_l1"] + lab["multipath_code_l1"] - lab["multipath_phase_l1"]
-             - LAMBDA_L1 * lab["ambiguity_l1"] + lab["noise_code_l1"] + lab["sample_grid_code_l1"]
-             - lab["noise_phase_l1"]).to_numpy()
+    model = (
+        2 * lab["iono_l1"]
+        + lab["multipath_code_l1"]
+        - lab["multipath_phase_l1"]
+        - LAMBDA_L1 * lab["ambiguity_l1"]
+        + lab["noise_code_l1"]
+        + lab["sample_grid_code_l1"]
+        - lab["noise_phase_l1"]
+    ).to_numpy()
     np.testing.assert_allclose(cmp, model, atol=1e-5)
 
 
@@ -128,11 +140,14 @@ def test_slips_change_ambiguity_and_flags(urban: Scenario) -> None:
     assert not amb_change[~slips & ~merged["lli"].to_numpy()].any()  # no unflagged change without a slip
 
 
-@pytest.mark.parametrize("override, field", [
-    ({"scenario.duration_s": -5}, "scenario.duration_s"),
-    ({"scenario.rate_hz": 0}, "scenario.rate_hz"),
-    ({"scenario.trajectory.kind": "boat"}, "scenario.trajectory.kind"),
-])
+@pytest.mark.parametrize(
+    "override, field",
+    [
+        ({"scenario.duration_s": -5}, "scenario.duration_s"),
+        ({"scenario.rate_hz": 0}, "scenario.rate_hz"),
+        ({"scenario.trajectory.kind": "boat"}, "scenario.trajectory.kind"),
+    ],
+)
 def test_bad_config_values_give_one_line_errors(override: dict, field: str) -> None:
     with pytest.raises(SimbenchError) as info:
         simbench.simulate("urban", "low", seed=0, **override)
@@ -152,8 +167,7 @@ def test_missing_files_give_one_line_errors(tmp_path) -> None:
     bad = tmp_path / "bad.18n"
     bad.write_text("this is not a navigation file\n")
     with pytest.raises(SimbenchError) as info:
-        simbench.simulate("replay", **{"scenario.constellation.nav_path": str(bad),
-                                       "scenario.duration_s": 30})
+        simbench.simulate("replay", **{"scenario.constellation.nav_path": str(bad), "scenario.duration_s": 30})
     assert "\n" not in str(info.value)
 
 

@@ -1,4 +1,5 @@
 """Tests of simbench.sim.geometry: exact light-time range, range rate, Sagnac model, el/az."""
+
 from __future__ import annotations
 
 import math
@@ -8,12 +9,12 @@ import numpy as np
 import pymap3d
 import pytest
 
+from simbench.core.constants import C_LIGHT, DEG, OMEGA_EARTH
+from simbench.core.orbits import BroadcastEphemeris, NominalConstellation
 from simbench.errors import SimbenchError
-from simbench.sim.constants import C_LIGHT, DEG, OMEGA_EARTH
 from simbench.gnss.geometry import elevation_azimuth, sagnac_range
+from simbench.gnss.navigation import read_gps_navigation
 from simbench.sim.geometry import line_of_sight
-from simbench.data.navigation import read_gps_navigation
-from simbench.sim.orbits import BroadcastEphemeris, NominalConstellation
 
 T0 = 2032 * 604800 + 432000.0 + 12 * 3600.0  # 2018-12-21 12:00 GPS
 SITE = np.array(pymap3d.geodetic2ecef(39.6, -79.96, 290.0))
@@ -135,9 +136,7 @@ def test_elevation_azimuth_against_pymap3d():
     sat = rng.normal(size=(n, m, 3))
     sat *= 26.6e6 / np.linalg.norm(sat, axis=-1, keepdims=True)
     el, az = elevation_azimuth(rx, sat)
-    az_ref, el_ref, _ = pymap3d.ecef2aer(
-        sat[..., 0], sat[..., 1], sat[..., 2], lat[:, None], lon[:, None], h[:, None]
-    )
+    az_ref, el_ref, _ = pymap3d.ecef2aer(sat[..., 0], sat[..., 1], sat[..., 2], lat[:, None], lon[:, None], h[:, None])
     np.testing.assert_allclose(el, np.radians(el_ref), atol=1e-9)
     daz = np.angle(np.exp(1j * (az - np.radians(az_ref))))
     assert np.abs(daz).max() < 1e-9
@@ -151,8 +150,10 @@ def test_los_elevation_consistent_and_known_sky(constellation):
     # Same el/az as elevation_azimuth on the satellite rotated into ECEF(t_rx).
     th = OMEGA_EARTH * los.tau_s
     s = los.sat_pos_tx
-    q = np.stack([np.cos(th) * s[..., 0] + np.sin(th) * s[..., 1],
-                  -np.sin(th) * s[..., 0] + np.cos(th) * s[..., 1], s[..., 2]], axis=-1)
+    q = np.stack(
+        [np.cos(th) * s[..., 0] + np.sin(th) * s[..., 1], -np.sin(th) * s[..., 0] + np.cos(th) * s[..., 1], s[..., 2]],
+        axis=-1,
+    )
     el, az = elevation_azimuth(pos, q)
     ok = los.valid
     np.testing.assert_allclose(los.el_rad[ok], el[ok], atol=1e-12)

@@ -7,6 +7,7 @@ expected values come from independent computations in this file (scipy
 ``solve_ivp`` on the ICD equations, a textbook Kepler solution, the clock
 formulas, UTC + 18 s), never from the code under test.
 """
+
 from __future__ import annotations
 
 import math
@@ -18,17 +19,17 @@ import pytest
 from conftest import one_line_error
 from scipy.integrate import solve_ivp
 
-from simbench.config import SimConfig, validate_sim
+from simbench.core.constants import C_LIGHT, SECONDS_PER_WEEK
+from simbench.core.galileo_orbits import GalileoEphemeris
+from simbench.core.glonass_orbits import GlonassEphemeris
+from simbench.core.gpstime import datetime64_to_gps
+from simbench.core.orbits import BroadcastEphemeris
 from simbench.data.galileo import read_galileo_navigation
 from simbench.data.glonass import read_glonass_navigation
 from simbench.data.rinex import load_rinex
 from simbench.errors import SimbenchError
 from simbench.gnss.geometry import sagnac_range
-from simbench.sim.constants import C_LIGHT, SECONDS_PER_WEEK
-from simbench.sim.galileo_orbits import GalileoEphemeris
-from simbench.sim.glonass_orbits import GlonassEphemeris
-from simbench.sim.gpstime import datetime64_to_gps
-from simbench.sim.orbits import BroadcastEphemeris
+from simbench.sim.config import SimConfig, validate_sim
 
 MU, AE, J2, WE = 3.986004418e14, 6_378_136.0, 1_082_625.75e-9, 7.2921151467e-5
 GPS_MINUS_UTC_2019 = 18.0
@@ -43,15 +44,20 @@ def _glonass_rhs(_t: float, y: np.ndarray, acc: np.ndarray) -> np.ndarray:
     r = math.sqrt(x * x + yy * yy + z * z)
     k = 1.5 * J2 * MU * AE**2 / r**5
     q = 5.0 * z * z / r**2
-    return np.array([vx, vy, vz,
-                     -MU / r**3 * x - k * x * (1 - q) + WE**2 * x + 2 * WE * vy + acc[0],
-                     -MU / r**3 * yy - k * yy * (1 - q) + WE**2 * yy - 2 * WE * vx + acc[1],
-                     -MU / r**3 * z - k * z * (3 - q) + acc[2]])
+    return np.array(
+        [
+            vx,
+            vy,
+            vz,
+            -MU / r**3 * x - k * x * (1 - q) + WE**2 * x + 2 * WE * vy + acc[0],
+            -MU / r**3 * yy - k * yy * (1 - q) + WE**2 * yy - 2 * WE * vx + acc[1],
+            -MU / r**3 * z - k * z * (3 - q) + acc[2],
+        ]
+    )
 
 
 def _glonass_truth(pos: np.ndarray, vel: np.ndarray, acc: np.ndarray, dt: float) -> np.ndarray:
-    sol = solve_ivp(_glonass_rhs, (0.0, dt), np.r_[pos, vel], method="DOP853", rtol=1e-13, atol=1e-9,
-                    args=(acc,))
+    sol = solve_ivp(_glonass_rhs, (0.0, dt), np.r_[pos, vel], method="DOP853", rtol=1e-13, atol=1e-9, args=(acc,))
     return sol.y[:, -1]
 
 
@@ -70,8 +76,13 @@ def _kepler(el: dict[str, float], tk: float, mu: float, we: float) -> np.ndarray
     i = el["i0"] + el["idot"] * tk + el["cis"] * math.sin(2 * phi) + el["cic"] * math.cos(2 * phi)
     om = el["omega0"] + (el["omegadot"] - we) * tk - we * el["toe_sow"]
     xp, yp = r * math.cos(u), r * math.sin(u)
-    return np.array([xp * math.cos(om) - yp * math.cos(i) * math.sin(om),
-                     xp * math.sin(om) + yp * math.cos(i) * math.cos(om), yp * math.sin(i)])
+    return np.array(
+        [
+            xp * math.cos(om) - yp * math.cos(i) * math.sin(om),
+            xp * math.sin(om) + yp * math.cos(i) * math.cos(om),
+            yp * math.sin(i),
+        ]
+    )
 
 
 def _kepler_clock(el: dict[str, float], tk: float) -> float:
@@ -100,14 +111,16 @@ def _record(sv: str, stamp: str, values: list[float]) -> str:
     lines = [f"{sv} {stamp}" + "".join(_num(v) for v in values[:3])]
     rest = values[3:]
     for k in range(0, len(rest), 4):
-        lines.append("    " + "".join(_num(v) for v in rest[k:k + 4]))
+        lines.append("    " + "".join(_num(v) for v in rest[k : k + 4]))
     return "\n".join(lines)
 
 
-NAV_HEADER = ("     3.04           N: GNSS NAV DATA    M: MIXED            RINEX VERSION / TYPE\n"
-              "simbench test                           20190428 000000 UTC PGM / RUN BY / DATE\n"
-              "    18                                                      LEAP SECONDS\n"
-              "                                                            END OF HEADER\n")
+NAV_HEADER = (
+    "     3.04           N: GNSS NAV DATA    M: MIXED            RINEX VERSION / TYPE\n"
+    "simbench test                           20190428 000000 UTC PGM / RUN BY / DATE\n"
+    "    18                                                      LEAP SECONDS\n"
+    "                                                            END OF HEADER\n"
+)
 
 
 def _glonass_values(g: dict) -> list[float]:
@@ -116,40 +129,102 @@ def _glonass_values(g: dict) -> list[float]:
 
 
 def _galileo_values(el: dict) -> list[float]:
-    return [el["af0"], el["af1"], el["af2"], 77.0, el["crs"], el["dn"], el["m0"], el["cuc"], el["e"], el["cus"],
-            el["sqrta"], el["toe_sow"], el["cic"], el["omega0"], el["cis"], el["i0"], el["crc"], el["w"],
-            el["omegadot"], el["idot"], el["sources"], el["week"], 0.0, 3.12, 0.0, el["bgd_a"], el["bgd_b"],
-            el["toe_sow"] - 30.0]
+    return [
+        el["af0"],
+        el["af1"],
+        el["af2"],
+        77.0,
+        el["crs"],
+        el["dn"],
+        el["m0"],
+        el["cuc"],
+        el["e"],
+        el["cus"],
+        el["sqrta"],
+        el["toe_sow"],
+        el["cic"],
+        el["omega0"],
+        el["cis"],
+        el["i0"],
+        el["crc"],
+        el["w"],
+        el["omegadot"],
+        el["idot"],
+        el["sources"],
+        el["week"],
+        0.0,
+        3.12,
+        0.0,
+        el["bgd_a"],
+        el["bgd_b"],
+        el["toe_sow"] - 30.0,
+    ]
 
 
 # Real GLONASS R13 record, 2023-01-08 11:45:00 UTC (IGS BRDC; also an INSTINCT test case).
-R13 = dict(clock=-3.075692802668e-05, gamma=0.0, k=-2,
-           pos=np.array([-3.571277832031e+03, 1.760026269531e+04, 1.809717138672e+04]) * 1e3,
-           vel=np.array([-1.539720535278e+00, 1.948561668396e+00, -2.195667266846e+00]) * 1e3,
-           acc=np.array([-9.313225746155e-10, -1.862645149231e-09, -9.313225746155e-10]) * 1e3)
+R13 = dict(
+    clock=-3.075692802668e-05,
+    gamma=0.0,
+    k=-2,
+    pos=np.array([-3.571277832031e03, 1.760026269531e04, 1.809717138672e04]) * 1e3,
+    vel=np.array([-1.539720535278e00, 1.948561668396e00, -2.195667266846e00]) * 1e3,
+    acc=np.array([-9.313225746155e-10, -1.862645149231e-09, -9.313225746155e-10]) * 1e3,
+)
 # Real Galileo E01 I/NAV record, 2017-01-01 00:10:00 GST (GPS week 1930).
-E01 = dict(af0=4.448782419786e-05, af1=-9.890754881781e-12, af2=0.0, crs=1.307187500000e+02,
-           dn=2.340811789921e-09, m0=-1.487659137077e+00, cuc=6.083399057388e-06, e=1.966624986380e-04,
-           cus=1.164712011814e-05, sqrta=5.440626512527e+03, toe_sow=600.0, cic=-1.676380634308e-08,
-           omega0=-2.519894616571e+00, cis=5.587935447693e-09, i0=9.998032176571e-01, crc=1.096562500000e+02,
-           w=-1.421596871170e+00, omegadot=-5.110212860878e-09, idot=6.428839215530e-12, sources=513.0,
-           week=1930.0, bgd_a=-6.286427378654e-09, bgd_b=-7.217749953270e-09)
+E01 = dict(
+    af0=4.448782419786e-05,
+    af1=-9.890754881781e-12,
+    af2=0.0,
+    crs=1.307187500000e02,
+    dn=2.340811789921e-09,
+    m0=-1.487659137077e00,
+    cuc=6.083399057388e-06,
+    e=1.966624986380e-04,
+    cus=1.164712011814e-05,
+    sqrta=5.440626512527e03,
+    toe_sow=600.0,
+    cic=-1.676380634308e-08,
+    omega0=-2.519894616571e00,
+    cis=5.587935447693e-09,
+    i0=9.998032176571e-01,
+    crc=1.096562500000e02,
+    w=-1.421596871170e00,
+    omegadot=-5.110212860878e-09,
+    idot=6.428839215530e-12,
+    sources=513.0,
+    week=1930.0,
+    bgd_a=-6.286427378654e-09,
+    bgd_b=-7.217749953270e-09,
+)
 
 
 # --------------------------------------------------------------------------- GLONASS
 
 
 def _single(g: dict, tb: float, **kw) -> GlonassEphemeris:
-    rec = {"sat": np.array([0]), "tb": np.array([tb]), "pos": g["pos"][None], "vel": g["vel"][None],
-           "acc": g["acc"][None], "clock": np.array([g["clock"]]), "gamma": np.array([g["gamma"]]),
-           "freq": np.array([g["k"]])}
+    rec = {
+        "sat": np.array([0]),
+        "tb": np.array([tb]),
+        "pos": g["pos"][None],
+        "vel": g["vel"][None],
+        "acc": g["acc"][None],
+        "clock": np.array([g["clock"]]),
+        "gamma": np.array([g["gamma"]]),
+        "freq": np.array([g["k"]]),
+    }
     return GlonassEphemeris(np.array(["R01"]), rec, **kw)
 
 
 def test_glonass_icd_example() -> None:
     """The worked example of the GLONASS ICD (tb = 11700 s, ti = 12300 s; also in gnsstk and INSTINCT tests)."""
-    ex = dict(clock=0.0, gamma=0.0, k=1, pos=np.array([7003.008789, -12206.626953, 21280.765625]) * 1e3,
-              vel=np.array([0.7835417, 2.8042530, 1.3525150]) * 1e3, acc=np.array([0.0, 1.7e-6, -5.41e-6]))
+    ex = dict(
+        clock=0.0,
+        gamma=0.0,
+        k=1,
+        pos=np.array([7003.008789, -12206.626953, 21280.765625]) * 1e3,
+        vel=np.array([0.7835417, 2.8042530, 1.3525150]) * 1e3,
+        acc=np.array([0.0, 1.7e-6, -5.41e-6]),
+    )
     ref_pos = np.array([7523174.853, -10506962.176, 21999239.866])
     ref_vel = np.array([950.12609, 2855.68710, 1040.68137])
     # the published result is that of the equations without the lunisolar term: we match it to 1 cm
@@ -214,8 +289,13 @@ def test_glonass_reader_time_scale_and_bad_records(tmp_path: Path) -> None:
 def test_galileo_kepler_uses_galileo_constants(tmp_path: Path) -> None:
     nav = tmp_path / "e01.rnx"
     fnav = {**E01, "af0": E01["af0"] + 1e-6, "sources": 258.0}  # the F/NAV record: another clock pair
-    nav.write_text(NAV_HEADER + _record("E01", "2017 01 01 00 10 00", _galileo_values(E01)) + "\n"
-                   + _record("E01", "2017 01 01 00 10 00", _galileo_values(fnav)) + "\n")
+    nav.write_text(
+        NAV_HEADER
+        + _record("E01", "2017 01 01 00 10 00", _galileo_values(E01))
+        + "\n"
+        + _record("E01", "2017 01 01 00 10 00", _galileo_values(fnav))
+        + "\n"
+    )
     eph = read_galileo_navigation(nav)
     assert isinstance(eph, GalileoEphemeris) and eph.tgd.tolist() == [E01["bgd_b"]]
     toe = 1930 * SECONDS_PER_WEEK + 600.0
@@ -226,8 +306,29 @@ def test_galileo_kepler_uses_galileo_constants(tmp_path: Path) -> None:
         assert st.clock[k, 0] == pytest.approx(_kepler_clock(E01, tk), abs=1e-15)  # I/NAV af0, not F/NAV
     assert abs(np.linalg.norm(st.pos[1, 0]) - 29_600e3) < 50e3
     # the same records with the GPS constants (mu 3.986005e14) are ~1 m away after an hour (measured 0.96 m)
-    records = {k: np.array([E01[k]]) for k in ("af0", "af1", "af2", "crs", "dn", "m0", "cuc", "e", "cus", "sqrta",
-                                                "cic", "omega0", "cis", "i0", "crc", "w", "omegadot", "idot")}
+    records = {
+        k: np.array([E01[k]])
+        for k in (
+            "af0",
+            "af1",
+            "af2",
+            "crs",
+            "dn",
+            "m0",
+            "cuc",
+            "e",
+            "cus",
+            "sqrta",
+            "cic",
+            "omega0",
+            "cis",
+            "i0",
+            "crc",
+            "w",
+            "omegadot",
+            "idot",
+        )
+    }
     records.update(sat=np.array([0]), toe=np.array([toe]), toc=np.array([toe]), tgd=np.array([0.0]))
     gps = BroadcastEphemeris(np.array(["E01"]), records).states(toe + tks)
     gps_ref = _kepler(E01, 3600.0, 3.986005e14, WE)
@@ -257,20 +358,37 @@ def _constellations() -> tuple[dict[str, dict], dict[str, dict]]:
         east /= np.linalg.norm(east)
         north = np.cross(up, east)
         v_in = math.sqrt(MU / 25_510e3) * (0.5 * east + math.sqrt(0.75) * north)
-        g = dict(pos=pos, vel=v_in - np.cross([0.0, 0.0, WE], pos), acc=np.array([1.1e-6, -2.3e-6, 1.7e-6]),
-                 clock=[-3.075692802668e-05, 1.2e-4, -8.0e-6, 4.4e-5][j], gamma=[0.0, 9.1e-13, -1.8e-12, 2.7e-12][j],
-                 k=[-2, 1, 4, 6][j])
-        glo[f"R{j + 5:02d}"] = {k: (np.array([_rounded(x) for x in v]) if isinstance(v, np.ndarray) else
-                                    (_rounded(v) if k != "k" else v)) for k, v in g.items()}
+        g = dict(
+            pos=pos,
+            vel=v_in - np.cross([0.0, 0.0, WE], pos),
+            acc=np.array([1.1e-6, -2.3e-6, 1.7e-6]),
+            clock=[-3.075692802668e-05, 1.2e-4, -8.0e-6, 4.4e-5][j],
+            gamma=[0.0, 9.1e-13, -1.8e-12, 2.7e-12][j],
+            k=[-2, 1, 4, 6][j],
+        )
+        glo[f"R{j + 5:02d}"] = {
+            k: (np.array([_rounded(x) for x in v]) if isinstance(v, np.ndarray) else (_rounded(v) if k != "k" else v))
+            for k, v in g.items()
+        }
     toe_sow = 45_900.0
     for j, (dlat, dlon) in enumerate([(10, 10), (-20, -10), (25, -20), (0, 35)]):
         d = _over(RX_LLH[0], RX_LLH[1], dlat, dlon, 1.0)
         i0, w = 0.9774, 0.3
         u = math.asin(d[2] / math.sin(i0))
         lam = math.atan2(d[1], d[0]) - math.atan2(math.cos(i0) * math.sin(u), math.cos(u))
-        el = {**E01, "m0": u - w, "w": w, "i0": i0, "omega0": lam + WE * toe_sow, "toe_sow": toe_sow,
-              "week": 2051.0, "sources": 517.0, "af0": [4.45e-5, -2.1e-4, 6.0e-4, 1.3e-5][j],
-              "bgd_b": [-7.2e-9, -3.1e-9, 2.4e-9, -5.0e-9][j], "bgd_a": -6.3e-9}
+        el = {
+            **E01,
+            "m0": u - w,
+            "w": w,
+            "i0": i0,
+            "omega0": lam + WE * toe_sow,
+            "toe_sow": toe_sow,
+            "week": 2051.0,
+            "sources": 517.0,
+            "af0": [4.45e-5, -2.1e-4, 6.0e-4, 1.3e-5][j],
+            "bgd_b": [-7.2e-9, -3.1e-9, 2.4e-9, -5.0e-9][j],
+            "bgd_a": -6.3e-9,
+        }
         gal[f"E{j + 11:02d}"] = {k: _rounded(v) for k, v in el.items()}
     return glo, gal
 
@@ -285,8 +403,10 @@ def test_mixed_navigation_and_observations_round_trip(tmp_path: Path) -> None:
     for sv, el in gal.items():  # Toc = Toe = 12:45:00 GST
         text += _record(sv, "2019 04 28 12 45 00", _galileo_values(el)) + "\n"
         # an F/NAV record with another clock: must not be used by an E1 user
-        text += _record(sv, "2019 04 28 12 45 00", _galileo_values({**el, "af0": el["af0"] + 2e-6,
-                                                                      "sources": 258.0})) + "\n"
+        text += (
+            _record(sv, "2019 04 28 12 45 00", _galileo_values({**el, "af0": el["af0"] + 2e-6, "sources": 258.0}))
+            + "\n"
+        )
     nav.write_text(text)
 
     rx = np.array(pymap3d.geodetic2ecef(*RX_LLH))
@@ -314,18 +434,21 @@ def test_mixed_navigation_and_observations_round_trip(tmp_path: Path) -> None:
                     clk = _kepler_clock(el, t_tx - toe_gal) - el["bgd_b"]
                     f = 1575.42e6
                 th = WE * tau
-                rot = np.array([st[0] * math.cos(th) + st[1] * math.sin(th),
-                                -st[0] * math.sin(th) + st[1] * math.cos(th), st[2]])
+                rot = np.array(
+                    [st[0] * math.cos(th) + st[1] * math.sin(th), -st[0] * math.sin(th) + st[1] * math.cos(th), st[2]]
+                )
                 tau = np.linalg.norm(rot - rx) / C_LIGHT
             code = C_LIGHT * tau + bias[sv[0]] - C_LIGHT * clk
             rows[(e, sv)] = (code, code / (C_LIGHT / f) + ambiguity, st, clk)
 
-    head = ["     3.04           OBSERVATION DATA    M: MIXED            RINEX VERSION / TYPE",
-            "R    4 C1C L1C D1C S1C                                      SYS / # / OBS TYPES",
-            "E    4 C1C L1C D1C S1C                                      SYS / # / OBS TYPES",
-            "  2019     4    28    12    45   10.0000000     GPS         TIME OF FIRST OBS",
-            "     1.000                                                  INTERVAL",
-            "                                                            END OF HEADER"]
+    head = [
+        "     3.04           OBSERVATION DATA    M: MIXED            RINEX VERSION / TYPE",
+        "R    4 C1C L1C D1C S1C                                      SYS / # / OBS TYPES",
+        "E    4 C1C L1C D1C S1C                                      SYS / # / OBS TYPES",
+        "  2019     4    28    12    45   10.0000000     GPS         TIME OF FIRST OBS",
+        "     1.000                                                  INTERVAL",
+        "                                                            END OF HEADER",
+    ]
     body = []
     for e in range(n_ep):
         body.append(f"> 2019 04 28 12 45 {10 + e:2d}.0000000  0{len(glo) + len(gal):3d}")
@@ -338,7 +461,7 @@ def test_mixed_navigation_and_observations_round_trip(tmp_path: Path) -> None:
     sc = load_rinex(obs_file, nav, None, systems="RE")
     obs = sc.observations
     assert len(obs) == n_ep * 8 and set(obs["sat"].str[0]) == {"R", "E"}
-    for (e, sv), (code, cyc, st, clk) in rows.items():
+    for (e, sv), (_code, _cyc, st, clk) in rows.items():
         row = obs[(obs["epoch"] == e) & (obs["sat"] == sv)].iloc[0]
         # satellite at transmit time: the time scale (UTC + 18 s for GLONASS) and the orbit
         np.testing.assert_allclose(row[["sat_x", "sat_y", "sat_z"]].to_numpy(float), st, atol=0.01)
@@ -369,7 +492,9 @@ def test_systems_setting_and_missing_navigation(tmp_path: Path) -> None:
     sc = cfg.scenario
     sc.source, sc.obs, sc.truth = "rinex", "a.obs", "a.csv"
     sc.nav = str(tmp_path / "gps.rnx")
-    (tmp_path / "gps.rnx").write_text("     3.04           N: GNSS NAV DATA    G: GPS              RINEX VERSION / TYPE\n")
+    (tmp_path / "gps.rnx").write_text(
+        "     3.04           N: GNSS NAV DATA    G: GPS              RINEX VERSION / TYPE\n"
+    )
     sc.systems = "GX"
     msg = one_line_error(validate_sim, cfg)
     assert "scenario.systems" in msg and "X" in msg and "GREC" in msg
@@ -380,7 +505,9 @@ def test_systems_setting_and_missing_navigation(tmp_path: Path) -> None:
     sc.systems = "GR"
     assert "scenario.nav_glo" in one_line_error(validate_sim, cfg)
     # a mixed file serves every system
-    (tmp_path / "gps.rnx").write_text("     3.04           N: GNSS NAV DATA    M: MIXED            RINEX VERSION / TYPE\n")
+    (tmp_path / "gps.rnx").write_text(
+        "     3.04           N: GNSS NAV DATA    M: MIXED            RINEX VERSION / TYPE\n"
+    )
     sc.systems = "GREC"
     validate_sim(cfg)
     sc.nav = ""

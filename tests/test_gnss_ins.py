@@ -1,4 +1,5 @@
 """GNSS/INS building blocks and the EKF / IEKF: levelling, code and Doppler models, accuracy, gating, validation."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -10,11 +11,11 @@ from estimators.gnss_ins_data import prepare_gnss_ins
 from estimators.gnss_ins_driver import run_gnss_ins
 from estimators.gnss_ins_ekf import EkfIns, EkfInsConfig, IekfIns, IekfInsConfig
 from estimators.ins_mechanisation import level_roll_pitch
+from simbench.analysis.metrics import enu_errors
 from simbench.contract import Need, ReceiverData
 from simbench.errors import SimbenchError
 from simbench.gnss.doppler import range_rate
 from simbench.gnss.geometry import sagnac_range
-from simbench.metrics import enu_errors
 
 
 @pytest.fixture(scope="module")
@@ -93,12 +94,15 @@ def test_prepared_code_is_range_plus_clock_after_the_troposphere(scenario: simbe
     assert np.median(fix_err) < 5.0
 
 
-@pytest.mark.parametrize(("cls", "cfg", "field"), [
-    (EkfIns, EkfInsConfig(gate=0.0), "gate"),
-    (EkfIns, EkfInsConfig(level_s=0.0), "level_s"),
-    (IekfIns, IekfInsConfig(lambda_d=-1.0), "lambda_d"),
-    (IekfIns, IekfInsConfig(tol=0.0), "tol"),
-])
+@pytest.mark.parametrize(
+    ("cls", "cfg", "field"),
+    [
+        (EkfIns, EkfInsConfig(gate=0.0), "gate"),
+        (EkfIns, EkfInsConfig(level_s=0.0), "level_s"),
+        (IekfIns, IekfInsConfig(lambda_d=-1.0), "lambda_d"),
+        (IekfIns, IekfInsConfig(tol=0.0), "tol"),
+    ],
+)
 def test_filters_declare_the_imu_and_reject_bad_configs(cls, cfg, field: str) -> None:
     assert cls.requires == frozenset({Need.imu})
     with pytest.raises(SimbenchError, match=rf"^estimator\.{cls.name}\.{field}: must be"):

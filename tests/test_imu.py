@@ -1,4 +1,5 @@
 """IMU: gravity, ideal output (checked by strapdown integration), error statistics, speed."""
+
 from __future__ import annotations
 
 import math
@@ -7,26 +8,39 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from simbench.config import FlightConfig, ImuConfig, NlosConfig, TrajectoryConfig, UrbanDriveConfig
+from simbench.core.constants import DEG, OMEGA_EARTH
+from simbench.core.frames import dcm_body_to_ecef, ecef_from_geodetic, geodetic_from_ecef
 from simbench.errors import SimbenchError
-from simbench.sim.constants import DEG, OMEGA_EARTH
-from simbench.sim.frames import dcm_body_to_ecef, ecef_from_geodetic, geodetic_from_ecef
+from simbench.sim.config import FlightConfig, ImuConfig, NlosConfig, TrajectoryConfig, UrbanDriveConfig
 from simbench.sim.imu import DPH, gravity_ecef, ideal_imu, simulate_imu
 from simbench.sim.trajectory import Trajectory, flight, urban_drive
 
 RATE = 100.0
 ORIGIN = TrajectoryConfig()
-TACTICAL = ImuConfig(grade="tactical", accel_bias_sigma_mps2=3e-3, gyro_bias_sigma_dph=1.0,
-                     accel_noise_mps2_rthz=3e-4, gyro_noise_dph_rthz=3.0, accel_bias_instability_mps2=1e-4,
-                     gyro_bias_instability_dph=0.1, bias_tau_s=3600.0)
+TACTICAL = ImuConfig(
+    grade="tactical",
+    accel_bias_sigma_mps2=3e-3,
+    gyro_bias_sigma_dph=1.0,
+    accel_noise_mps2_rthz=3e-4,
+    gyro_noise_dph_rthz=3.0,
+    accel_bias_instability_mps2=1e-4,
+    gyro_bias_instability_dph=0.1,
+    bias_tau_s=3600.0,
+)
 
 
 def _static(duration_s: float, rate_hz: float = RATE, att=(0.0, 0.0, 0.0)) -> Trajectory:
     k = int(round(duration_s * rate_hz))
     pos = ecef_from_geodetic(ORIGIN.origin_lat_deg * DEG, ORIGIN.origin_lon_deg * DEG, ORIGIN.origin_h_m)
     zero = np.zeros((k, 3))
-    return Trajectory(t=np.arange(k) / rate_hz, pos=np.tile(pos, (k, 1)), vel=zero, acc=zero,
-                      att=np.tile(att, (k, 1)), omega_eb_b=zero)
+    return Trajectory(
+        t=np.arange(k) / rate_hz,
+        pos=np.tile(pos, (k, 1)),
+        vel=zero,
+        acc=zero,
+        att=np.tile(att, (k, 1)),
+        omega_eb_b=zero,
+    )
 
 
 def _strapdown(traj: Trajectory, f_b: np.ndarray, w_ib_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -55,8 +69,14 @@ def _strapdown(traj: Trajectory, f_b: np.ndarray, w_ib_b: np.ndarray) -> tuple[n
 
 def _window(traj: Trajectory, start_s: float, length_s: float) -> Trajectory:
     sel = slice(int(round(start_s * RATE)), int(round((start_s + length_s) * RATE)) + 1)
-    return Trajectory(t=traj.t[sel], pos=traj.pos[sel], vel=traj.vel[sel], acc=traj.acc[sel], att=traj.att[sel],
-                      omega_eb_b=traj.omega_eb_b[sel])
+    return Trajectory(
+        t=traj.t[sel],
+        pos=traj.pos[sel],
+        vel=traj.vel[sel],
+        acc=traj.acc[sel],
+        att=traj.att[sel],
+        omega_eb_b=traj.omega_eb_b[sel],
+    )
 
 
 # --------------------------------------------------------------------------- gravity, ideal IMU
@@ -83,8 +103,7 @@ def test_stationary_imu_reads_gravity_and_earth_rate():
     level_f, level_w = ideal_imu(_static(1.0))
     assert level_f[0, 2] < -9.79 and np.abs(level_f[0, :2]).max() < 1e-3  # specific force points up
     lat = ORIGIN.origin_lat_deg * DEG
-    np.testing.assert_allclose(level_w[0], OMEGA_EARTH * np.array([math.cos(lat), 0.0, -math.sin(lat)]),
-                               atol=1e-12)
+    np.testing.assert_allclose(level_w[0], OMEGA_EARTH * np.array([math.cos(lat), 0.0, -math.sin(lat)]), atol=1e-12)
 
 
 @pytest.mark.parametrize("kind, start_s, bound_m", [("urban", 0.0, 0.02), ("flight", 60.0, 0.5)])
@@ -93,8 +112,7 @@ def test_strapdown_reproduces_trajectory(kind, start_s, bound_m):
 
     Measured: urban 1e-3 m, flight (level-off, roll in/out of a 180 deg turn) 0.14 m.
     """
-    cfg = TrajectoryConfig(urban_drive=UrbanDriveConfig(start_static_s=2.0),
-                           flight=FlightConfig(start_static_s=2.0))
+    cfg = TrajectoryConfig(urban_drive=UrbanDriveConfig(start_static_s=2.0), flight=FlightConfig(start_static_s=2.0))
     if kind == "urban":
         full = urban_drive(cfg, NlosConfig(), 61.0, RATE, np.random.default_rng(0))
     else:
@@ -139,8 +157,10 @@ def test_bias_gauss_markov_statistics():
     cfg = ImuConfig(bias_tau_s=1.0, gyro_bias_sigma_dph=0.0, accel_bias_sigma_mps2=0.0)
     imu = simulate_imu(_static(2000.0), cfg, np.random.default_rng(2))
     lag = int(round(cfg.bias_tau_s * RATE))
-    for drift, sigma in ((imu.gyro_bias / DPH, cfg.gyro_bias_instability_dph),
-                         (imu.accel_bias, cfg.accel_bias_instability_mps2)):
+    for drift, sigma in (
+        (imu.gyro_bias / DPH, cfg.gyro_bias_instability_dph),
+        (imu.accel_bias, cfg.accel_bias_instability_mps2),
+    ):
         x = drift - drift.mean(axis=0)
         rho = np.mean(x[:-lag] * x[lag:]) / np.mean(x * x)
         assert rho == pytest.approx(math.exp(-1.0), abs=0.1)
@@ -161,8 +181,12 @@ def test_tactical_grade_is_quieter_than_consumer():
     errors = {}
     for name, cfg in (("consumer", ImuConfig()), ("tactical", TACTICAL)):
         imu = simulate_imu(traj, cfg, np.random.default_rng(3))
-        errors[name] = (np.std(imu.gyro - w_ib_b - imu.gyro_bias), np.std(imu.accel - f_b - imu.accel_bias),
-                        np.abs(imu.gyro_bias).max(), np.abs(imu.accel_bias).max())
+        errors[name] = (
+            np.std(imu.gyro - w_ib_b - imu.gyro_bias),
+            np.std(imu.accel - f_b - imu.accel_bias),
+            np.abs(imu.gyro_bias).max(),
+            np.abs(imu.accel_bias).max(),
+        )
     assert all(t < 0.2 * c for t, c in zip(errors["tactical"], errors["consumer"]))
 
 

@@ -1,4 +1,5 @@
 """The iSAM2 loop (iSAM2-PPP, incremental DCS/MM) and ICE's adaptive noise model."""
+
 from __future__ import annotations
 
 import numpy as np

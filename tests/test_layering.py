@@ -1,16 +1,22 @@
-"""Layering rules, checked on the source: sim/data/gnss never import estimators, nobody borrows private names.
+"""The layers of simbench, declared here and checked on the source.
 
-An AST scan of every module under ``simbench/`` and ``estimators/``:
+An AST scan of every module under ``simbench/`` and ``estimators/`` (and, for
+rule (b), ``tests/``, ``benchmarks/`` and ``examples/``):
 
-(a) a module in ``simbench/sim/``, ``simbench/data/`` or ``simbench/gnss/``
-    imports ``estimators`` (at the top or inside a function, also through
-    ``importlib.import_module``);
-(b) a module imports an underscore name from another module
-    (``from x import _y``) or reads ``m._y`` where ``m`` is an imported module.
+(a) a module imports only modules of its own unit or of a lower layer
+    (:data:`LAYERS`), at the top or inside a function, also through
+    ``importlib.import_module``; units of one layer (``sim`` and ``data``) never
+    import each other;
+(b) no module imports an underscore name from another module
+    (``from x import _y``) or reads ``m._y`` where ``m`` is an imported module;
+(c) there is no import cycle between modules (module-level imports);
+(d) imports sit at the top of a module: one inside a function is allowed only for
+    an optional dependency, and says so in a comment on its line (``# optional: ...``).
 
 Dunder names (``__version__``, ``__file__``) are public. Attributes of
 objects (``self._cache``) are not module attributes and are not checked.
 """
+
 from __future__ import annotations
 
 import ast
@@ -21,8 +27,22 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 SCANNED_PACKAGES = ("simbench", "estimators")
-#: Packages that sit below the estimators and must not depend on them.
-LOWER_LAYERS = ("simbench.sim", "simbench.data", "simbench.gnss")
+#: Further folders checked for rule (b) only: they may import any layer.
+PRIVATE_NAME_SCANNED = ("tests", "benchmarks", "examples")
+
+#: The layers, bottom up. Each is a tuple of units; a unit is a tuple of module prefixes. A module may
+#: import its own unit and every unit of a lower layer.
+LAYERS: tuple[tuple[tuple[str, ...], ...], ...] = (
+    (("simbench.errors", "simbench.typed", "simbench.contract"),),  # the shared base
+    (("simbench.core",),),  # physics: frames, time, orbits, atmosphere
+    (("simbench.gnss",),),  # measurement model, single point, navigation
+    (("simbench.sim",), ("simbench.data",)),  # scenario sources, side by side
+    (("estimators",),),
+    (("simbench.analysis",),),  # statistics, claims, tables on data frames
+    (("simbench.runs",),),  # composition, jobs, store, studies
+    (("simbench.report",),),
+    (("simbench.api", "simbench.cli", "simbench.__main__", "simbench"),),  # entry points; the lazy facade
+)
 
 
 def is_private(name: str) -> bool:
@@ -66,45 +86,89 @@ def dotted_name(node: ast.expr) -> str | None:
     return ".".join([node.id, *reversed(parts)])
 
 
-def layering_violations(source: str, module: str, path: str, is_package: bool = False) -> list[str]:
-    """Every breach of rules (a) and (b) in one module's source, as ``path:line: message``.
+def unit_of(module: str) -> tuple[int, int] | None:
+    """(layer, unit) of a module of this repository by its longest matching prefix; None for third parties."""
+    best: tuple[int, int, int] | None = None
+    for li, layer in enumerate(LAYERS):
+        for ui, unit in enumerate(layer):
+            for prefix in unit:
+                if module == prefix or module.startswith(prefix + "."):
+                    if best is None or len(prefix) > best[2]:
+                        best = (li, ui, len(prefix))
+    return None if best is None else best[:2]
+
+
+def allowed(importer: str, target: str) -> bool:
+    """Rule (a): ``importer`` may import ``target``."""
+    src, dst = unit_of(importer), unit_of(target)
+    if src is None or dst is None:
+        return True
+    return dst == src or dst[0] < src[0]
+
+
+def imported_modules(node: ast.Import | ast.ImportFrom, module: str, is_package: bool) -> list[str]:
+    """The modules an import statement loads: ``from a import b`` gives ``a.b`` where that is a module, else ``a``."""
+    if isinstance(node, ast.Import):
+        return [alias.name for alias in node.names]
+    target = absolute_target(node, module, is_package)
+    return [f"{target}.{a.name}" if a.name != "*" and is_module(f"{target}.{a.name}") else target for a in node.names]
+
+
+def layering_violations(
+    source: str, module: str, path: str, is_package: bool = False, layers: bool = True
+) -> list[str]:
+    """Every breach of rules (a), (b) and (d) in one module's source, as ``path:line: message``.
 
     Parameters
     ----------
     source : str
         Python source text.
     module : str
-        Its dotted module name (``simbench.sim.orbits``); decides whether rule (a) applies.
+        Its dotted module name (``simbench.core.orbits``); places it in :data:`LAYERS`.
     path : str
         Shown in the messages.
     is_package : bool
         The source is a package ``__init__`` (resolves relative imports).
+    layers : bool
+        Check rules (a) and (d) too; False for tests, benchmarks and examples (rule (b) only).
     """
     tree = ast.parse(source, filename=path)
-    lower = in_package(module, LOWER_LAYERS)
+    lines = source.splitlines()
     found: list[str] = []
     module_names: set[str] = set()  # local names bound to module objects
+    top_level = {id(n) for n in tree.body}
     for node in ast.walk(tree):
-        if isinstance(node, ast.Import):
-            for alias in node.names:
-                if lower and in_package(alias.name, ("estimators",)):
-                    found.append(f"{path}:{node.lineno}: imports {alias.name}")
-                module_names.add(alias.asname or alias.name.split(".")[0])
-        elif isinstance(node, ast.ImportFrom):
-            target = absolute_target(node, module, is_package)
-            if lower and in_package(target, ("estimators",)):
-                found.append(f"{path}:{node.lineno}: imports from {target}")
-            for alias in node.names:
-                if is_private(alias.name):
-                    found.append(f"{path}:{node.lineno}: imports private name {alias.name} from {target}")
-                elif alias.name != "*" and is_module(f"{target}.{alias.name}"):
-                    module_names.add(alias.asname or alias.name)
-        elif isinstance(node, ast.Call) and lower and dotted_name(node.func) in ("importlib.import_module",
-                                                                                 "import_module", "__import__"):
+        if isinstance(node, (ast.Import, ast.ImportFrom)):
+            targets = imported_modules(node, module, is_package)
+            if layers:
+                found += [
+                    f"{path}:{node.lineno}: imports {target} from a higher layer or a sibling unit"
+                    for target in targets
+                    if not allowed(module, target)
+                ]
+                nested = id(node) not in top_level and not _in_type_checking_block(tree, node)
+                if nested and "# optional" not in lines[node.lineno - 1]:
+                    found.append(
+                        f"{path}:{node.lineno}: imports inside a function (only an optional "
+                        "dependency may, with '# optional: ...' on its line)"
+                    )
+            if isinstance(node, ast.Import):
+                module_names.update(alias.asname or alias.name.split(".")[0] for alias in node.names)
+            else:
+                target = absolute_target(node, module, is_package)
+                for alias in node.names:
+                    if is_private(alias.name):
+                        found.append(f"{path}:{node.lineno}: imports private name {alias.name} from {target}")
+                    elif alias.name != "*" and is_module(f"{target}.{alias.name}"):
+                        module_names.add(alias.asname or alias.name)
+        elif (
+            isinstance(node, ast.Call)
+            and layers
+            and dotted_name(node.func) in ("importlib.import_module", "import_module", "__import__")
+        ):
             arg = node.args[0] if node.args else None
-            if isinstance(arg, ast.Constant) and isinstance(arg.value, str) and in_package(arg.value,
-                                                                                           ("estimators",)):
-                found.append(f"{path}:{node.lineno}: imports {arg.value} dynamically")
+            if isinstance(arg, ast.Constant) and isinstance(arg.value, str) and not allowed(module, arg.value):
+                found.append(f"{path}:{node.lineno}: imports {arg.value} dynamically from a higher layer")
     for node in ast.walk(tree):
         if isinstance(node, ast.Attribute) and is_private(node.attr):
             owner = dotted_name(node.value)
@@ -113,14 +177,87 @@ def layering_violations(source: str, module: str, path: str, is_package: bool = 
     return sorted(set(found), key=lambda s: (s.split(":")[0], int(s.split(":")[1]), s))
 
 
-def scan(package: str) -> list[str]:
-    """Violations in every module of one top-level package of the repository."""
-    found = []
+def _in_type_checking_block(tree: ast.Module, node: ast.stmt) -> bool:
+    """True for an import under a module-level ``if TYPE_CHECKING:`` (never executed)."""
+    return any(
+        isinstance(top, ast.If)
+        and dotted_name(top.test) in ("TYPE_CHECKING", "typing.TYPE_CHECKING")
+        and any(node is n for n in ast.walk(top))
+        for top in tree.body
+    )
+
+
+def module_files(package: str) -> list[tuple[str, Path, bool]]:
+    """(dotted name, file, is_package) of every module of one top-level folder of the repository."""
+    out = []
     for file in sorted((ROOT / package).rglob("*.py")):
         rel = file.relative_to(ROOT)
         is_package = file.name == "__init__.py"
         parts = rel.parent.parts if is_package else rel.with_suffix("").parts
-        found += layering_violations(file.read_text(), ".".join(parts), str(rel), is_package)
+        out.append((".".join(parts), file, is_package))
+    return out
+
+
+def scan(package: str, layers: bool = True) -> list[str]:
+    """Violations in every module of one top-level folder of the repository."""
+    return [
+        v
+        for name, file, is_package in module_files(package)
+        for v in layering_violations(file.read_text(), name, str(file.relative_to(ROOT)), is_package, layers)
+    ]
+
+
+def import_graph() -> dict[str, set[str]]:
+    """Module-level imports between the modules of :data:`SCANNED_PACKAGES` (a package imports its ``__init__``)."""
+    files = [m for p in SCANNED_PACKAGES for m in module_files(p)]
+    names = {name for name, _, _ in files}
+    graph: dict[str, set[str]] = {}
+    for name, file, is_package in files:
+        tree = ast.parse(file.read_text())
+        edges: set[str] = set()
+        for node in tree.body:
+            if isinstance(node, (ast.Import, ast.ImportFrom)):
+                for target in imported_modules(node, name, is_package):
+                    while target and target not in names:  # a name defined in a package __init__
+                        target = target.rpartition(".")[0]
+                    if target and target != name:
+                        edges.add(target)
+        graph[name] = edges
+    return graph
+
+
+def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components with more than one module (Tarjan), each sorted."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in graph.get(v, ()):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
     return found
 
 
@@ -129,18 +266,21 @@ def scan(package: str) -> list[str]:
 SYNTHETIC = """\
 import estimators
 import numpy as np
-import simbench.sim.orbits as orbits_mod
-from simbench.sim import orbits
-from simbench.sim.orbits import _fmt_gps, FIT_HALF_WINDOW_S
+import simbench.core.orbits as orbits_mod
+from simbench.core import orbits
+from simbench.core.orbits import _fmt_gps, FIT_HALF_WINDOW_S
 from simbench import __version__
 from ._private_sibling import thing
 from . import _helper
+from simbench.data.rinex import load_rinex
+from simbench.runs import jobs
 
 
 def f(self):
     from estimators.measurement import troposphere_terms
     import importlib
     importlib.import_module("estimators.bce")
+    import matplotlib  # optional: plotting
     x = orbits._CHUNK_EPOCHS + orbits_mod._CHUNK_EPOCHS
     y = self._cache + np.pi + orbits.__name__ + orbits.FIT_HALF_WINDOW_S
     return x, y
@@ -150,24 +290,54 @@ def f(self):
 def test_checker_finds_every_kind_of_violation() -> None:
     found = layering_violations(SYNTHETIC, "simbench.sim.fake", "fake.py")
     assert found == [
-        "fake.py:1: imports estimators",
-        "fake.py:5: imports private name _fmt_gps from simbench.sim.orbits",
+        "fake.py:1: imports estimators from a higher layer or a sibling unit",
+        "fake.py:5: imports private name _fmt_gps from simbench.core.orbits",
+        "fake.py:6: imports simbench from a higher layer or a sibling unit",
         "fake.py:8: imports private name _helper from simbench.sim",
-        "fake.py:12: imports from estimators.measurement",
-        "fake.py:14: imports estimators.bce dynamically",
-        "fake.py:15: reads private name _CHUNK_EPOCHS of module orbits",
-        "fake.py:15: reads private name _CHUNK_EPOCHS of module orbits_mod",
+        "fake.py:9: imports simbench.data.rinex from a higher layer or a sibling unit",
+        "fake.py:10: imports simbench.runs.jobs from a higher layer or a sibling unit",
+        "fake.py:14: imports estimators.measurement from a higher layer or a sibling unit",
+        "fake.py:14: imports inside a function (only an optional dependency may, with '# optional: ...' on its line)",
+        "fake.py:15: imports inside a function (only an optional dependency may, with '# optional: ...' on its line)",
+        "fake.py:16: imports estimators.bce dynamically from a higher layer",
+        "fake.py:18: reads private name _CHUNK_EPOCHS of module orbits",
+        "fake.py:18: reads private name _CHUNK_EPOCHS of module orbits_mod",
     ]
 
 
-def test_estimators_may_import_estimators() -> None:
-    found = layering_violations(SYNTHETIC, "estimators.fake", "fake.py")
+def test_higher_layers_may_import_lower_ones() -> None:
+    found = layering_violations(SYNTHETIC, "simbench.cli.fake", "fake.py")
     assert found == [
-        "fake.py:5: imports private name _fmt_gps from simbench.sim.orbits",
-        "fake.py:8: imports private name _helper from estimators",
-        "fake.py:15: reads private name _CHUNK_EPOCHS of module orbits",
-        "fake.py:15: reads private name _CHUNK_EPOCHS of module orbits_mod",
+        "fake.py:5: imports private name _fmt_gps from simbench.core.orbits",
+        "fake.py:8: imports private name _helper from simbench.cli",
+        "fake.py:14: imports inside a function (only an optional dependency may, with '# optional: ...' on its line)",
+        "fake.py:15: imports inside a function (only an optional dependency may, with '# optional: ...' on its line)",
+        "fake.py:18: reads private name _CHUNK_EPOCHS of module orbits",
+        "fake.py:18: reads private name _CHUNK_EPOCHS of module orbits_mod",
     ]
+
+
+def test_tests_are_checked_for_private_names_only() -> None:
+    found = layering_violations(SYNTHETIC, "tests.test_fake", "fake.py", layers=False)
+    assert found == [
+        "fake.py:5: imports private name _fmt_gps from simbench.core.orbits",
+        "fake.py:8: imports private name _helper from tests",
+        "fake.py:18: reads private name _CHUNK_EPOCHS of module orbits",
+        "fake.py:18: reads private name _CHUNK_EPOCHS of module orbits_mod",
+    ]
+
+
+def test_layer_order() -> None:
+    assert allowed("simbench.sim.generator", "simbench.gnss.spp")
+    assert allowed("simbench.sim.generator", "simbench.sim.tracking")
+    assert not allowed("simbench.sim.generator", "simbench.data.rinex")  # side by side
+    assert not allowed("simbench.data.rinex", "simbench.sim.config")
+    assert not allowed("simbench.core.orbits", "simbench.gnss.geometry")
+    assert allowed("simbench.runs.runner", "simbench.analysis.metrics")
+    assert not allowed("simbench.report.build", "simbench.cli.main")
+    assert allowed("simbench.cli.main", "simbench.report.build")
+    assert not allowed("simbench.core.frames", "simbench")  # the facade is on top
+    assert allowed("simbench.core.frames", "numpy")
 
 
 def test_relative_imports_resolve_against_the_package() -> None:
@@ -180,16 +350,40 @@ def test_relative_imports_resolve_against_the_package() -> None:
     ]
 
 
+def test_cycle_finder() -> None:
+    assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+    assert cycles({"a": {"b"}, "b": set()}) == []
+
+
 def test_scan_covers_the_whole_tree() -> None:
     # Guards against a scan that silently reads nothing (e.g. a wrong ROOT).
     files = [f for p in SCANNED_PACKAGES for f in (ROOT / p).rglob("*.py")]
     assert len(files) > 30
-    assert (ROOT / "simbench" / "sim" / "orbits.py") in files
+    assert (ROOT / "simbench" / "core" / "orbits.py") in files
+    graph = import_graph()
+    assert "simbench.core.constants" in graph["simbench.core.frames"]
+
+
+def test_every_module_has_a_layer() -> None:
+    missing = [name for p in SCANNED_PACKAGES for name, _, _ in module_files(p) if unit_of(name) is None]
+    assert not missing, f"modules outside LAYERS: {missing}"
 
 
 # --------------------------------------------------------------------------- the tree obeys
+
 
 @pytest.mark.parametrize("package", SCANNED_PACKAGES)
 def test_layering(package: str) -> None:
     found = scan(package)
     assert not found, "layering violations:\n" + "\n".join(found)
+
+
+@pytest.mark.parametrize("folder", PRIVATE_NAME_SCANNED)
+def test_no_private_names_borrowed(folder: str) -> None:
+    found = scan(folder, layers=False)
+    assert not found, "private names imported:\n" + "\n".join(found)
+
+
+def test_no_import_cycles() -> None:
+    found = cycles(import_graph())
+    assert not found, "import cycles:\n" + "\n".join(" <-> ".join(c) for c in found)

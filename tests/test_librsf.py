@@ -1,4 +1,5 @@
 """The libRSF text format: parsing, mapping into the observation table, scoring, bad input."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -9,15 +10,16 @@ from conftest import one_line_error
 
 from estimators.measurement import prepare_ppp
 from estimators.ppp_config import MeasurementMode
-from simbench.compose import compose_config
-from simbench.config import SimConfig, to_typed
 from simbench.contract import OBSERVATION_COLUMNS, ODOMETRY_COLUMNS, Scenario
 from simbench.data.librsf import load_librsf, read_librsf, write_synthetic_librsf
 from simbench.errors import SimbenchError
 from simbench.gnss.geometry import elevation_azimuth
 from simbench.gnss.spp import solve_epochs
-from simbench.runner import run_estimators
-from simbench.scenarios import build_scenario
+from simbench.runs.compose import compose_config
+from simbench.runs.runner import run_estimators
+from simbench.runs.scenarios import build_scenario
+from simbench.sim.config import SimConfig
+from simbench.typed import to_typed
 
 FIXTURE = Path(__file__).resolve().parent / "data" / "librsf_small.txt"
 #: 6 s at 5 Hz, GPS + GLONASS (RTKLIB IDs, 40 m inter-system clock offset), 10 Hz odometry:
@@ -57,8 +59,14 @@ def test_mapping_into_the_observation_table(scenario: Scenario) -> None:
 
 def test_shared_model_recovers_the_synthetic_truth(scenario: Scenario) -> None:
     """No Klobuchar applied, hydrostatic delay cancelled: the fit matches the 0.5 m code noise."""
-    obs = prepare_ppp(scenario.receiver_view(), ionosphere_free=False, code_sigma_m=0.5, phase_sigma_m=0.01,
-                      elevation_mask_deg=7.0, measurements=MeasurementMode.auto)
+    obs = prepare_ppp(
+        scenario.receiver_view(),
+        ionosphere_free=False,
+        code_sigma_m=0.5,
+        phase_sigma_m=0.01,
+        elevation_mask_deg=7.0,
+        measurements=MeasurementMode.auto,
+    )
     truth = scenario.truth[["x", "y", "z"]].to_numpy()
     row_k = np.repeat(np.arange(obs.n_epochs), obs.epoch_stop - obs.epoch_start)
     fixes = solve_epochs(row_k, obs.sat_pos, obs.code, sigma=obs.sigma_code, el=obs.el, doy=obs.doy)
@@ -74,8 +82,9 @@ def test_shared_model_recovers_the_synthetic_truth(scenario: Scenario) -> None:
 
 
 def test_phase_estimators_are_skipped_with_a_reason(scenario: Scenario) -> None:
-    res = run_estimators(scenario, {"ekf_ppp": {"measurements": "code_phase"}, "l2": {"measurements": "code_phase"}},
-                         progress=False)
+    res = run_estimators(
+        scenario, {"ekf_ppp": {"measurements": "code_phase"}, "l2": {"measurements": "code_phase"}}, progress=False
+    )
     assert (res.summary["status"] == "skipped").all()
     assert res.summary["message"].str.contains("phase").all()
 
@@ -93,8 +102,7 @@ def test_every_gnss_estimator_runs_code_only_by_default(scenario: Scenario) -> N
 def test_system_flags_and_the_old_layout(tmp_path: Path) -> None:
     sat = "13937336.4 13497913.0 18137658.6"
     p = tmp_path / "mixed.txt"
-    p.write_text(f"pseudorange3 5.0 2.1e7 4.0 {sat} 11 8 45.0 40.0\n"
-                 f"pseudorange3 5.0 2.1e7 4.0 {sat} 5 32 45.0 40.0\n")
+    p.write_text(f"pseudorange3 5.0 2.1e7 4.0 {sat} 11 8 45.0 40.0\npseudorange3 5.0 2.1e7 4.0 {sat} 5 32 45.0 40.0\n")
     assert read_librsf(p).ranges["sat"].tolist() == ["E11", "C05"]
     old = tmp_path / "old.txt"
     old.write_text(f"range3 5.0 2.1e7 4.0 {sat} 7 45.0 40.0\ngt3 5.0 1 2 3\n")
@@ -121,8 +129,15 @@ def test_synthetic_writer_and_the_scenario_preset(tmp_path: Path) -> None:
     p = write_synthetic_librsf(tmp_path / "a.txt", 5.0, odometry_rate_hz=2.0, seed=3)
     log = read_librsf(p)
     assert log.ranges["t"].nunique() == 5 and len(log.odometry) == 10
-    cfg = to_typed({k: v for k, v in compose_config(["scenario=librsf", f"scenario.obs={p}"]).items()
-                    if k in ("scenario", "receiver", "imu", "seed")}, SimConfig, "config")
+    cfg = to_typed(
+        {
+            k: v
+            for k, v in compose_config(["scenario=librsf", f"scenario.obs={p}"]).items()
+            if k in ("scenario", "receiver", "imu", "seed")
+        },
+        SimConfig,
+        "config",
+    )
     sc = build_scenario(cfg)
     assert sc.meta["source"] == "librsf" and len(sc.truth) == 5
 
@@ -136,8 +151,9 @@ def test_glonass_rows_get_their_own_system_and_clock(glonass: Scenario) -> None:
     log = read_librsf(GLONASS_FIXTURE)
     sats = log.ranges["sat"]
     # file IDs 33.. with system flag 4 are RTKLIB numbers: slot = ID - 32
-    raw_ids = np.array([ln.split()[7:9] for ln in GLONASS_FIXTURE.read_text().splitlines()
-                        if ln.startswith("pseudorange3")], float)
+    raw_ids = np.array(
+        [ln.split()[7:9] for ln in GLONASS_FIXTURE.read_text().splitlines() if ln.startswith("pseudorange3")], float
+    )
     assert set(sats.str[0]) == {"G", "R"} and (sats.str.len() == 3).all()
     glo_ids = raw_ids[raw_ids[:, 1] == 4, 0]
     assert glo_ids.size == 180 and (glo_ids > 32).all()
@@ -163,8 +179,7 @@ def test_odometry_lines_become_the_odometry_table(glonass: Scenario, tmp_path: P
     odo = glonass.odometry
     assert list(odo.columns) == list(ODOMETRY_COLUMNS) and len(odo) == 60
     assert np.allclose(odo["t"], np.arange(60) * 0.1)
-    raw = np.array([ln.split()[1:] for ln in GLONASS_FIXTURE.read_text().splitlines() if ln.startswith("odom3")],
-                   float)
+    raw = np.array([ln.split()[1:] for ln in GLONASS_FIXTURE.read_text().splitlines() if ln.startswith("odom3")], float)
     assert np.array_equal(odo["speed"], raw[:, 1]) and np.array_equal(odo["yaw_rate"], -raw[:, 6])
     assert (odo["var_speed"] == 0.0025).all() and (odo["var_yaw_rate"] == 4e-6).all()
     assert abs(odo["speed"].mean() - 10.0) < 4 * 0.05 / np.sqrt(60)
@@ -176,9 +191,11 @@ def test_odometry_lines_become_the_odometry_table(glonass: Scenario, tmp_path: P
     # first pseudorange, sorted
     sat = "13937336.4 13497913.0 18137658.6"
     p = tmp_path / "turn.txt"
-    p.write_text(f"odom3 2.5 4.0 0 0 0 0 0.1 0.0025 0.0009 0.0009 4e-06 4e-06 4e-06\n"
-                 f"odom3 0.5 5.0 0 0 0 0 -0.2 0.0025 0.0009 0.0009 4e-06 4e-06 4e-06\n"
-                 f"pseudorange3 2.0 2.1e7 4.0 {sat} 11 1 45.0 40.0\n")
+    p.write_text(
+        f"odom3 2.5 4.0 0 0 0 0 0.1 0.0025 0.0009 0.0009 4e-06 4e-06 4e-06\n"
+        f"odom3 0.5 5.0 0 0 0 0 -0.2 0.0025 0.0009 0.0009 4e-06 4e-06 4e-06\n"
+        f"pseudorange3 2.0 2.1e7 4.0 {sat} 11 1 45.0 40.0\n"
+    )
     got = read_librsf(p).odometry
     assert got["t"].tolist() == [-1.5, 0.5] and got["speed"].tolist() == [5.0, 4.0]
     assert got["yaw_rate"].tolist() == [0.2, -0.1]
@@ -188,25 +205,61 @@ def test_odometry_lines_become_the_odometry_table(glonass: Scenario, tmp_path: P
     assert len(none) == 0 and list(none.columns) == list(ODOMETRY_COLUMNS)
 
 
-@pytest.mark.parametrize("lines, bad_line, words", [
-    (["pseudorange3 5.0 2.1e7 4.0 {sat} 11 1 45.0 40.0", "pseudorange3 5.0 2.1e7 4.0 {sat} 12 64 45.0 40.0"],
-     2, ["field 9 (satellite system) is 64"]),
-    (["# a comment", "", "   # indented comment", "pseudorange3 5.0 2.1e7 4.0 {sat} 11.5 1 45.0 40.0"],
-     4, ["field 8 (satellite ID) is 11.5"]),
-    (["pseudorange3 5.0 2.1e7 4.0 {sat} 11 1 45.0 40.0",
-      "odom3 5.0 1 0 0 0 0 0 0.0025 0.0009 0.0009 -4e-06 4e-06 4e-06"], 2, ["odom3 variance field 12", "-4e-06"]),
-    (["pseudorange3 5.0 2.1e7 4.0 {sat} 11 1 45.0 40.0",
-      "odom3 5.0 1 0 0 0 0 0 0.0025 0.0009 0.0009 4e-06 4e-06 inf"], 2, ["field 14 ('inf') is not a finite number"]),
-    (["pseudorange3 5.0 2.1e7 4.0 {sat} 11 1 45.0 40.0",
-      "odom3 5.0 1 0 0 0 0 0 0.0025 0.0009 0.0009 4e-06 4e-06 nan"], 2, ["odom3 has 12 values"]),
-    (["pseudorange3 5.0 2.1e7 4.0 {sat} 11 1 45.0 40.0", "pseudorange3 5.0 2.1e7 4.0 {sat} 11"],
-     2, ["pseudorange3 has 7 values"]),
-    (["pseudorange3 5.0 2.1e7 4.0 {sat} 11 1 45.0 40.0", "pseudorange3 5.0 2.1e7 4.0 {sat} 11 1 45.0"],
-     2, ["pseudorange3 has 9 values", "the first pseudorange3 line 10"]),
-    (["pseudorange3 5.0 2.1e7 4.0 {sat} 11 1 45.0 40.0", "pseudorange3 5.0 2.1e7 x {sat} 11 1 45.0 40.0"],
-     2, ["field 4 ('x') is not a finite number"]),
-    (["pseudorange3 5.0 2.1e7 4.0 {sat} 11 1 45.0 40.0", "satpos 1 2 3"], 2, ["unknown line types ['satpos']"]),
-])
+@pytest.mark.parametrize(
+    "lines, bad_line, words",
+    [
+        (
+            ["pseudorange3 5.0 2.1e7 4.0 {sat} 11 1 45.0 40.0", "pseudorange3 5.0 2.1e7 4.0 {sat} 12 64 45.0 40.0"],
+            2,
+            ["field 9 (satellite system) is 64"],
+        ),
+        (
+            ["# a comment", "", "   # indented comment", "pseudorange3 5.0 2.1e7 4.0 {sat} 11.5 1 45.0 40.0"],
+            4,
+            ["field 8 (satellite ID) is 11.5"],
+        ),
+        (
+            [
+                "pseudorange3 5.0 2.1e7 4.0 {sat} 11 1 45.0 40.0",
+                "odom3 5.0 1 0 0 0 0 0 0.0025 0.0009 0.0009 -4e-06 4e-06 4e-06",
+            ],
+            2,
+            ["odom3 variance field 12", "-4e-06"],
+        ),
+        (
+            [
+                "pseudorange3 5.0 2.1e7 4.0 {sat} 11 1 45.0 40.0",
+                "odom3 5.0 1 0 0 0 0 0 0.0025 0.0009 0.0009 4e-06 4e-06 inf",
+            ],
+            2,
+            ["field 14 ('inf') is not a finite number"],
+        ),
+        (
+            [
+                "pseudorange3 5.0 2.1e7 4.0 {sat} 11 1 45.0 40.0",
+                "odom3 5.0 1 0 0 0 0 0 0.0025 0.0009 0.0009 4e-06 4e-06 nan",
+            ],
+            2,
+            ["odom3 has 12 values"],
+        ),
+        (
+            ["pseudorange3 5.0 2.1e7 4.0 {sat} 11 1 45.0 40.0", "pseudorange3 5.0 2.1e7 4.0 {sat} 11"],
+            2,
+            ["pseudorange3 has 7 values"],
+        ),
+        (
+            ["pseudorange3 5.0 2.1e7 4.0 {sat} 11 1 45.0 40.0", "pseudorange3 5.0 2.1e7 4.0 {sat} 11 1 45.0"],
+            2,
+            ["pseudorange3 has 9 values", "the first pseudorange3 line 10"],
+        ),
+        (
+            ["pseudorange3 5.0 2.1e7 4.0 {sat} 11 1 45.0 40.0", "pseudorange3 5.0 2.1e7 x {sat} 11 1 45.0 40.0"],
+            2,
+            ["field 4 ('x') is not a finite number"],
+        ),
+        (["pseudorange3 5.0 2.1e7 4.0 {sat} 11 1 45.0 40.0", "satpos 1 2 3"], 2, ["unknown line types ['satpos']"]),
+    ],
+)
 def test_bad_lines_are_named_in_one_line(tmp_path: Path, lines: list[str], bad_line: int, words: list[str]) -> None:
     sat = "13937336.4 13497913.0 18137658.6"
     p = tmp_path / "bad.txt"

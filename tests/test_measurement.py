@@ -4,6 +4,7 @@
 static receiver under the nominal constellation); ``tests/test_ekf_ppp.py``
 uses it too.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -12,17 +13,17 @@ import pymap3d
 import pytest
 
 from estimators.measurement import arc_ids, predict, prepare_ppp, sigma_factor
-from simbench.gnss.arcs import doppler_phase_jumps
 from estimators.ppp_config import SigmaModel
 from simbench.contract import NavInfo, ReceiverData
+from simbench.core import atmosphere
+from simbench.core.constants import DEG, IONO_L2_SCALE, LAMBDA_L1, LAMBDA_L2, SECONDS_PER_WEEK
+from simbench.core.frames import geodetic_from_ecef
+from simbench.core.gpstime import day_of_year
+from simbench.core.orbits import NominalConstellation
 from simbench.errors import SimbenchError
-from simbench.sim import atmosphere
-from simbench.sim.constants import DEG, IONO_L2_SCALE, LAMBDA_L1, LAMBDA_L2, SECONDS_PER_WEEK
-from simbench.sim.frames import geodetic_from_ecef
+from simbench.gnss.arcs import doppler_phase_jumps
 from simbench.gnss.geometry import sagnac_range
 from simbench.sim.geometry import line_of_sight
-from simbench.sim.gpstime import day_of_year
-from simbench.sim.orbits import NominalConstellation
 
 ALPHA = (8.382e-09, -1.490e-08, -5.960e-08, 1.192e-07)
 BETA = (9.421e04, -1.311e05, -1.311e05, 8.520e05)
@@ -30,9 +31,18 @@ LAT, LON, H = 39.6295, -79.9559, 290.0  # deg, deg, m
 WEEK, SOW0 = 2032, 475_200.0  # 2018-12-21 12:00 GPST
 
 
-def synthetic_data(n_epochs: int = 600, *, dual: bool = True, seed: int = 0, code_noise_m: float = 0.3,
-                   phase_noise_m: float = 0.003, slip: tuple[int, str] | None = None, flag_slip: bool = True,
-                   mask_deg: float = 10.0, iono_drift_mps: float = 0.0) -> tuple[ReceiverData, dict]:
+def synthetic_data(
+    n_epochs: int = 600,
+    *,
+    dual: bool = True,
+    seed: int = 0,
+    code_noise_m: float = 0.3,
+    phase_noise_m: float = 0.003,
+    slip: tuple[int, str] | None = None,
+    flag_slip: bool = True,
+    mask_deg: float = 10.0,
+    iono_drift_mps: float = 0.0,
+) -> tuple[ReceiverData, dict]:
     """Exact observations of a static receiver, 1 Hz, following the observation-table conventions.
 
     code = range + rx_clock - sat_clock + tropo + iono + noise; phase likewise with
@@ -45,8 +55,7 @@ def synthetic_data(n_epochs: int = 600, *, dual: bool = True, seed: int = 0, cod
     rng = np.random.default_rng(seed)
     rx = np.array(pymap3d.geodetic2ecef(LAT, LON, H))
     t = np.arange(n_epochs, dtype=float)
-    los = line_of_sight(np.tile(rx, (n_epochs, 1)), None, WEEK * SECONDS_PER_WEEK + SOW0 + t,
-                        NominalConstellation())
+    los = line_of_sight(np.tile(rx, (n_epochs, 1)), None, WEEK * SECONDS_PER_WEEK + SOW0 + t, NominalConstellation())
     el, az = los.el_rad, los.az_rad
     n, m = el.shape
     zhd, zwd_model = atmosphere.saastamoinen_zenith_m(LAT * DEG, H)
@@ -60,8 +69,8 @@ def synthetic_data(n_epochs: int = 600, *, dual: bool = True, seed: int = 0, cod
     else:
         iono = atmosphere.klobuchar_l1_delay_m(SOW0 + t[:, None], LAT * DEG, LON * DEG, el, az, ALPHA, BETA)
     iono = iono + iono_drift_mps * t[:, None] * rng.choice([-1.0, 1.0], m)[None, :]
-    n1 = np.repeat(rng.integers(-10**6, 10**6, m)[None, :], n, axis=0)
-    n2 = np.repeat(rng.integers(-10**6, 10**6, m)[None, :], n, axis=0)
+    n1 = np.repeat(rng.integers(-(10**6), 10**6, m)[None, :], n, axis=0)
+    n2 = np.repeat(rng.integers(-(10**6), 10**6, m)[None, :], n, axis=0)
     lli = np.zeros((n, m), bool)
     if slip is not None:
         k, name = slip
@@ -78,17 +87,31 @@ def synthetic_data(n_epochs: int = 600, *, dual: bool = True, seed: int = 0, cod
         code2[:], phase2[:] = np.nan, np.nan
     ei, si = np.nonzero(el > mask_deg * DEG)
     sats = np.asarray(los.sats)
-    obs = pd.DataFrame({
-        "epoch": ei.astype(np.int64), "t": t[ei], "sat": sats[si],
-        "code_l1": code1[ei, si], "phase_l1": phase1[ei, si], "doppler_l1": 0.0, "cn0_l1": 45.0,
-        "lli_l1": lli[ei, si], "code_l2": code2[ei, si], "phase_l2": phase2[ei, si], "lli_l2": lli[ei, si],
-        "sat_x": los.sat_pos_tx[ei, si, 0], "sat_y": los.sat_pos_tx[ei, si, 1],
-        "sat_z": los.sat_pos_tx[ei, si, 2],
-        "sat_vx": los.sat_vel_tx[ei, si, 0], "sat_vy": los.sat_vel_tx[ei, si, 1],
-        "sat_vz": los.sat_vel_tx[ei, si, 2],
-        "sat_clock": sat_clock[ei, si], "sat_clock_drift": 0.01,
-        "el": np.degrees(el[ei, si]), "az": np.degrees(az[ei, si]),
-    })
+    obs = pd.DataFrame(
+        {
+            "epoch": ei.astype(np.int64),
+            "t": t[ei],
+            "sat": sats[si],
+            "code_l1": code1[ei, si],
+            "phase_l1": phase1[ei, si],
+            "doppler_l1": 0.0,
+            "cn0_l1": 45.0,
+            "lli_l1": lli[ei, si],
+            "code_l2": code2[ei, si],
+            "phase_l2": phase2[ei, si],
+            "lli_l2": lli[ei, si],
+            "sat_x": los.sat_pos_tx[ei, si, 0],
+            "sat_y": los.sat_pos_tx[ei, si, 1],
+            "sat_z": los.sat_pos_tx[ei, si, 2],
+            "sat_vx": los.sat_vel_tx[ei, si, 0],
+            "sat_vy": los.sat_vel_tx[ei, si, 1],
+            "sat_vz": los.sat_vel_tx[ei, si, 2],
+            "sat_clock": sat_clock[ei, si],
+            "sat_clock_drift": 0.01,
+            "el": np.degrees(el[ei, si]),
+            "az": np.degrees(az[ei, si]),
+        }
+    )
     imu = pd.DataFrame({c: np.zeros(0) for c in ("t", "ax", "ay", "az", "gx", "gy", "gz")})
     data = ReceiverData(obs, imu, NavInfo(WEEK, SOW0, ALPHA, BETA, dual))
     truth = {"pos": rx, "zwd": zwd, "rx_clock": rx_clock, "lat": LAT, "lon": LON, "h": H}
@@ -197,8 +220,16 @@ def test_prepare_ppp_corrections_leave_only_noise(dual: bool) -> None:
     worst_code, biases = 0.0, {}
     for k, rows in obs.iter_epochs():
         assert len(set(obs.epoch[rows])) == 1 and obs.epoch_t[k] == obs.t[rows][0]
-        pred, _ = predict(obs.sat_pos[rows], truth["pos"], truth["rx_clock"][obs.epoch_ids[k]], truth["zwd"],
-                          obs.el[rows], lat, h, obs.doy)
+        pred, _ = predict(
+            obs.sat_pos[rows],
+            truth["pos"],
+            truth["rx_clock"][obs.epoch_ids[k]],
+            truth["zwd"],
+            obs.el[rows],
+            lat,
+            h,
+            obs.doy,
+        )
         worst_code = max(worst_code, np.abs(obs.code[rows] - pred).max())
         for a, b in zip(obs.arc[rows], obs.phase[rows] - pred):
             biases.setdefault(a, []).append(b)
@@ -212,8 +243,9 @@ def test_prepare_ppp_drops_epochs_below_min_satellites() -> None:
     o = data.observations
     counts = o[o["el"] > 10].groupby("epoch").size()
     need = int(counts.max())
-    obs = prepare_ppp(data, ionosphere_free=False, code_sigma_m=2.5, phase_sigma_m=0.025, elevation_mask_deg=10,
-                      min_satellites=need)
+    obs = prepare_ppp(
+        data, ionosphere_free=False, code_sigma_m=2.5, phase_sigma_m=0.025, elevation_mask_deg=10, min_satellites=need
+    )
     assert set(obs.epoch_ids) == set(counts.index[counts >= need])
 
 

@@ -5,6 +5,7 @@ PRN are renamed to Galileo ids and the receiver sees them through a clock 40 m
 later (code and phase), which is what an inter-system bias is. The estimators
 must recover the 40 m and keep the single-system accuracy.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -16,7 +17,7 @@ import estimators
 import simbench
 from estimators.measurement import prepare_ppp
 from estimators.ppp_config import MeasurementMode
-from simbench.metrics import enu_errors
+from simbench.analysis.metrics import enu_errors
 
 ISB_M = 40.0
 
@@ -95,8 +96,11 @@ def _solve_graph(sc: simbench.Scenario, **config):
     values = solve(graph, g.initial_values())
     truth = sc.truth.set_index("epoch").loc[obs.epoch_ids]
     pos_err = np.linalg.norm(g.positions(values) - truth[["x", "y", "z"]].to_numpy(), axis=1)
-    vel = (np.array([values.atPoint3(vel_key(k)) for k in range(obs.n_epochs)])
-           if cfg.motion_model == "constant_velocity" else None)
+    vel = (
+        np.array([values.atPoint3(vel_key(k)) for k in range(obs.n_epochs)])
+        if cfg.motion_model == "constant_velocity"
+        else None
+    )
     vel_err = None if vel is None else np.linalg.norm(vel - truth[["vx", "vy", "vz"]].to_numpy(), axis=1)
     return pos_err, vel_err
 

@@ -1,4 +1,5 @@
 """ICE's component equivalence tests and merge equations (dissertation eqs. 7.4-7.12)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -80,8 +81,12 @@ def test_hotelling_statistic_equals_the_textbook_form() -> None:
 
 def test_both_tests_accept_the_same_component_and_reject_a_different_one() -> None:
     same = np.mean([components_equivalent(s, MEAN, COV)[0] for s in _draws(300, seed=5)[:500]])
-    other = np.mean([components_equivalent(s, MEAN, COV)[0]
-                     for s in _draws(300, shift=np.array([1.0, 0.0]), scale=1.5, seed=6)[:500]])
+    other = np.mean(
+        [
+            components_equivalent(s, MEAN, COV)[0]
+            for s in _draws(300, shift=np.array([1.0, 0.0]), scale=1.5, seed=6)[:500]
+        ]
+    )
     assert same > 0.85 and other < 0.01, (same, other)
 
 
@@ -89,8 +94,9 @@ def test_merge_preserves_pooled_mean_and_covariance_exactly() -> None:
     rng = np.random.default_rng(7)
     a = rng.normal([1.0, -2.0], [3.0, 0.5], size=(137, 2))
     b = rng.normal([-4.0, 0.3], [0.7, 2.0], size=(41, 2))
-    mean, cov = merge_moments(len(a), a.mean(0), np.cov(a, rowvar=False, bias=True),
-                              len(b), b.mean(0), np.cov(b, rowvar=False, bias=True))
+    mean, cov = merge_moments(
+        len(a), a.mean(0), np.cov(a, rowvar=False, bias=True), len(b), b.mean(0), np.cov(b, rowvar=False, bias=True)
+    )
     both = np.vstack([a, b])
     np.testing.assert_allclose(mean, both.mean(0), rtol=0, atol=1e-12)
     np.testing.assert_allclose(cov, np.cov(both, rowvar=False, bias=True), rtol=1e-12, atol=1e-12)

@@ -1,4 +1,5 @@
 """Multi-constellation: BeiDou broadcast orbits, the inter-system bias of the shared model, Hong Kong GPS+BDS."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -11,22 +12,22 @@ import pytest
 
 from estimators.ekf_ppp import EkfPpp, EkfPppConfig
 from estimators.measurement import prepare_ppp
-from simbench.config import SimConfig
 from simbench.contract import ReceiverData
+from simbench.core.frames import geodetic_from_ecef
+from simbench.core.gpstime import datetime64_to_gps
 from simbench.data.beidou import read_beidou_navigation
 from simbench.data.rinex import load_rinex
 from simbench.errors import SimbenchError
-from simbench.scenarios import build_scenario
-from simbench.sim.frames import geodetic_from_ecef
 from simbench.gnss.geometry import sagnac_range
-from simbench.sim.gpstime import datetime64_to_gps
+from simbench.runs.scenarios import build_scenario
+from simbench.sim.config import SimConfig
 
 if "test_measurement" not in sys.modules:
     _spec = importlib.util.spec_from_file_location("test_measurement", Path(__file__).with_name("test_measurement.py"))
     _mod = importlib.util.module_from_spec(_spec)
     sys.modules["test_measurement"] = _mod
     _spec.loader.exec_module(_mod)
-from test_measurement import horizontal_error, synthetic_data  # noqa: E402
+from test_measurement import horizontal_error, synthetic_data
 
 HK = Path(__file__).resolve().parents[2] / "shared" / "data" / "hk_tst_2019"
 BDS_NAV = HK / "hksc1180.19b"
@@ -61,8 +62,9 @@ def test_inter_system_bias_state() -> None:
     assert np.median(horizontal_error(one.epochs, truth)[-100:]) < 0.3
     # ignoring the bias (every satellite called GPS) costs metres
     ignored = _as_two_systems(data, 40.0)
-    ignored = dataclasses.replace(ignored, observations=ignored.observations.assign(
-        sat="G" + ignored.observations["sat"].str[1:]))
+    ignored = dataclasses.replace(
+        ignored, observations=ignored.observations.assign(sat="G" + ignored.observations["sat"].str[1:])
+    )
     bad = np.median(horizontal_error(EkfPpp(EkfPppConfig(ionosphere_free=True)).estimate(ignored).epochs, truth)[-100:])
     assert bad > 1.0 > err
 
@@ -90,8 +92,13 @@ def test_beidou_orbits_geo_igso_meo() -> None:
 
 @needs_hk
 def test_hong_kong_gps_plus_beidou() -> None:
-    sc = load_rinex(HK / "COM3_190428_124409.obs", HK / "hksc1180.19n", HK / "groundTruth_TST.csv",
-                    systems="GC", nav_bds_path=BDS_NAV)
+    sc = load_rinex(
+        HK / "COM3_190428_124409.obs",
+        HK / "hksc1180.19n",
+        HK / "groundTruth_TST.csv",
+        systems="GC",
+        nav_bds_path=BDS_NAV,
+    )
     obs = sc.observations
     assert set(obs["sat"].str[0]) == {"G", "C"}
     assert obs.groupby("epoch")["sat"].size().median() >= 10
@@ -100,8 +107,11 @@ def test_hong_kong_gps_plus_beidou() -> None:
     truth = sc.truth.set_index("epoch")
     rows = obs[obs["epoch"].isin(truth.index)]
     ref = truth.loc[rows["epoch"], ["x", "y", "z"]].to_numpy()
-    r = rows["code_l1"].to_numpy() + rows["sat_clock"].to_numpy() - sagnac_range(
-        rows[["sat_x", "sat_y", "sat_z"]].to_numpy(), ref)
+    r = (
+        rows["code_l1"].to_numpy()
+        + rows["sat_clock"].to_numpy()
+        - sagnac_range(rows[["sat_x", "sat_y", "sat_z"]].to_numpy(), ref)
+    )
     rows = rows.assign(r=r)
     gps_clock = rows[rows["sat"].str[0] == "G"].groupby("epoch")["r"].median()
     rows = rows.assign(r=rows["r"] - gps_clock.reindex(rows["epoch"]).to_numpy())

@@ -1,4 +1,5 @@
 """Simulated wheel odometry against its model, the generator's isolation of streams, the contract."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -8,9 +9,9 @@ import pandas as pd
 import pytest
 
 import simbench
-from simbench.config import NlosConfig, OdometryConfig, TrajectoryConfig
 from simbench.contract import ODOMETRY_COLUMNS, ReceiverData, Scenario
 from simbench.errors import SimbenchError
+from simbench.sim.config import NlosConfig, OdometryConfig, TrajectoryConfig
 from simbench.sim.odometry import simulate_odometry
 from simbench.sim.processes import stream
 from simbench.sim.trajectory import Trajectory, urban_drive
@@ -90,9 +91,14 @@ def test_determinism_and_seed_dependence(drive: Trajectory) -> None:
     assert not np.allclose(a.table["yaw_rate"], c.table["yaw_rate"])
 
 
-@pytest.mark.parametrize("change, field", [({"rate_hz": 7.0}, "scenario.odometry.rate_hz"),
-                                           ({"rate_hz": 0.0}, "scenario.odometry.rate_hz"),
-                                           ({"speed_sigma_mps": -0.1}, "scenario.odometry.speed_sigma_mps")])
+@pytest.mark.parametrize(
+    "change, field",
+    [
+        ({"rate_hz": 7.0}, "scenario.odometry.rate_hz"),
+        ({"rate_hz": 0.0}, "scenario.odometry.rate_hz"),
+        ({"speed_sigma_mps": -0.1}, "scenario.odometry.speed_sigma_mps"),
+    ],
+)
 def test_bad_odometry_config_is_one_line(drive: Trajectory, change: dict, field: str) -> None:
     cfg = OdometryConfig(enabled=True, **change)
     with pytest.raises(SimbenchError) as info:
@@ -106,8 +112,10 @@ def test_bad_odometry_config_is_one_line(drive: Trajectory, change: dict, field:
 @pytest.fixture(scope="module")
 def pair() -> tuple[Scenario, Scenario]:
     short = {"scenario.duration_s": 60}
-    return (simbench.simulate("urban", "low", seed=2, **short),
-            simbench.simulate("urban", "low", seed=2, **short, **{"scenario.odometry.enabled": False}))
+    return (
+        simbench.simulate("urban", "low", seed=2, **short),
+        simbench.simulate("urban", "low", seed=2, **short, **{"scenario.odometry.enabled": False}),
+    )
 
 
 def test_switching_odometry_on_changes_nothing_else(pair: tuple[Scenario, Scenario]) -> None:

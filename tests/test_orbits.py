@@ -1,4 +1,8 @@
-"""Orbits (simbench.sim.orbits) and their file readers (simbench.data.navigation, .sp3): broadcast vs precise, nominal."""
+"""Orbits (simbench.core.orbits) and their file readers (simbench.gnss.navigation, simbench.data.sp3).
+
+Broadcast vs precise, nominal.
+"""
+
 from __future__ import annotations
 
 import math
@@ -8,13 +12,13 @@ import numpy as np
 import pymap3d
 import pytest
 
-from simbench.errors import SimbenchError
-from simbench.sim.constants import C_LIGHT, DEG, OMEGA_EARTH
-from simbench.sim.geometry import line_of_sight
-from simbench.data.navigation import read_gps_navigation
+from simbench.core.constants import C_LIGHT, DEG, OMEGA_EARTH
+from simbench.core.gpstime import datetime64_to_gps, gps_to_datetime64
+from simbench.core.orbits import BroadcastEphemeris, NominalConstellation
 from simbench.data.sp3 import read_sp3
-from simbench.sim.gpstime import datetime64_to_gps, gps_to_datetime64
-from simbench.sim.orbits import BroadcastEphemeris, NominalConstellation
+from simbench.errors import SimbenchError
+from simbench.gnss.navigation import read_gps_navigation
+from simbench.sim.geometry import line_of_sight
 
 
 @pytest.fixture(scope="module")
@@ -118,8 +122,10 @@ def test_broadcast_positions_match_sp3(brdc_vs_sp3, sp3):
     err = np.linalg.norm(st.pos[:, j_eph] - sp3.pos[:, j_sp3], axis=-1)  # (96, 29)
     rms_sat = np.sqrt(np.mean(err**2, axis=0))
     rms = float(np.sqrt(np.mean(err**2)))
-    print(f"brdc-SP3 3-D: overall RMS {rms:.2f} m, max {err.max():.2f} m; per sat "
-          + " ".join(f"{s}:{r:.2f}" for s, r in zip(common, rms_sat)))
+    print(
+        f"brdc-SP3 3-D: overall RMS {rms:.2f} m, max {err.max():.2f} m; per sat "
+        + " ".join(f"{s}:{r:.2f}" for s, r in zip(common, rms_sat))
+    )
     # Measured 2018-12-21: overall RMS 1.51 m, per-sat RMS 0.45..2.88 m, max 5.93 m.
     # The differences include ~1 m of antenna-phase-centre (broadcast) vs
     # centre-of-mass (SP3) offset. The maximum is G01 08:00-08:45, where the
@@ -148,8 +154,10 @@ def test_broadcast_clocks_match_sp3(brdc_vs_sp3, sp3):
     rms, mx = float(np.sqrt(np.mean(res**2))), float(np.abs(res).max())
     res_with = d_with - np.median(d_with, axis=1, keepdims=True)
     rms_with = float(np.sqrt(np.mean(res_with**2)))
-    print(f"brdc-SP3 clock after common offset: RMS {rms:.2f} ns, max {mx:.2f} ns "
-          f"(keeping relativity in: RMS {rms_with:.1f} ns)")
+    print(
+        f"brdc-SP3 clock after common offset: RMS {rms:.2f} ns, max {mx:.2f} ns "
+        f"(keeping relativity in: RMS {rms_with:.1f} ns)"
+    )
     # Measured: RMS 2.2 ns, max 13.4 ns; with the relativistic term left in, 16 ns RMS.
     assert rms < 3.5
     assert mx < 20.0
@@ -276,11 +284,14 @@ def test_select_records_closest_toe(eph):
 
 def test_selection_across_gps_week_boundary():
     week_end = 2033 * 604800.0
-    base = {k: np.zeros(2) for k in
-            "af0 af1 af2 crs dn m0 cuc e cus cic omega0 cis i0 crc w omegadot idot tgd".split()}
+    base = {k: np.zeros(2) for k in "af0 af1 af2 crs dn m0 cuc e cus cic omega0 cis i0 crc w omegadot idot tgd".split()}
     base.update(sqrta=np.full(2, 5153.6), e=np.full(2, 0.01), i0=np.full(2, 0.96))
-    recs = dict(base, sat=np.array([0, 0]), toe=np.array([week_end - 7200.0, week_end]),
-                toc=np.array([week_end - 7200.0, week_end]))
+    recs = dict(
+        base,
+        sat=np.array([0, 0]),
+        toe=np.array([week_end - 7200.0, week_end]),
+        toc=np.array([week_end - 7200.0, week_end]),
+    )
     e = BroadcastEphemeris(np.array(["G01"]), recs)
     idx = e.select_records(np.array([week_end - 3601.0, week_end - 3599.0, week_end + 7200.0, week_end + 7201.0]))
     assert idx[:, 0].tolist() == [0, 1, 1, -1]

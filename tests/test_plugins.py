@@ -5,6 +5,7 @@ The installed example (``examples/simbench-example-estimator``, estimator
 simulated with entry points handed to :func:`estimators.discover` or patched in
 for the CLI, so nothing else is installed.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -17,13 +18,13 @@ from typing import Any
 
 import pandas as pd
 import pytest
+from conftest import one_line_error
 from omegaconf import OmegaConf
 
 import estimators
-from conftest import one_line_error
-from simbench import cli
-from simbench.compose import compose_config, plugin_config_node, register_schemas
-from simbench.config import to_typed
+import simbench.cli.main as cli
+from simbench.runs.compose import compose_config, plugin_config_node, register_schemas
+from simbench.typed import to_typed
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = "huber_spp"
@@ -73,8 +74,9 @@ def fresh_discovery():
 
 
 def test_installed_example_is_listed_and_configured_from_its_dataclass() -> None:
-    assert EXAMPLE in estimators.plugins(), \
+    assert EXAMPLE in estimators.plugins(), (
         "the example plug-in is not installed: pip install -e examples/simbench-example-estimator (.ci/run does)"
+    )
     assert estimators.source(EXAMPLE) == EXAMPLE_PACKAGE and estimators.source("l2") == estimators.BUILT_IN
     table = cli.estimator_table().set_index("name")
     assert table.loc[EXAMPLE, "source"] == EXAMPLE_PACKAGE
@@ -91,17 +93,25 @@ def test_installed_example_is_listed_and_configured_from_its_dataclass() -> None
     assert list(chosen) == ["l2", EXAMPLE] and chosen[EXAMPLE].huber_k == 2.0
 
 
-@pytest.mark.parametrize("entries, fragments", [
-    ([FakeEntryPoint("l2", fake_estimator("l2"))], ["name 'l2' of a built-in estimator"]),
-    ([FakeEntryPoint("twin", fake_estimator("twin"), "first-pkg"), FakeEntryPoint("twin", fake_estimator("twin"))],
-     ["name 'twin' of package 'first-pkg'"]),
-    ([FakeEntryPoint("bare", fake_estimator("bare", config=None))], ["Fake_bare has no Config dataclass"]),
-    ([FakeEntryPoint("plain", fake_estimator("plain", config=dict))], ["Fake_plain has no Config dataclass"]),
-    ([FakeEntryPoint("alias", fake_estimator("other"))], ["Fake_other.name is 'other'"]),
-    ([FakeEntryPoint("all", fake_estimator("all"))], ["reserved name 'all'"]),
-    ([FakeEntryPoint("gone", ImportError("No module named 'fake_estimators'"))], ["cannot load", "ImportError"]),
-    ([FakeEntryPoint("func", len)], ["not an Estimator subclass"]),
-])
+@pytest.mark.parametrize(
+    "entries, fragments",
+    [
+        ([FakeEntryPoint("l2", fake_estimator("l2"))], ["name 'l2' of a built-in estimator"]),
+        (
+            [
+                FakeEntryPoint("twin", fake_estimator("twin"), "first-pkg"),
+                FakeEntryPoint("twin", fake_estimator("twin")),
+            ],
+            ["name 'twin' of package 'first-pkg'"],
+        ),
+        ([FakeEntryPoint("bare", fake_estimator("bare", config=None))], ["Fake_bare has no Config dataclass"]),
+        ([FakeEntryPoint("plain", fake_estimator("plain", config=dict))], ["Fake_plain has no Config dataclass"]),
+        ([FakeEntryPoint("alias", fake_estimator("other"))], ["Fake_other.name is 'other'"]),
+        ([FakeEntryPoint("all", fake_estimator("all"))], ["reserved name 'all'"]),
+        ([FakeEntryPoint("gone", ImportError("No module named 'fake_estimators'"))], ["cannot load", "ImportError"]),
+        ([FakeEntryPoint("func", len)], ["not an Estimator subclass"]),
+    ],
+)
 def test_a_broken_plugin_is_one_line_naming_its_package(entries: list[FakeEntryPoint], fragments: list[str]) -> None:
     message = one_line_error(estimators.discover, entries, estimators.built_in())
     assert message.startswith(f"estimator plug-in '{entries[-1].name}': package 'fake-estimators'")
@@ -132,7 +142,8 @@ def _plugin_module(tmp_path: Path, monkeypatch, yaml_text: str | None) -> estima
         "import dataclasses\nfrom estimators.base import Estimator\n\n"
         "@dataclasses.dataclass\nclass YamlConfig:\n    k: float = 1.0\n    mode: str = 'fast'\n\n"
         "class YamlEst(Estimator):\n    name = 'yaml_est'\n    Config = YamlConfig\n\n"
-        "    def _estimate(self, data):\n        raise NotImplementedError\n")
+        "    def _estimate(self, data):\n        raise NotImplementedError\n"
+    )
     if yaml_text is not None:
         (tmp_path / "yaml_est.yaml").write_text(yaml_text)
     monkeypatch.syspath_prepend(str(tmp_path))
@@ -142,25 +153,33 @@ def _plugin_module(tmp_path: Path, monkeypatch, yaml_text: str | None) -> estima
 HEAD = "defaults:\n  - yaml_est_schema\n  - _self_\n"
 
 
-@pytest.mark.parametrize("yaml_text, node", [
-    (None, {}),
-    (HEAD + "yaml_est:\n  k: 2.5  # override: shipped\n", {"k": 2.5}),
-    ("yaml_est:\n  mode: slow  # override: shipped\n", {"mode": "slow"}),
-])
-def test_shipped_yaml_overrides_the_dataclass(tmp_path: Path, monkeypatch, yaml_text: str | None,
-                                             node: dict[str, Any]) -> None:
+@pytest.mark.parametrize(
+    "yaml_text, node",
+    [
+        (None, {}),
+        (HEAD + "yaml_est:\n  k: 2.5  # override: shipped\n", {"k": 2.5}),
+        ("yaml_est:\n  mode: slow  # override: shipped\n", {"mode": "slow"}),
+    ],
+)
+def test_shipped_yaml_overrides_the_dataclass(
+    tmp_path: Path, monkeypatch, yaml_text: str | None, node: dict[str, Any]
+) -> None:
     plugin = _plugin_module(tmp_path, monkeypatch, yaml_text)
     assert plugin_config_node(plugin) == {"defaults": ["yaml_est_schema", "_self_"], "yaml_est": node}
 
 
-@pytest.mark.parametrize("yaml_text, fragment", [
-    ("yaml_est:\n  k: soft\n", "estimator.yaml_est.k"),
-    ("yaml_est: {}\nother: 1\n", "must hold only"),
-    ("defaults: [l2_schema, _self_]\nyaml_est: {}\n", "must hold only"),
-    ("yaml_est: [unclosed\n", "is not YAML"),
-])
-def test_a_bad_shipped_yaml_is_one_line_naming_the_package(tmp_path: Path, monkeypatch, yaml_text: str,
-                                                           fragment: str) -> None:
+@pytest.mark.parametrize(
+    "yaml_text, fragment",
+    [
+        ("yaml_est:\n  k: soft\n", "estimator.yaml_est.k"),
+        ("yaml_est: {}\nother: 1\n", "must hold only"),
+        ("defaults: [l2_schema, _self_]\nyaml_est: {}\n", "must hold only"),
+        ("yaml_est: [unclosed\n", "is not YAML"),
+    ],
+)
+def test_a_bad_shipped_yaml_is_one_line_naming_the_package(
+    tmp_path: Path, monkeypatch, yaml_text: str, fragment: str
+) -> None:
     plugin = _plugin_module(tmp_path, monkeypatch, yaml_text)
     message = one_line_error(plugin_config_node, plugin)
     assert message.startswith("estimator plug-in 'yaml_est': package 'yaml-pkg'") and fragment in message
@@ -168,9 +187,25 @@ def test_a_bad_shipped_yaml_is_one_line_naming_the_package(tmp_path: Path, monke
 
 def test_the_example_runs_in_a_sweep_through_the_cli(tmp_path: Path) -> None:
     out = tmp_path / "sweep"
-    proc = subprocess.run([sys.executable, "-m", "simbench", "-m", "scenario=open_sky", "receiver=high", "scenario.duration_s=30",
-                           "seed=0", f"estimator=[{EXAMPLE}]", f"results_dir={out}", "progress=false"],
-                          cwd=ROOT, capture_output=True, text=True, timeout=600)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "simbench",
+            "-m",
+            "scenario=open_sky",
+            "receiver=high",
+            "scenario.duration_s=30",
+            "seed=0",
+            f"estimator=[{EXAMPLE}]",
+            f"results_dir={out}",
+            "progress=false",
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     summary = pd.read_parquet(out / "summary.parquet")
     assert list(summary["estimator"]) == [EXAMPLE] and (summary["status"] == "ok").all()

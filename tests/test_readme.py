@@ -1,11 +1,12 @@
 """README stays true: its test command is what CI runs, and it documents every column."""
+
 from __future__ import annotations
 
 import re
 from pathlib import Path
 
 from simbench.contract import IMU_COLUMNS, LABEL_COLUMNS, OBSERVATION_COLUMNS, ODOMETRY_COLUMNS, TRUTH_COLUMNS
-from simbench.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS
+from simbench.runs.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS
 
 ROOT = Path(__file__).resolve().parent.parent
 README = (ROOT / "README.md").read_text()
@@ -26,7 +27,14 @@ def test_readme_has_exactly_two_setup_commands() -> None:
 
 
 def test_readme_documents_every_column() -> None:
-    for table in (OBSERVATION_COLUMNS, IMU_COLUMNS, ODOMETRY_COLUMNS, TRUTH_COLUMNS, LABEL_COLUMNS, SUMMARY_COLUMNS,
-                  EPOCH_COLUMNS):
+    for table in (
+        OBSERVATION_COLUMNS,
+        IMU_COLUMNS,
+        ODOMETRY_COLUMNS,
+        TRUTH_COLUMNS,
+        LABEL_COLUMNS,
+        SUMMARY_COLUMNS,
+        EPOCH_COLUMNS,
+    ):
         for column in table:
             assert f"`{column}`" in README, column

@@ -8,6 +8,7 @@ differentiated twice), the heading stepped by 164 deg where the car backs out
 of its parking space, and GTSAM counted the centrifugal acceleration twice
 (1.3 m after 10 s standing still); EKF-INS diverged on morgantown1.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -19,10 +20,10 @@ import pytest
 import simbench
 from estimators.gnss_ins_ekf import EkfIns
 from estimators.ins_mechanisation import ImuNoise, preintegration_params
-from simbench.config import ReplayConfig
-from simbench.metrics import enu_errors
-from simbench.sim.constants import OMEGA_EARTH
-from simbench.sim.frames import dcm_body_to_ecef, ecef_from_geodetic
+from simbench.analysis.metrics import enu_errors
+from simbench.core.constants import OMEGA_EARTH
+from simbench.core.frames import dcm_body_to_ecef, ecef_from_geodetic
+from simbench.sim.config import ReplayConfig
 from simbench.sim.imu import gravity_ecef, ideal_imu
 from simbench.sim.trajectory import Trajectory, replay
 
@@ -31,8 +32,7 @@ RATE_HZ = 100.0
 _NOISE = ImuNoise(accel_noise=1e-3, gyro_noise=1e-4, accel_bias_rw=1e-5, gyro_bias_rw=1e-6)
 
 
-def _predict(pos: np.ndarray, c_b_e: np.ndarray, vel: np.ndarray, f_b: np.ndarray,
-             w_b: np.ndarray) -> gtsam.NavState:
+def _predict(pos: np.ndarray, c_b_e: np.ndarray, vel: np.ndarray, f_b: np.ndarray, w_b: np.ndarray) -> gtsam.NavState:
     """The estimators' one-epoch IMU prediction from a known state over samples at RATE_HZ."""
     bias = gtsam.imuBias.ConstantBias()
     pim = gtsam.PreintegratedCombinedMeasurements(preintegration_params(_NOISE, pos), bias)
@@ -83,7 +83,7 @@ def test_replayed_imu_dead_reckons_along_the_drive(drive_1: Trajectory) -> None:
     n = int(RATE_HZ)
     pos_err, att_err = [], []
     for a in range(250 * n, 479 * n, n):
-        nav = _predict(drive_1.pos[a], c_b_e[a], drive_1.vel[a], f_b[a:a + n], w_b[a:a + n])
+        nav = _predict(drive_1.pos[a], c_b_e[a], drive_1.vel[a], f_b[a : a + n], w_b[a : a + n])
         pos_err.append(np.linalg.norm(nav.position() - drive_1.pos[a + n]))
         att_err.append(np.linalg.norm(gtsam.Rot3.Logmap(gtsam.Rot3(c_b_e[a + n]).between(nav.attitude()))))
     assert max(pos_err) < 0.1
@@ -91,7 +91,7 @@ def test_replayed_imu_dead_reckons_along_the_drive(drive_1: Trajectory) -> None:
     a = 255 * n
     nav = gtsam.NavState(gtsam.Pose3(gtsam.Rot3(c_b_e[a]), drive_1.pos[a]), drive_1.vel[a])
     for k in range(a, a + 10 * n, n):
-        nav = _predict(nav.position(), nav.attitude().matrix(), nav.velocity(), f_b[k:k + n], w_b[k:k + n])
+        nav = _predict(nav.position(), nav.attitude().matrix(), nav.velocity(), f_b[k : k + n], w_b[k : k + n])
     assert np.linalg.norm(nav.position() - drive_1.pos[a + 10 * n]) < 0.5
 
 
@@ -104,8 +104,9 @@ def test_ekf_ins_tracks_a_morgantown_replay(shared_data: Path, tmp_path: Path) -
     t = data[:, 0] - data[0, 0]
     path = tmp_path / "drive_1_part.xyz"
     np.savetxt(path, data[(t >= 235.0) & (t <= 346.0)], fmt="%.3f %.4f %.4f %.4f")
-    sc = simbench.simulate("morgantown1", "low", seed=1000, **{"scenario.trajectory.replay.path": str(path),
-                                                               "scenario.duration_s": 110.0})
+    sc = simbench.simulate(
+        "morgantown1", "low", seed=1000, **{"scenario.trajectory.replay.path": str(path), "scenario.duration_s": 110.0}
+    )
     sol = EkfIns().estimate(sc.receiver_view())
     err = enu_errors(sol.epochs, sc.truth)["horizontal"].to_numpy()
     assert np.isfinite(err).all() and len(err) >= sc.n_epochs - 2

@@ -1,4 +1,5 @@
 """RINEX 3 ingest on the Hong Kong u-blox log, references, bad input, the real-data scenario path."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -14,18 +15,18 @@ import estimators
 from estimators.base import Estimator
 from estimators.measurement import prepare_ppp
 from estimators.ppp_config import MeasurementMode
-from simbench.config import SimConfig
 from simbench.contract import MISSING_NEED_REASONS, OBSERVATION_COLUMNS, Need, Scenario
-from simbench.data.navigation import read_gps_navigation
+from simbench.core.constants import C_LIGHT, SECONDS_PER_WEEK
 from simbench.data.reference import match_reference, read_reference
-from simbench.data.rinex import RinexObs, _satellite_states, load_rinex, read_rinex_obs
+from simbench.data.rinex import RinexObs, load_rinex, read_rinex_obs, satellite_states
 from simbench.data.sp3 import read_sp3
 from simbench.errors import SimbenchError
 from simbench.gnss.geometry import sagnac_range
+from simbench.gnss.navigation import read_gps_navigation
 from simbench.gnss.spp import solve_epochs
-from simbench.runner import run_estimators
-from simbench.scenarios import build_scenario
-from simbench.sim.constants import C_LIGHT, SECONDS_PER_WEEK
+from simbench.runs.runner import run_estimators
+from simbench.runs.scenarios import build_scenario
+from simbench.sim.config import SimConfig
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 HK = DATA / "hk_tst_2019"
@@ -60,12 +61,20 @@ def test_transmit_time_states_match_sp3() -> None:
     dt_sv = eph.states(t_k).clock[:, j_eph]
     n, m = dt_sv.shape
     obs = RinexObs(
-        epoch_t_int=np.floor(t_k + tau).astype(np.int64), epoch_t_frac=(t_k + tau) - np.floor(t_k + tau),
-        row_epoch=np.repeat(np.arange(n), m), sat=np.tile(np.array(common), n),
-        code=(C_LIGHT * (tau - dt_sv)).ravel(), phase_cycles=np.full(n * m, np.nan),
-        doppler_hz=np.full(n * m, np.nan), cn0_dbhz=np.full(n * m, 40.0), lli=np.zeros(n * m, bool),
-        approx_position=np.zeros(3), interval_s=1.0, path="synthetic")
-    st = _satellite_states(obs, {"G": eph})
+        epoch_t_int=np.floor(t_k + tau).astype(np.int64),
+        epoch_t_frac=(t_k + tau) - np.floor(t_k + tau),
+        row_epoch=np.repeat(np.arange(n), m),
+        sat=np.tile(np.array(common), n),
+        code=(C_LIGHT * (tau - dt_sv)).ravel(),
+        phase_cycles=np.full(n * m, np.nan),
+        doppler_hz=np.full(n * m, np.nan),
+        cn0_dbhz=np.full(n * m, 40.0),
+        lli=np.zeros(n * m, bool),
+        approx_position=np.zeros(3),
+        interval_s=1.0,
+        path="synthetic",
+    )
+    st = satellite_states(obs, {"G": eph})
     pos = np.stack([st[c] for c in "xyz"], axis=1).reshape(n, m, 3)
     err = np.linalg.norm(pos - sp3.pos[k][:, j_sp3], axis=-1)
     # the foundation's brdc-vs-SP3 check measured RMS 1.5 m, max 5.9 m at the same epochs
@@ -113,12 +122,19 @@ def test_time_and_truth_matching(hk: Scenario) -> None:
 @needs_hk
 def test_single_point_solution_within_tens_of_metres(hk: Scenario) -> None:
     """The issue's acceptance check: SPP within the usual 5-30 m of the reference for most epochs."""
-    obs = prepare_ppp(hk.receiver_view(), ionosphere_free=False, code_sigma_m=2.5, phase_sigma_m=0.03,
-                      elevation_mask_deg=10.0, measurements=MeasurementMode.auto)
+    obs = prepare_ppp(
+        hk.receiver_view(),
+        ionosphere_free=False,
+        code_sigma_m=2.5,
+        phase_sigma_m=0.03,
+        elevation_mask_deg=10.0,
+        measurements=MeasurementMode.auto,
+    )
     truth = hk.truth.set_index("epoch")[["x", "y", "z"]]
     row_k = np.repeat(np.arange(obs.n_epochs), obs.epoch_stop - obs.epoch_start)
-    fixes = solve_epochs(row_k, obs.sat_pos, obs.code, sigma=obs.sigma_code, el=obs.el, doy=obs.doy,
-                         system_index=obs.system_index)
+    fixes = solve_epochs(
+        row_k, obs.sat_pos, obs.code, sigma=obs.sigma_code, el=obs.el, doy=obs.doy, system_index=obs.system_index
+    )
     horiz, resid = [], []
     for k, rows in obs.iter_epochs():
         e = int(obs.epoch_ids[k])
@@ -163,9 +179,9 @@ def test_bad_input_gives_one_line_errors(tmp_path: Path) -> None:
     # a file without pseudorange observables
     head = OBS.read_text().splitlines()
     end = next(i for i, ln in enumerate(head) if "END OF HEADER" in ln)
-    no_code = [ln.replace("G    4 C1C L1C D1C S1C", "G    3 L1C D1C S1C    ") for ln in head[:end + 1]]
+    no_code = [ln.replace("G    4 C1C L1C D1C S1C", "G    3 L1C D1C S1C    ") for ln in head[: end + 1]]
     bad = tmp_path / "nocode.obs"
-    bad.write_text("\n".join(no_code + head[end + 1:end + 20]) + "\n")
+    bad.write_text("\n".join(no_code + head[end + 1 : end + 20]) + "\n")
     assert "no pseudorange" in one_line_error(read_rinex_obs, bad)
     # navigation data of another day (the WVU drive, December 2018)
     assert "covers" in one_line_error(load_rinex, OBS, DATA / "wvu_drives" / "brdc.18n", TRUTH)

@@ -13,6 +13,7 @@ pseudoranges, Doppler where the receiver gives it, no carrier phase):
 * ``open_sky`` (no NLOS): each estimator's median is within 10 % of a plain
   weighted least-squares single-point solution's, or better.
 """
+
 from __future__ import annotations
 
 import functools
@@ -25,10 +26,10 @@ from omegaconf import OmegaConf
 import estimators
 import simbench
 from estimators.measurement import prepare_ppp
-from simbench.compose import compose_config
-from simbench.config import to_typed
+from simbench.analysis.metrics import enu_errors
 from simbench.gnss.spp import solve_epochs
-from simbench.metrics import enu_errors
+from simbench.runs.compose import compose_config
+from simbench.typed import to_typed
 
 TUNING_SEEDS = (1000, 1001, 1002)
 ROBUST = ("dcs", "mm", "bce", "ice")
@@ -63,22 +64,33 @@ def _wls_median(scenario: simbench.Scenario) -> float:
     cfg = _config("l2")
     obs = prepare_ppp(scenario.receiver_view(), **cfg.prepare_kwargs())
     k = np.repeat(np.arange(obs.n_epochs), obs.epoch_stop - obs.epoch_start)
-    sol = solve_epochs(k, obs.sat_pos, obs.code, n_epochs=obs.n_epochs, sigma=obs.sigma_code,
-                       system_index=obs.system_index, el=obs.el, doy=obs.doy)
+    sol = solve_epochs(
+        k,
+        obs.sat_pos,
+        obs.code,
+        n_epochs=obs.n_epochs,
+        sigma=obs.sigma_code,
+        system_index=obs.system_index,
+        el=obs.el,
+        doy=obs.doy,
+    )
     frame = pd.DataFrame({"epoch": obs.epoch_ids, "x": sol.pos[:, 0], "y": sol.pos[:, 1], "z": sol.pos[:, 2]})
     return float(np.median(enu_errors(frame, scenario.truth)["horizontal"]))
 
 
 @pytest.fixture(scope="module")
 def canyons() -> list[simbench.Scenario]:
-    return [simbench.simulate("urban_deep", "consumer", seed=seed, **{"scenario.duration_s": DURATION_S})
-            for seed in TUNING_SEEDS]
+    return [
+        simbench.simulate("urban_deep", "consumer", seed=seed, **{"scenario.duration_s": DURATION_S})
+        for seed in TUNING_SEEDS
+    ]
 
 
 @pytest.fixture(scope="module")
 def canyon_medians(canyons: list[simbench.Scenario]) -> pd.DataFrame:
-    rows = [(sc.meta["seed"], name, _median_horizontal(name, sc)) for sc in canyons
-            for name in ("l2", "isam2_ppp", *ROBUST)]
+    rows = [
+        (sc.meta["seed"], name, _median_horizontal(name, sc)) for sc in canyons for name in ("l2", "isam2_ppp", *ROBUST)
+    ]
     return pd.DataFrame(rows, columns=["seed", "estimator", "median"])
 
 

@@ -1,4 +1,5 @@
 """rtklib_spp: the .pos reader, time matching, a missing or failing rnx2rtkp, and the Hong Kong log."""
+
 from __future__ import annotations
 
 import os
@@ -9,15 +10,23 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from estimators.rtklib_spp import (EXECUTABLE, RtklibSpp, RtklibSppConfig, rnx2rtkp_options,
-                                   run_rnx2rtkp)
-from simbench.contract import (IMU_COLUMNS, MISSING_NEED_REASONS, OBSERVATION_COLUMNS, TRUTH_COLUMNS, NavInfo, Need,
-                               RinexFiles, Scenario, available_needs)
+from estimators.rtklib_spp import EXECUTABLE, RtklibSpp, RtklibSppConfig, rnx2rtkp_options, run_rnx2rtkp
+from simbench.contract import (
+    IMU_COLUMNS,
+    MISSING_NEED_REASONS,
+    OBSERVATION_COLUMNS,
+    TRUTH_COLUMNS,
+    NavInfo,
+    Need,
+    RinexFiles,
+    Scenario,
+    available_needs,
+)
 from simbench.data.rinex import load_rinex
 from simbench.data.rtklib_pos import parse_rtklib_pos
 from simbench.data.solution_times import match_to_epochs
 from simbench.errors import SimbenchError
-from simbench.runner import run_estimators
+from simbench.runs.runner import run_estimators
 
 ECEF_POS = """\
 % program   : rnx2rtkp ver.2.4.3 b34
@@ -48,8 +57,7 @@ def test_parse_ecef_week_tow() -> None:
 def test_parse_llh_calendar_time() -> None:
     pos = parse_rtklib_pos(LLH_POS)
     np.testing.assert_allclose(pos.loc[0, ["x", "y", "z"]].to_numpy(float), [6378137.0, 0.0, 0.0], atol=1e-6)
-    np.testing.assert_allclose(pos.loc[1, ["x", "y", "z"]].to_numpy(float), [0.0, 0.0, 6356752.3142 + 100.0],
-                               atol=1e-3)
+    np.testing.assert_allclose(pos.loc[1, ["x", "y", "z"]].to_numpy(float), [0.0, 0.0, 6356752.3142 + 100.0], atol=1e-3)
     # GPS time starts 1980-01-06; 2019-04-28 12:44:34 GPST is week 2051, 45874 s (RTKLIB's own header)
     np.testing.assert_allclose(pos["t_gps"], [1.0, 2051 * 604800 + 45874.0], rtol=0, atol=1e-6)
     assert pos["q"].tolist() == [5, 1]
@@ -79,10 +87,16 @@ def test_options_follow_the_config() -> None:
     opts = rnx2rtkp_options(RtklibSppConfig(), "GC")
     assert opts["pos1-posmode"] == "single" and opts["pos1-navsys"] == "33"  # GPS 1 + BeiDou 32
     assert (opts["pos1-elmask"], opts["pos1-ionoopt"], opts["pos1-tropopt"]) == ("10", "brdc", "saas")
-    opts = rnx2rtkp_options(RtklibSppConfig(elevation_mask_deg=15, ionosphere="none", troposphere="none",
-                                            raim_fde=True), "G")
-    assert (opts["pos1-elmask"], opts["pos1-ionoopt"], opts["pos1-tropopt"], opts["pos1-posopt5"],
-            opts["pos1-navsys"]) == ("15", "off", "off", "on", "1")
+    opts = rnx2rtkp_options(
+        RtklibSppConfig(elevation_mask_deg=15, ionosphere="none", troposphere="none", raim_fde=True), "G"
+    )
+    assert (
+        opts["pos1-elmask"],
+        opts["pos1-ionoopt"],
+        opts["pos1-tropopt"],
+        opts["pos1-posopt5"],
+        opts["pos1-navsys"],
+    ) == ("15", "off", "off", "on", "1")
     with pytest.raises(SimbenchError, match="scenario.systems"):
         rnx2rtkp_options(RtklibSppConfig(), "GX")
     for field, value in (("elevation_mask_deg", 90.0), ("timeout_s", 0.0), ("ionosphere", "nequick")):
@@ -92,8 +106,7 @@ def test_options_follow_the_config() -> None:
 
 def _tiny_scenario(rinex: RinexFiles | None) -> Scenario:
     """One epoch, one satellite: enough for the runner to decide whether to run an estimator."""
-    obs = pd.DataFrame({c: [0.0] for c in OBSERVATION_COLUMNS}).assign(epoch=0, sat="G01", lli_l1=False,
-                                                                         lli_l2=False)
+    obs = pd.DataFrame({c: [0.0] for c in OBSERVATION_COLUMNS}).assign(epoch=0, sat="G01", lli_l1=False, lli_l2=False)
     truth = pd.DataFrame({c: [0.0] for c in TRUTH_COLUMNS}).assign(epoch=0, n_visible=1)
     nav = NavInfo(gps_week=2051, start_sow_s=0.0, iono_alpha=(0.0,) * 4, iono_beta=(0.0,) * 4, dual_frequency=False)
     return Scenario(obs, pd.DataFrame({c: [] for c in IMU_COLUMNS}), truth, None, nav, rinex=rinex)
@@ -153,12 +166,20 @@ def hk(shared_data: Path) -> Path:
 # Measured with RTKLIB 2.4.3 b34 (Debian), defaults (10 deg mask, Klobuchar, Saastamoinen), 485 reference
 # epochs: G 39.0 % solved, horizontal median 4.49 m, 3-D median 14.5 m; GC 28.9 %, 3.87 m, 8.05 m.
 # A one-epoch time shift moves the GPS horizontal median to 8.4-9.4 m; a frame error to kilometres.
-@pytest.mark.parametrize(("systems", "availability", "horizontal_m", "error_3d_m"),
-                         [("G", (0.33, 0.45), 5.5, 18.0), ("GC", (0.24, 0.34), 5.0, 10.0)])
-def test_hong_kong_log(hk: Path, systems: str, availability: tuple[float, float], horizontal_m: float,
-                       error_3d_m: float) -> None:
-    sc = load_rinex(hk / HK_FILES[0], hk / HK_FILES[1], hk / HK_FILES[3], systems=systems,
-                    nav_bds_path=hk / HK_FILES[2] if "C" in systems else None)
+@pytest.mark.parametrize(
+    ("systems", "availability", "horizontal_m", "error_3d_m"),
+    [("G", (0.33, 0.45), 5.5, 18.0), ("GC", (0.24, 0.34), 5.0, 10.0)],
+)
+def test_hong_kong_log(
+    hk: Path, systems: str, availability: tuple[float, float], horizontal_m: float, error_3d_m: float
+) -> None:
+    sc = load_rinex(
+        hk / HK_FILES[0],
+        hk / HK_FILES[1],
+        hk / HK_FILES[3],
+        systems=systems,
+        nav_bds_path=hk / HK_FILES[2] if "C" in systems else None,
+    )
     assert sc.rinex is not None and sc.rinex.systems == systems and len(sc.rinex.nav) == len(systems)
     res = run_estimators(sc, {"rtklib_spp": None}, progress=False)
     row = res.summary.iloc[0]

@@ -1,4 +1,5 @@
-"""``python -m simbench.score``: a foreign solution file becomes one more result row of a run."""
+"""``python -m simbench score``: a foreign solution file becomes one more result row of a run."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -10,10 +11,11 @@ import pytest
 from conftest import one_line_error
 
 import simbench
+from simbench.cli.score import main
 from simbench.contract import Scenario, read_parquet_metadata
-from simbench.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS
-from simbench.score import main, score_solution_file
-from simbench.sim.constants import SECONDS_PER_WEEK
+from simbench.core.constants import SECONDS_PER_WEEK
+from simbench.runs.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS
+from simbench.runs.score import score_solution_file
 
 EAST_M = 3.0  #: the solutions below are the truth moved this far east [m]
 CLOCK_S = 0.002  #: and time-tagged this late, like a receiver clock offset [s]
@@ -39,8 +41,19 @@ def _shifted_truth(run_dir: Path) -> tuple[pd.DataFrame, Scenario]:
     xyz = truth[["x", "y", "z"]].to_numpy() + np.stack([dx, dy, dz], axis=1)
     lat, lon, h = pymap3d.ecef2geodetic(xyz[:, 0], xyz[:, 1], xyz[:, 2])
     tow = scenario.nav.start_sow_s + truth["t"].to_numpy() + CLOCK_S
-    return pd.DataFrame({"week": scenario.nav.gps_week, "tow": tow, "t": scenario.nav.gps_week * SECONDS_PER_WEEK + tow,
-                         "x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2], "lat": lat, "lon": lon, "h": h}), scenario
+    return pd.DataFrame(
+        {
+            "week": scenario.nav.gps_week,
+            "tow": tow,
+            "t": scenario.nav.gps_week * SECONDS_PER_WEEK + tow,
+            "x": xyz[:, 0],
+            "y": xyz[:, 1],
+            "z": xyz[:, 2],
+            "lat": lat,
+            "lon": lon,
+            "h": h,
+        }
+    ), scenario
 
 
 def _check_row(row: pd.Series, n_epochs: int) -> None:
@@ -57,10 +70,14 @@ def test_csv_layouts_and_rtklib_pos_score_alike(run_dir: Path, tmp_path: Path) -
     sol, scenario = _shifted_truth(run_dir)
     sol[["t", "x", "y", "z"]].to_csv(tmp_path / "xyz.csv", index=False)
     sol[["week", "tow", "lat", "lon", "h"]].to_csv(tmp_path / "llh.csv", index=False, float_format="%.10f")
-    pos = ["% program   : RTKLIB ver.2.4.3 b34",
-           "%  GPST                  latitude(deg) longitude(deg)  height(m)   Q  ns   sdn(m)   sde(m)   sdu(m)"]
-    pos += [f"{w} {t:10.3f} {a:14.9f} {o:14.9f} {h:10.4f} 5 {8:3d} 1.0 1.0 1.0"
-            for w, t, a, o, h in sol[["week", "tow", "lat", "lon", "h"]].itertuples(index=False)]
+    pos = [
+        "% program   : RTKLIB ver.2.4.3 b34",
+        "%  GPST                  latitude(deg) longitude(deg)  height(m)   Q  ns   sdn(m)   sde(m)   sdu(m)",
+    ]
+    pos += [
+        f"{w} {t:10.3f} {a:14.9f} {o:14.9f} {h:10.4f} 5 {8:3d} 1.0 1.0 1.0"
+        for w, t, a, o, h in sol[["week", "tow", "lat", "lon", "h"]].itertuples(index=False)
+    ]
     (tmp_path / "sol.pos").write_text("\n".join(pos) + "\n")
     for name, file in (("csv_xyz", "xyz.csv"), ("csv_llh", "llh.csv"), ("rtklib", "sol.pos")):
         row = score_solution_file(run_dir, _key(run_dir), name, tmp_path / file)
@@ -76,8 +93,9 @@ def test_csv_layouts_and_rtklib_pos_score_alike(run_dir: Path, tmp_path: Path) -
     assert "does not exist" in one_line_error(score_solution_file, run_dir, _key(run_dir), "x", tmp_path / "none")
 
 
-def test_command_line_adds_the_row_to_the_report_once(run_dir: Path, tmp_path: Path,
-                                                      capsys: pytest.CaptureFixture[str]) -> None:
+def test_command_line_adds_the_row_to_the_report_once(
+    run_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     sol, scenario = _shifted_truth(run_dir)
     sol[["t", "x", "y", "z"]].to_csv(tmp_path / "a.csv", index=False)
     args = [str(run_dir), "--scenario-key", _key(run_dir), "--name", "colleague", "--solution", str(tmp_path / "a.csv")]
@@ -93,9 +111,11 @@ def test_command_line_adds_the_row_to_the_report_once(run_dir: Path, tmp_path: P
     capsys.readouterr()
     bad = tmp_path / "bad.csv"
     bad.write_text("time,lat\n1,2\n")
-    for argv, expected in (([*args[:2], "nope", *args[3:]], "no cached scenario 'nope'"),
-                           ([*args[:-1], str(bad)], "has 2 columns"),
-                           ([*args[:4], "l2", *args[5:]], "'l2' is the name of a registered estimator")):
+    for argv, expected in (
+        ([*args[:2], "nope", *args[3:]], "no cached scenario 'nope'"),
+        ([*args[:-1], str(bad)], "has 2 columns"),
+        ([*args[:4], "l2", *args[5:]], "'l2' is the name of a registered estimator"),
+    ):
         assert main(argv) == 2
         err = capsys.readouterr().err
         assert expected in err and err.count("\n") == 1 and err.startswith("error: --")

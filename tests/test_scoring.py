@@ -4,6 +4,7 @@ Hand-made errors where one estimator skips the hard epochs: its ECDF must end
 at its availability and its percentiles over reference epochs must not beat
 the estimator that solved everything with larger errors on the hard epochs.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -12,14 +13,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from simbench.claims import CLAIMS, claims_table
+from simbench.analysis.claims import CLAIMS, claims_table
+from simbench.analysis.metrics import reference_ecdf, reference_percentile, reference_stats, summary_stats
+from simbench.analysis.tables import data_label, seed_statistics
 from simbench.data.librsf import load_librsf
 from simbench.errors import SimbenchError
-from simbench.metrics import reference_ecdf, reference_percentile, reference_stats, summary_stats
 from simbench.report.build import UNDEFINED, build_report
 from simbench.report.figures import ecdf_figure
-from simbench.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS, run_estimators
-from simbench.tables import data_label, seed_statistics
+from simbench.runs.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS, run_estimators
 
 LIBRSF_FIXTURE = Path(__file__).resolve().parent / "data" / "librsf_small.txt"
 N_REFERENCE = 100
@@ -44,8 +45,10 @@ def test_skipping_hard_epochs_is_not_rewarded() -> None:
     # where both reach the percentile the comparison is a fair one
     assert reference_percentile(SKIPPER, N_REFERENCE, 50) == 0.5 < reference_percentile(SOLVER, N_REFERENCE, 50)
     # a non-finite error is an unsolved epoch
-    assert reference_stats(np.r_[SKIPPER, np.full(20, np.nan)], N_REFERENCE, "h") == \
-        {"h_median_ref": 0.5, "h_p95_ref": np.inf}
+    assert reference_stats(np.r_[SKIPPER, np.full(20, np.nan)], N_REFERENCE, "h") == {
+        "h_median_ref": 0.5,
+        "h_p95_ref": np.inf,
+    }
 
 
 def test_every_epoch_solved_gives_numpys_inverted_cdf_percentile() -> None:
@@ -60,8 +63,13 @@ def test_more_solved_than_reference_epochs_is_one_line_error() -> None:
     with pytest.raises(SimbenchError, match="^n_reference: is 10, fewer than the 80 solved epochs"):
         reference_percentile(SKIPPER, 10, 50)
     with pytest.raises(SimbenchError, match="no reference epoch count for skipper"):
-        ecdf_figure(pd.DataFrame({"estimator": "skipper", "horizontal": SKIPPER}), "horizontal",
-                    Path("/nonexistent/x.png"), "t", {})
+        ecdf_figure(
+            pd.DataFrame({"estimator": "skipper", "horizontal": SKIPPER}),
+            "horizontal",
+            Path("/nonexistent/x.png"),
+            "t",
+            {},
+        )
 
 
 def _run(source: str, scenario: str, seeds: int = 2) -> tuple[pd.DataFrame, pd.DataFrame]:
@@ -72,19 +80,56 @@ def _run(source: str, scenario: str, seeds: int = 2) -> tuple[pd.DataFrame, pd.D
     rows, frames = [], []
     for seed in range(seeds):
         for name, errors in ((SOLVER_NAME, SOLVER), (SKIPPER_NAME, SKIPPER)):
-            key = {"sweep": "", "scenario": scenario, "source": source, "receiver": "low", "seed": seed,
-                   "scenario_key": f"k{seed}", "estimator": name, "variant": "", "overrides": "{}"}
-            rows.append({**key, "uses_labels": False, "status": "ok", "message": "", "n_epochs": N_REFERENCE,
-                         "n_solved": errors.size, "availability": errors.size / N_REFERENCE,
-                         **summary_stats(errors, "horizontal"), **summary_stats(errors, "error_3d"),
-                         **reference_stats(errors, N_REFERENCE, "horizontal"),
-                         **reference_stats(errors, N_REFERENCE, "error_3d"),
-                         "total_s": 1.0, "time_per_obs_s": 1e-4, "update_median_s": 1e-3, "update_p95_s": 2e-3})
+            key = {
+                "sweep": "",
+                "scenario": scenario,
+                "source": source,
+                "receiver": "low",
+                "seed": seed,
+                "scenario_key": f"k{seed}",
+                "estimator": name,
+                "variant": "",
+                "overrides": "{}",
+            }
+            rows.append(
+                {
+                    **key,
+                    "uses_labels": False,
+                    "status": "ok",
+                    "message": "",
+                    "n_epochs": N_REFERENCE,
+                    "n_solved": errors.size,
+                    "availability": errors.size / N_REFERENCE,
+                    **summary_stats(errors, "horizontal"),
+                    **summary_stats(errors, "error_3d"),
+                    **reference_stats(errors, N_REFERENCE, "horizontal"),
+                    **reference_stats(errors, N_REFERENCE, "error_3d"),
+                    "total_s": 1.0,
+                    "time_per_obs_s": 1e-4,
+                    "update_median_s": 1e-3,
+                    "update_p95_s": 2e-3,
+                }
+            )
             epoch = np.arange(errors.size)
-            frames.append(pd.DataFrame({**key, "epoch": epoch, "t": epoch.astype(float), "e": errors, "n": 0.0,
-                                        "u": 0.0, "horizontal": errors, "error_3d": errors, "update_s": 1e-3}))
-    return (pd.DataFrame(rows, columns=list(SUMMARY_COLUMNS)),
-            pd.concat(frames, ignore_index=True)[list(EPOCH_COLUMNS)])
+            frames.append(
+                pd.DataFrame(
+                    {
+                        **key,
+                        "epoch": epoch,
+                        "t": epoch.astype(float),
+                        "e": errors,
+                        "n": 0.0,
+                        "u": 0.0,
+                        "horizontal": errors,
+                        "error_3d": errors,
+                        "update_s": 1e-3,
+                    }
+                )
+            )
+    return (
+        pd.DataFrame(rows, columns=list(SUMMARY_COLUMNS)),
+        pd.concat(frames, ignore_index=True)[list(EPOCH_COLUMNS)],
+    )
 
 
 def test_statistics_over_seeds_put_availability_beside_the_reference_percentiles() -> None:
@@ -119,14 +164,30 @@ def test_a_real_log_report_is_labelled_by_source_and_has_no_claims_table_on_top(
 
 def test_measured_claims_keep_the_table_on_top(tmp_path: Path) -> None:
     base = 5.0 + np.random.default_rng(0).normal(0, 0.3, 6)
-    summary = pd.DataFrame([{"sweep": "ch6_bce_ad", "scenario": "urban", "source": "simulated", "receiver": "low",
-                             "seed": seed, "estimator": name, "overrides": "{}", "variant": "", "uses_labels": False,
-                             "status": "ok", "horizontal_median": base[seed] * f}
-                            for name, f in (("bce_ad", 0.7), ("bce", 1.0)) for seed in range(6)],
-                           columns=list(SUMMARY_COLUMNS))
+    summary = pd.DataFrame(
+        [
+            {
+                "sweep": "ch6_bce_ad",
+                "scenario": "urban",
+                "source": "simulated",
+                "receiver": "low",
+                "seed": seed,
+                "estimator": name,
+                "overrides": "{}",
+                "variant": "",
+                "uses_labels": False,
+                "status": "ok",
+                "horizontal_median": base[seed] * f,
+            }
+            for name, f in (("bce_ad", 0.7), ("bce", 1.0))
+            for seed in range(6)
+        ],
+        columns=list(SUMMARY_COLUMNS),
+    )
     claims = claims_table(summary, pd.DataFrame(columns=list(EPOCH_COLUMNS)))
-    html = (build_report(tmp_path, summary, pd.DataFrame(columns=list(EPOCH_COLUMNS)), claims, {})
-            / "index.html").read_text()
+    html = (
+        build_report(tmp_path, summary, pd.DataFrame(columns=list(EPOCH_COLUMNS)), claims, {}) / "index.html"
+    ).read_text()
     assert html.split("<h2>")[1].startswith("Published claims") and html.count("Published claims") == 1
     ch6 = next(c for c in CLAIMS if c.claim_id == "ch6_bce_ad")
     assert ch6.statement in html and CLAIMS[0].statement not in html

@@ -1,4 +1,5 @@
 """Locating ``shared/``: fail loudly when it is missing, skip only on request."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -35,6 +36,7 @@ def test_missing_directory_skips_with_the_switch(tmp_path: Path) -> None:
 
 
 def test_no_test_hard_codes_the_shared_path() -> None:
-    offenders = [p.name for p in TESTS.glob("*.py")
-                 if p.name != Path(__file__).name and "/work/shared" in p.read_text()]
+    offenders = [
+        p.name for p in TESTS.glob("*.py") if p.name != Path(__file__).name and "/work/shared" in p.read_text()
+    ]
     assert offenders == []

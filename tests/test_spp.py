@@ -1,18 +1,19 @@
 """The one single-point solver (simbench.gnss.spp) and the one Sagnac gradient (simbench.gnss.geometry)."""
+
 from __future__ import annotations
 
 import numpy as np
 import pymap3d
 import pytest
 
+from simbench.core import atmosphere
+from simbench.core.constants import DEG, SECONDS_PER_WEEK
+from simbench.core.gpstime import day_of_year
+from simbench.core.orbits import NominalConstellation
 from simbench.errors import SimbenchError
 from simbench.gnss.geometry import sagnac_range, sagnac_range_gradient
 from simbench.gnss.spp import solve_epochs
-from simbench.sim import atmosphere
-from simbench.sim.constants import DEG, SECONDS_PER_WEEK
 from simbench.sim.geometry import line_of_sight
-from simbench.sim.gpstime import day_of_year
-from simbench.sim.orbits import NominalConstellation
 
 LAT, LON, H = 39.6295, -79.9559, 290.0  # deg, deg, m
 WEEK, SOW0 = 2032, 475_200.0
@@ -26,8 +27,14 @@ def _epochs(n: int, *, moving: bool = True) -> dict[str, np.ndarray]:
     rx = rx0 + 10.0 * float(moving) * t[:, None] * east
     los = line_of_sight(rx, None, WEEK * SECONDS_PER_WEEK + SOW0 + t, NominalConstellation())
     e, j = np.nonzero(los.el_rad > 10 * DEG)
-    return {"rx": rx, "epoch": e, "sat_j": j, "sat_pos": los.sat_pos_tx[e, j], "el": los.el_rad[e, j],
-            "range": los.range_m[e, j]}
+    return {
+        "rx": rx,
+        "epoch": e,
+        "sat_j": j,
+        "sat_pos": los.sat_pos_tx[e, j],
+        "el": los.el_rad[e, j],
+        "range": los.range_m[e, j],
+    }
 
 
 def test_sagnac_gradient_matches_finite_differences() -> None:
@@ -68,13 +75,13 @@ def test_inter_system_bias_and_weights() -> None:
     system = (g["sat_j"] % 2).astype(np.int64)
     noise = np.where(system == 1, 0.3, 0.1) * rng.standard_normal(len(system))
     code = sagnac_range(g["sat_pos"], g["rx"][g["epoch"]]) + 100.0 + 40.0 * system + noise
-    sol = solve_epochs(g["epoch"], g["sat_pos"], code, sigma=np.where(system == 1, 0.3, 0.1),
-                       system_index=system)
+    sol = solve_epochs(g["epoch"], g["sat_pos"], code, sigma=np.where(system == 1, 0.3, 0.1), system_index=system)
     isb = sol.clock_m[:, 1] - sol.clock_m[:, 0]
     assert abs(np.median(isb) - 40.0) < 0.2
     one_clock = solve_epochs(g["epoch"], g["sat_pos"], code)  # the bias leaks into the position
     assert np.median(np.linalg.norm(one_clock.pos - g["rx"], axis=1)) > 5 * np.median(
-        np.linalg.norm(sol.pos - g["rx"], axis=1))
+        np.linalg.norm(sol.pos - g["rx"], axis=1)
+    )
 
 
 def test_trust_check_and_fill() -> None:

@@ -1,4 +1,5 @@
 """A run of several studies over several worlds (``+sweep=thesis worlds=[...]``): plan, command line, report."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -7,13 +8,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from simbench.claims import claims_table
-from simbench.cli import config_overrides
-from simbench.compose import compose_config
+import simbench.cli.studies
+from simbench.analysis.claims import claims_table
+from simbench.cli.main import config_overrides
 from simbench.errors import SimbenchError
 from simbench.report.build import build_report
-from simbench.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS
-from simbench.studies import STUDY_TIMES, StudiesConfig, plan, time_budget
+from simbench.runs.compose import compose_config
+from simbench.runs.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS
+from simbench.runs.studies import STUDY_TIMES, StudiesConfig, plan, time_budget
 
 ROOT = Path("results/thesis")
 
@@ -24,24 +26,35 @@ def _studies(args: list[str]) -> StudiesConfig:
 
 
 def test_thesis_over_worlds_puts_each_study_and_world_in_its_own_folder() -> None:
-    args = ["+sweep=thesis", "worlds=[urban,morgantown1]", "hydra/launcher=joblib",
-            "seed=range(0,5)"]
+    args = ["+sweep=thesis", "worlds=[urban,morgantown1]", "hydra/launcher=joblib", "seed=range(0,5)"]
     cfg = _studies(args)  # the seed range (a sweep) is left to the studies, not composed here
     assert cfg.worlds == ["urban", "morgantown1"] and cfg.own_scenario == ["ch4_convergence"]
     runs = plan(cfg, ROOT, args)
-    assert [(r.study, r.world) for r in runs[:3]] == [("ch4_convergence", ""), ("ch5_bce", "urban"),
-                                                      ("ch5_bce", "morgantown1")]
+    assert [(r.study, r.world) for r in runs[:3]] == [
+        ("ch4_convergence", ""),
+        ("ch5_bce", "urban"),
+        ("ch5_bce", "morgantown1"),
+    ]
     # the drive runs the studies the dissertation measured on collect 1
     assert len(runs) == 1 + (len(cfg.studies) - 1) + 4
-    assert {r.study for r in runs if r.world == "morgantown1"} == {"ch5_bce", "ch5_sensitivity", "ch6_bce_ad",
-                                                                   "ch7_ice"}
+    assert {r.study for r in runs if r.world == "morgantown1"} == {
+        "ch5_bce",
+        "ch5_sensitivity",
+        "ch6_bce_ad",
+        "ch7_ice",
+    }
     ch4, ch5_mt = runs[0], runs[2]
     assert ch4.results_dir == ROOT / "ch4_convergence" and not any(a.startswith("scenario=") for a in ch4.args)
     assert ch5_mt.results_dir == ROOT / "morgantown1" / "ch5_bce"
     # the thesis's own override of the study, then the command line's
-    assert ch5_mt.args == ["+sweep=ch5_bce", "scenario=morgantown1", f"results_dir={ROOT / 'morgantown1/ch5_bce'}",
-                           "estimator=[l2,dcs,mm,bce,oracle]", "hydra/launcher=joblib",
-                           "seed=range(0,5)"]
+    assert ch5_mt.args == [
+        "+sweep=ch5_bce",
+        "scenario=morgantown1",
+        f"results_dir={ROOT / 'morgantown1/ch5_bce'}",
+        "estimator=[l2,dcs,mm,bce,oracle]",
+        "hydra/launcher=joblib",
+        "seed=range(0,5)",
+    ]
     assert "estimator=[l2,dcs,mm,bce,oracle]" not in runs[-1].args  # crt_window keeps its estimators
     # the world replaces the sweep file's scenario; the study's own scenario settings stay
     # Hydra's deletion of an own key is not passed down either (a study has no world_studies)
@@ -68,22 +81,44 @@ def test_bad_worlds_are_one_line_errors() -> None:
 
 
 def test_config_overrides_drops_sweeps_only() -> None:
-    assert config_overrides(["+sweep=smoke", "seed=0,1", "estimator=[l2,dcs]", "worlds=[a,b]",
-                             "hydra.sweeper.params.seed=0", "hydra/launcher=joblib"]) == \
-        ["+sweep=smoke", "estimator=[l2,dcs]", "worlds=[a,b]", "hydra/launcher=joblib"]
+    assert config_overrides(
+        [
+            "+sweep=smoke",
+            "seed=0,1",
+            "estimator=[l2,dcs]",
+            "worlds=[a,b]",
+            "hydra.sweeper.params.seed=0",
+            "hydra/launcher=joblib",
+        ]
+    ) == ["+sweep=smoke", "estimator=[l2,dcs]", "worlds=[a,b]", "hydra/launcher=joblib"]
     assert config_overrides(["-m", "seed=0,1"]) is None
 
 
 def _summary() -> pd.DataFrame:
     """ch5_bce rows on two worlds: BCE clearly lower on urban, not on urban_deep; timed."""
     base = 5.0 + np.random.default_rng(1).normal(0, 0.3, 6)
-    rows = [{"sweep": "ch5_bce", "scenario": world, "receiver": "low", "seed": seed, "estimator": name,
-             "overrides": "{}", "variant": "", "status": "ok", "source": "simulated", "uses_labels": False,
-             "horizontal_median": base[seed] * factor, "total_s": seconds, "n_epochs": 600, "n_solved": 600,
-             "availability": 1.0}
-            for world, bce in (("urban", 0.7), ("urban_deep", 1.2))
-            for name, factor, seconds in (("bce", bce, 10.0), ("l2", 1.0, 1.0), ("dcs", 1.0, 2.0), ("mm", 1.1, 2.0))
-            for seed in range(6)]
+    rows = [
+        {
+            "sweep": "ch5_bce",
+            "scenario": world,
+            "receiver": "low",
+            "seed": seed,
+            "estimator": name,
+            "overrides": "{}",
+            "variant": "",
+            "status": "ok",
+            "source": "simulated",
+            "uses_labels": False,
+            "horizontal_median": base[seed] * factor,
+            "total_s": seconds,
+            "n_epochs": 600,
+            "n_solved": 600,
+            "availability": 1.0,
+        }
+        for world, bce in (("urban", 0.7), ("urban_deep", 1.2))
+        for name, factor, seconds in (("bce", bce, 10.0), ("l2", 1.0, 1.0), ("dcs", 1.0, 2.0), ("mm", 1.1, 2.0))
+        for seed in range(6)
+    ]
     return pd.DataFrame(rows).reindex(columns=list(SUMMARY_COLUMNS))
 
 
@@ -97,12 +132,18 @@ def test_time_budget_sums_the_estimators_time_per_sweep_world_and_estimator() ->
 def test_report_shows_one_claims_column_per_world_and_the_study_times(tmp_path: Path) -> None:
     summary = _summary()
     claims = claims_table(summary, pd.DataFrame(columns=list(EPOCH_COLUMNS)), {})
-    pd.DataFrame([{"study": "ch5_bce", "world": w, "wall_s": 90.0, "exit_code": 0, "results_dir": "x"}
-                  for w in ("urban", "urban_deep")]).to_csv(tmp_path / STUDY_TIMES, index=False)
-    page = (build_report(tmp_path, summary, pd.DataFrame(columns=list(EPOCH_COLUMNS)), claims, {})
-            / "README.md").read_text()
-    header = next(ln for ln in page.splitlines() if ln.startswith("| claim_id") and "published" in ln
-                  and "urban_deep" in ln)
+    pd.DataFrame(
+        [
+            {"study": "ch5_bce", "world": w, "wall_s": 90.0, "exit_code": 0, "results_dir": "x"}
+            for w in ("urban", "urban_deep")
+        ]
+    ).to_csv(tmp_path / STUDY_TIMES, index=False)
+    page = (
+        build_report(tmp_path, summary, pd.DataFrame(columns=list(EPOCH_COLUMNS)), claims, {}) / "README.md"
+    ).read_text()
+    header = next(
+        ln for ln in page.splitlines() if ln.startswith("| claim_id") and "published" in ln and "urban_deep" in ln
+    )
     assert [c.strip() for c in header.strip("|").split("|")][-2:] == ["urban", "urban_deep"]
     row = next(ln for ln in page.splitlines() if ln.startswith("| ch5_bce_low ") and "does not hold" in ln)
     assert " holds " in row.replace("does not hold", "")  # urban holds, urban_deep does not, one row
@@ -111,26 +152,27 @@ def test_report_shows_one_claims_column_per_world_and_the_study_times(tmp_path: 
 
 
 def test_run_studies_records_every_study_and_keeps_earlier_invocations(tmp_path: Path, monkeypatch) -> None:
-    import simbench.report.build
-    import simbench.studies
-
     calls: list[list[str]] = []
 
     def fake_call(cmd: list[str]) -> int:  # a study process: fails on urban_deep
         calls.append(cmd)
         return 1 if "scenario=urban_deep" in cmd else 0
 
-    monkeypatch.setattr(simbench.studies.subprocess, "call", fake_call)
-    monkeypatch.setattr(simbench.report.build, "finalize", lambda root, config: root / "report")
+    monkeypatch.setattr(simbench.cli.studies.subprocess, "call", fake_call)
+    monkeypatch.setattr(simbench.cli.studies, "finalize", lambda root, config: root / "report")
     cfg = StudiesConfig(studies=["ch5_bce", "ch6_bce_ad"], worlds=["urban"])
-    assert simbench.studies.run_studies(cfg, tmp_path, ["hydra/launcher=joblib"]) == 0
+    assert simbench.cli.studies.run_studies(cfg, tmp_path, ["hydra/launcher=joblib"]) == 0
     assert [c[3:6] for c in calls] == [
         ["+sweep=ch5_bce", "scenario=urban", f"results_dir={tmp_path / 'urban/ch5_bce'}"],
-        ["+sweep=ch6_bce_ad", "scenario=urban", f"results_dir={tmp_path / 'urban/ch6_bce_ad'}"]]
+        ["+sweep=ch6_bce_ad", "scenario=urban", f"results_dir={tmp_path / 'urban/ch6_bce_ad'}"],
+    ]
     cfg.worlds = ["urban_deep"]
-    assert simbench.studies.run_studies(cfg, tmp_path, []) == 1  # a failed study: exit code 1, the others ran
+    assert simbench.cli.studies.run_studies(cfg, tmp_path, []) == 1  # a failed study: exit code 1, the others ran
     times = pd.read_csv(tmp_path / STUDY_TIMES, keep_default_na=False)
     assert list(zip(times["study"], times["world"], times["exit_code"])) == [
-        ("ch5_bce", "urban", 0), ("ch6_bce_ad", "urban", 0), ("ch5_bce", "urban_deep", 1),
-        ("ch6_bce_ad", "urban_deep", 1)]
+        ("ch5_bce", "urban", 0),
+        ("ch6_bce_ad", "urban", 0),
+        ("ch5_bce", "urban_deep", 1),
+        ("ch6_bce_ad", "urban_deep", 1),
+    ]
     assert (times["wall_s"] >= 0).all()

@@ -1,4 +1,5 @@
 """``simbench.run``: the Python run API gives the command line's rows and shares its cache and store."""
+
 from __future__ import annotations
 
 import subprocess
@@ -11,7 +12,7 @@ from conftest import REPO_ROOT, one_line_error
 
 import simbench
 from simbench.errors import SimbenchError
-from simbench.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS
+from simbench.runs.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS
 
 #: Wall-time columns: they differ between two runs of the same config.
 TIMING = ["total_s", "time_per_obs_s", "update_median_s", "update_p95_s"]
@@ -22,9 +23,25 @@ KEY = ["seed", "estimator"]
 @pytest.fixture(scope="module")
 def cli_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("cli") / "run"
-    proc = subprocess.run([sys.executable, "-m", "simbench", "-m", "scenario=urban", "receiver=low",
-                           "estimator=[l2,dcs]", "seed=0,1", "scenario.duration_s=60", f"results_dir={out}",
-                           "progress=false"], cwd=REPO_ROOT, capture_output=True, text=True, timeout=600)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "simbench",
+            "-m",
+            "scenario=urban",
+            "receiver=low",
+            "estimator=[l2,dcs]",
+            "seed=0,1",
+            "scenario.duration_s=60",
+            f"results_dir={out}",
+            "progress=false",
+        ],
+        cwd=REPO_ROOT,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     return out
 
@@ -34,8 +51,15 @@ def _deterministic(summary: pd.DataFrame) -> pd.DataFrame:
 
 
 def test_run_returns_the_cli_rows(cli_run: Path, tmp_path: Path) -> None:
-    result = simbench.run(scenario="urban", receiver="low", estimators=["l2", "dcs"], seeds=range(2),
-                          overrides=CONFIG, results_dir=tmp_path / "nb", progress=False)
+    result = simbench.run(
+        scenario="urban",
+        receiver="low",
+        estimators=["l2", "dcs"],
+        seeds=range(2),
+        overrides=CONFIG,
+        results_dir=tmp_path / "nb",
+        progress=False,
+    )
     cli = pd.read_parquet(cli_run / "summary.parquet")
     assert list(result.summary.columns) == list(SUMMARY_COLUMNS)
     assert len(result.summary) == 4 and (result.summary["status"] == "ok").all()
@@ -50,8 +74,7 @@ def test_run_returns_the_cli_rows(cli_run: Path, tmp_path: Path) -> None:
 def test_run_into_a_sweep_directory_reuses_its_results(cli_run: Path) -> None:
     files = sorted(cli_run.glob("jobs/*/*.summary.parquet"))
     stamps = [p.stat().st_mtime_ns for p in files]
-    result = simbench.run(estimators=["l2", "dcs"], seeds=[0, 1], overrides=CONFIG, results_dir=cli_run,
-                          progress=False)
+    result = simbench.run(estimators=["l2", "dcs"], seeds=[0, 1], overrides=CONFIG, results_dir=cli_run, progress=False)
     assert [p.stat().st_mtime_ns for p in sorted(cli_run.glob("jobs/*/*.summary.parquet"))] == stamps
     stored = pd.read_parquet(cli_run / "summary.parquet").sort_values(KEY).reset_index(drop=True)
     # nothing recomputed: even the wall times are the stored ones

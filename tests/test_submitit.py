@@ -4,6 +4,7 @@
 Each job runs in its own process started by submitit; the jobs share the run directory's scenario
 cache and result store. Marked slow (about a minute); CI runs it (``.ci/run`` selects no markers).
 """
+
 from __future__ import annotations
 
 import os
@@ -20,8 +21,15 @@ from conftest import REPO_ROOT
 from simbench.contract import read_parquet_metadata
 
 #: Two jobs of very different length, so the kill lands after the short one and before the long one.
-SWEEP = ["-m", "hydra/launcher=submitit_local", "estimator=[l2]", "scenario.duration_s=30,240", "progress=false",
-         "hydra.launcher.cpus_per_task=2", "hydra.launcher.timeout_min=20"]
+SWEEP = [
+    "-m",
+    "hydra/launcher=submitit_local",
+    "estimator=[l2]",
+    "scenario.duration_s=30,240",
+    "progress=false",
+    "hydra.launcher.cpus_per_task=2",
+    "hydra.launcher.timeout_min=20",
+]
 
 
 def _results(run_dir: Path) -> list[Path]:
@@ -44,8 +52,9 @@ def _group_gone(pgid: int, timeout_s: float = 20.0) -> bool:
 def test_submitit_sweep_resumes_after_a_kill(tmp_path: Path) -> None:
     run_dir = tmp_path / "sweep"
     command = [sys.executable, "-m", "simbench", *SWEEP, f"results_dir={run_dir}"]
-    first = subprocess.Popen(command, cwd=REPO_ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                             start_new_session=True)
+    first = subprocess.Popen(
+        command, cwd=REPO_ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
+    )
     deadline = time.monotonic() + 300
     while not _results(run_dir) and first.poll() is None and time.monotonic() < deadline:
         time.sleep(0.2)
@@ -59,7 +68,9 @@ def test_submitit_sweep_resumes_after_a_kill(tmp_path: Path) -> None:
     second = subprocess.run(command, cwd=REPO_ROOT, capture_output=True, text=True, timeout=600)
     assert second.returncode == 0, second.stderr[-2000:]
     summary = pd.read_parquet(run_dir / "summary.parquet")
-    assert len(summary) == 2 and (summary["status"] == "ok").all(), summary[["scenario_key", "estimator", "status", "message"]].to_string()
+    assert len(summary) == 2 and (summary["status"] == "ok").all(), summary[
+        ["scenario_key", "estimator", "status", "message"]
+    ].to_string()
     assert not summary.duplicated(["scenario_key", "estimator", "overrides"]).any()
     assert sorted(summary["n_epochs"]) == [30, 240]
     assert done[0].stat().st_mtime_ns == stamp  # the finished job was skipped, not recomputed

@@ -1,4 +1,5 @@
 """Sweeps: store layout, resume after a kill, failure isolation, report rebuild."""
+
 from __future__ import annotations
 
 import json
@@ -11,7 +12,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from simbench.claims import CLAIM_COLUMNS
+from simbench.analysis.claims import CLAIM_COLUMNS
 from simbench.contract import read_parquet_metadata
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -19,8 +20,9 @@ SHORT = ["scenario.duration_s=40", "progress=false", "estimator=[ekf_ppp]"]
 
 
 def _simbench(*args: str, **kwargs) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "simbench", *args], cwd=ROOT, capture_output=True, text=True,
-                          timeout=600, **kwargs)
+    return subprocess.run(
+        [sys.executable, "-m", "simbench", *args], cwd=ROOT, capture_output=True, text=True, timeout=600, **kwargs
+    )
 
 
 def test_multirun_writes_store_claims_and_report(tmp_path: Path) -> None:
@@ -46,8 +48,9 @@ def test_multirun_writes_store_claims_and_report(tmp_path: Path) -> None:
 def test_killed_sweep_resumes_without_recomputing(tmp_path: Path) -> None:
     out = tmp_path / "killed"
     args = [sys.executable, "-m", "simbench", "-m", "seed=0,1,2,3,4,5", f"results_dir={out}", *SHORT]
-    proc = subprocess.Popen(args, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                            start_new_session=True)
+    proc = subprocess.Popen(
+        args, cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True
+    )
     deadline = time.monotonic() + 300
     while time.monotonic() < deadline and len(list(out.glob("jobs/*/*.summary.parquet"))) < 2:
         time.sleep(0.05)
@@ -69,8 +72,9 @@ def test_failing_job_leaves_a_status_row_and_the_report_builds(tmp_path: Path) -
     out = tmp_path / "failing"
     # a mask no satellite clears: the estimator raises inside its run, the sweep goes on;
     # ionosphere-free processing of single-frequency data is an unmet need: skipped, not failed
-    proc = _simbench("-m", "estimator.ekf_ppp.elevation_mask_deg=10,89", "gnss_model=dissertation",
-                     f"results_dir={out}", *SHORT)
+    proc = _simbench(
+        "-m", "estimator.ekf_ppp.elevation_mask_deg=10,89", "gnss_model=dissertation", f"results_dir={out}", *SHORT
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     summary = pd.read_parquet(out / "summary.parquet").set_index("status")
     assert set(summary.index) == {"ok", "failed"}
@@ -85,19 +89,25 @@ def test_report_rebuilds_from_job_files(tmp_path: Path) -> None:
     assert _simbench(f"results_dir={out}", *SHORT).returncode == 0
     (out / "summary.parquet").unlink()
     (out / "report" / "index.html").unlink()
-    proc = subprocess.run([sys.executable, "-m", "simbench.report", str(out)], cwd=ROOT, capture_output=True,
-                          text=True, timeout=300)
+    proc = subprocess.run(
+        [sys.executable, "-m", "simbench", "report", str(out)], cwd=ROOT, capture_output=True, text=True, timeout=300
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert len(pd.read_parquet(out / "summary.parquet")) == 1
     assert (out / "report" / "index.html").stat().st_size > 1000
-    bad = subprocess.run([sys.executable, "-m", "simbench.report", str(tmp_path / "nothing")], cwd=ROOT,
-                         capture_output=True, text=True, timeout=60)
+    bad = subprocess.run(
+        [sys.executable, "-m", "simbench", "report", str(tmp_path / "nothing")],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert bad.returncode == 2 and bad.stderr.strip().startswith("error: run_dir")
 
 
 def test_a_result_from_before_the_overrides_column_is_recomputed(tmp_path: Path) -> None:
-    from simbench.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS
-    from simbench.store import is_finished, write_result
+    from simbench.runs.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS
+    from simbench.runs.store import is_finished, write_result
 
     stem = tmp_path / "jobs" / "0123456789abcdef" / "l2-fedcba9876543210"
     row = pd.DataFrame([{c: None for c in SUMMARY_COLUMNS}]).assign(status="ok", overrides="{}", seed=0)

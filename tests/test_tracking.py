@@ -1,4 +1,5 @@
 """Checks of DLL/PLL thermal jitter, antenna pattern and link-budget C/N0."""
+
 from __future__ import annotations
 
 import math
@@ -6,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
+from simbench.core.constants import CHIP_LENGTH_CA, CHIP_RATE_CA, LAMBDA_L1
 from simbench.errors import SimbenchError
-from simbench.sim.constants import CHIP_LENGTH_CA, CHIP_RATE_CA, LAMBDA_L1
 from simbench.sim.tracking import (
     antenna_gain_dbi,
     cn0_mean_dbhz,
@@ -96,7 +97,8 @@ def test_dll_monotone_and_presets_ordered():
     # Smaller spacing within the same front end helps; larger bandwidth hurts.
     assert dll_jitter_m(40.0, 2.0, 0.3, 9.66e6, T_1MS) < dll_jitter_m(40.0, 2.0, 0.6, 9.66e6, T_1MS)
     assert dll_jitter_m(40.0, 4.0, 0.5, 9.66e6, T_1MS) == pytest.approx(
-        math.sqrt(2.0) * dll_jitter_m(40.0, 2.0, 0.5, 9.66e6, T_1MS), rel=1e-12)
+        math.sqrt(2.0) * dll_jitter_m(40.0, 2.0, 0.5, 9.66e6, T_1MS), rel=1e-12
+    )
 
 
 def test_dll_broadcasts_and_converts_to_metres():
@@ -180,11 +182,17 @@ def test_cn0_link_budget():
 # --------------------------------------------------------------------------- sample grid
 
 
-@pytest.mark.parametrize(("sampling_hz", "integration_s", "step"), [
-    (4.092e6, T_1MS, 1 / 4), (16.368e6, T_1MS, 1 / 16), (40.92e6, 0.01, 1 / 40),
-    (6.138e6, T_1MS, 1 / 6), (1.5 * CHIP_RATE_CA, T_1MS, 1 / 3),  # 3 samples per 2 chips
-    (5e6, T_1MS, 1 / 5000),  # 5000 / 1023: the pattern spans the whole integration
-])
+@pytest.mark.parametrize(
+    ("sampling_hz", "integration_s", "step"),
+    [
+        (4.092e6, T_1MS, 1 / 4),
+        (16.368e6, T_1MS, 1 / 16),
+        (40.92e6, 0.01, 1 / 40),
+        (6.138e6, T_1MS, 1 / 6),
+        (1.5 * CHIP_RATE_CA, T_1MS, 1 / 3),  # 3 samples per 2 chips
+        (5e6, T_1MS, 1 / 5000),  # 5000 / 1023: the pattern spans the whole integration
+    ],
+)
 def test_code_phase_step_of_the_sampling_rate(sampling_hz, integration_s, step):
     assert code_phase_step_chips(sampling_hz, integration_s) == pytest.approx(step)
 

@@ -1,4 +1,5 @@
 """Trajectories: kinematic limits, geometric consistency, street canyon, replay of a real drive."""
+
 from __future__ import annotations
 
 import math
@@ -9,10 +10,10 @@ import pymap3d
 import pytest
 from scipy.spatial.transform import Rotation
 
-from simbench.config import FlightConfig, NlosConfig, ReplayConfig, TrajectoryConfig, UrbanDriveConfig
+from simbench.core.constants import G0_STD
+from simbench.core.frames import dcm_body_to_ecef
 from simbench.errors import SimbenchError
-from simbench.sim.constants import G0_STD
-from simbench.sim.frames import dcm_body_to_ecef
+from simbench.sim.config import FlightConfig, NlosConfig, ReplayConfig, TrajectoryConfig, UrbanDriveConfig
 from simbench.sim.trajectory import Trajectory, flight, replay, urban_drive
 
 DRIVE_1 = Path(__file__).resolve().parents[2] / "shared" / "data" / "wvu_drives" / "drive_1.xyz"

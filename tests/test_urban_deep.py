@@ -3,6 +3,7 @@
 Calibration (``benchmarks/calibrate_urban_deep.py``) used seeds 1000-1002; these
 tests evaluate seeds 0, 1, 2 pooled.
 """
+
 from __future__ import annotations
 
 from dataclasses import replace
@@ -11,15 +12,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from simbench.calibration import TOLERANCES, misfit, pool_samples, seeds_statistics
-from simbench.compose import compose_config
-from simbench.config import HeightDistribution, NlosConfig
+from simbench.analysis.calibration import TOLERANCES, misfit, pool_samples, seeds_statistics
+from simbench.analysis.validation import ValidationSample, WorldStatistics, residual_sample, world_statistics
 from simbench.data.rinex import load_rinex
-from simbench.scenarios import sim_config
+from simbench.runs.compose import compose_config
+from simbench.runs.scenarios import sim_config
 from simbench.sim.canyon import canyon_rays
+from simbench.sim.config import HeightDistribution, NlosConfig
 from simbench.sim.generator import generate
 from simbench.sim.trajectory import block_sides
-from simbench.validation import ValidationSample, WorldStatistics, residual_sample, world_statistics
 from tests.conftest import one_line_error
 
 EVALUATION_SEEDS = (0, 1, 2)
@@ -28,8 +29,9 @@ EVALUATION_SEEDS = (0, 1, 2)
 @pytest.fixture(scope="module")
 def hk_sample(shared_data: Path) -> ValidationSample:
     d = shared_data / "hk_tst_2019"
-    return residual_sample(load_rinex(d / "COM3_190428_124409.obs", d / "hksc1180.19n", d / "groundTruth_TST.csv",
-                                      name="hk_tst_2019"))
+    return residual_sample(
+        load_rinex(d / "COM3_190428_124409.obs", d / "hksc1180.19n", d / "groundTruth_TST.csv", name="hk_tst_2019")
+    )
 
 
 @pytest.fixture(scope="module")
@@ -46,8 +48,10 @@ def deep() -> WorldStatistics:
 @pytest.mark.parametrize("tolerance", TOLERANCES, ids=[t.statistic for t in TOLERANCES])
 def test_urban_deep_matches_hong_kong(tolerance, deep: WorldStatistics, hk: WorldStatistics) -> None:
     err = misfit(deep, hk, [tolerance])[tolerance.statistic]
-    assert abs(err) <= 1.0, (f"{tolerance.statistic}: urban_deep {getattr(deep, tolerance.statistic):.3g} "
-                             f"against Hong Kong {getattr(hk, tolerance.statistic):.3g}")
+    assert abs(err) <= 1.0, (
+        f"{tolerance.statistic}: urban_deep {getattr(deep, tolerance.statistic):.3g} "
+        f"against Hong Kong {getattr(hk, tolerance.statistic):.3g}"
+    )
 
 
 def test_urban_deep_is_harsher_than_urban(deep: WorldStatistics) -> None:
@@ -58,8 +62,12 @@ def test_urban_deep_is_harsher_than_urban(deep: WorldStatistics) -> None:
 
 def test_rayleigh_building_heights() -> None:
     """ITU-R P.1410 heights: Rayleigh, median scale sqrt(2 ln 2); open sides have height 0."""
-    nlos = NlosConfig(height_distribution=HeightDistribution.rayleigh, building_height_scale_m=50.0,
-                      open_fraction=0.25, wall_distance_m=(5.0, 25.0))
+    nlos = NlosConfig(
+        height_distribution=HeightDistribution.rayleigh,
+        building_height_scale_m=50.0,
+        open_fraction=0.25,
+        wall_distance_m=(5.0, 25.0),
+    )
     dist, height = block_sides(nlos, (40_000,), np.random.default_rng(1))
     built = height > 0.0
     assert abs(1.0 - built.mean() - 0.25) < 0.01
@@ -79,8 +87,7 @@ def test_reflector_beyond_lengthens_only_masked_single_bounces() -> None:
     base = NlosConfig(reflection_probability=0.9)
 
     def rays(cfg: NlosConfig):
-        return canyon_rays(el, az, road, walls, walls, heights, heights, travelled, cfg, 1.0,
-                           np.random.default_rng(7))
+        return canyon_rays(el, az, road, walls, walls, heights, heights, travelled, cfg, 1.0, np.random.default_rng(7))
 
     near = rays(base)
     far = rays(replace(base, reflector_beyond_m=(30.0, 30.0)))
@@ -104,8 +111,9 @@ def test_pool_samples_keeps_epochs_and_arcs_apart(hk_sample: ValidationSample) -
     assert b.residual_p90_m == pytest.approx(a.residual_p90_m, rel=1e-3)  # percentile interpolation differs
 
 
-@pytest.mark.parametrize("override", ["scenario.errors.nlos.reflector_beyond_m=[50,10]",
-                                      "scenario.errors.nlos.building_height_scale_m=0"])
+@pytest.mark.parametrize(
+    "override", ["scenario.errors.nlos.reflector_beyond_m=[50,10]", "scenario.errors.nlos.building_height_scale_m=0"]
+)
 def test_bad_canyon_values_fail_in_one_line(override: str) -> None:
     config = sim_config(compose_config(["scenario=urban_deep", "scenario.duration_s=60", override]))
     assert one_line_error(generate, config).startswith(override.split("=")[0])

@@ -1,4 +1,5 @@
-"""Sim-vs-real statistics (simbench.validation, python -m simbench.validate, the report section)."""
+"""Sim-vs-real statistics (simbench.analysis.validation, python -m simbench validate, the report section)."""
+
 from __future__ import annotations
 
 import copy
@@ -9,17 +10,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from simbench.claims import claims_table
-from simbench.compose import compose_config
-from simbench.config import SimConfig
-from simbench.contract import Scenario
-from simbench.data.rinex import load_rinex
-from simbench.report.build import build_report
-from simbench.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS
-from simbench.scenarios import sim_config
-from simbench.sim.generator import generate
-from simbench.validate import parse_args, run
-from simbench.validation import (
+from simbench.analysis.claims import claims_table
+from simbench.analysis.validation import (
     MIN_ROWS_PER_CLOCK,
     ValidationSample,
     comparison_table,
@@ -27,24 +19,48 @@ from simbench.validation import (
     residual_sample,
     world_statistics,
 )
+from simbench.cli.validate import parse_args, run
+from simbench.contract import Scenario
+from simbench.data.rinex import load_rinex
+from simbench.report.build import build_report
+from simbench.runs.compose import compose_config
+from simbench.runs.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS
+from simbench.runs.scenarios import sim_config
+from simbench.sim.config import SimConfig
+from simbench.sim.generator import generate
 from tests.conftest import one_line_error
 
 #: Thermal noise only: no multipath, NLOS, product errors, and an atmosphere exactly as modelled.
-THERMAL_ONLY = {"duration_s": 300.0, "errors.multipath.enabled": False, "errors.nlos.enabled": False,
-                "errors.orbit_clock.enabled": False, "errors.ionosphere.scale_sigma": 0.0,
-                "errors.ionosphere.residual_sigma_m": 0.0, "errors.troposphere.wet_scale_sigma": 0.0,
-                "errors.troposphere.wet_rw_mps": 0.0, "errors.sample_grid": False}
+THERMAL_ONLY = {
+    "duration_s": 300.0,
+    "errors.multipath.enabled": False,
+    "errors.nlos.enabled": False,
+    "errors.orbit_clock.enabled": False,
+    "errors.ionosphere.scale_sigma": 0.0,
+    "errors.ionosphere.residual_sigma_m": 0.0,
+    "errors.troposphere.wet_scale_sigma": 0.0,
+    "errors.troposphere.wet_rw_mps": 0.0,
+    "errors.sample_grid": False,
+}
 
 #: The issue 14 table's Hong Kong row (GPS): the procedure must reproduce it.
-HK_TABLE = {"sats_median": 6, "residual_p50_m": 3.6, "residual_p90_m": 38.5, "residual_p99_m": 85.0,
-            "share_over_10m": 0.33, "share_over_30m": 0.155, "cn0_p10": 20.0, "cn0_p50": 33.0, "cn0_p90": 42.0}
+HK_TABLE = {
+    "sats_median": 6,
+    "residual_p50_m": 3.6,
+    "residual_p90_m": 38.5,
+    "residual_p99_m": 85.0,
+    "share_over_10m": 0.33,
+    "share_over_30m": 0.155,
+    "cn0_p10": 20.0,
+    "cn0_p50": 33.0,
+    "cn0_p90": 42.0,
+}
 
 
 @pytest.fixture(scope="module")
 def hk(shared_data: Path) -> Scenario:
     d = shared_data / "hk_tst_2019"
-    return load_rinex(d / "COM3_190428_124409.obs", d / "hksc1180.19n", d / "groundTruth_TST.csv",
-                      name="hk_tst_2019")
+    return load_rinex(d / "COM3_190428_124409.obs", d / "hksc1180.19n", d / "groundTruth_TST.csv", name="hk_tst_2019")
 
 
 @pytest.fixture(scope="module")
@@ -106,8 +122,9 @@ def test_residual_statistics_match_the_configured_code_noise(thermal: Scenario) 
 def test_nlos_rows_carry_the_large_residuals(urban: Scenario) -> None:
     rows = _with_labels(residual_sample(urban), urban)
     # the low receiver's sample grid (73 m steps) puts metres on strong line-of-sight rows too
-    rows["residual"] = _minus_epoch_median((rows["residual"] - rows["sample_grid_code_l1"]).to_numpy(),
-                                           rows["epoch"].to_numpy())
+    rows["residual"] = _minus_epoch_median(
+        (rows["residual"] - rows["sample_grid_code_l1"]).to_numpy(), rows["epoch"].to_numpy()
+    )
     res = rows["residual"].abs()
     assert rows["nlos"].any()
     assert res[rows["nlos"]].median() > 5 * res[~rows["nlos"]].median()
@@ -155,8 +172,19 @@ def test_lone_satellites_get_no_residual(thermal: Scenario) -> None:
 
 
 def test_cli_parses_worlds_and_rejects_bad_flags() -> None:
-    worlds, options = parse_args(["scenario=urban", "seed=1", "--against", "scenario=rinex", "--out=/tmp/x",
-                                  "--against", "scenario=open_sky", "--mask", "10"])
+    worlds, options = parse_args(
+        [
+            "scenario=urban",
+            "seed=1",
+            "--against",
+            "scenario=rinex",
+            "--out=/tmp/x",
+            "--against",
+            "scenario=open_sky",
+            "--mask",
+            "10",
+        ]
+    )
     assert worlds == [["scenario=urban", "seed=1"], ["scenario=rinex"], ["scenario=open_sky"]]
     assert options == {"out": "/tmp/x", "mask": "10"}
     assert "--nope" in one_line_error(parse_args, ["--nope"])
@@ -165,21 +193,47 @@ def test_cli_parses_worlds_and_rejects_bad_flags() -> None:
 
 
 def test_cli_writes_the_table_and_figure(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
-    table = run(["scenario=urban", "scenario.duration_s=60", "--against", "scenario=urban", "receiver=high",
-                 "scenario.duration_s=60", "--out", str(tmp_path)])
+    table = run(
+        [
+            "scenario=urban",
+            "scenario.duration_s=60",
+            "--against",
+            "scenario=urban",
+            "receiver=high",
+            "scenario.duration_s=60",
+            "--out",
+            str(tmp_path),
+        ]
+    )
     assert table["name"].tolist() == ["urban low seed 0", "urban high seed 0"]
     assert table["ks_against"].iloc[0] == "urban low seed 0" and table["ks_residual"].iloc[0] == 0.0
     assert {p.name for p in tmp_path.iterdir()} == {"validation.csv", "cn0_by_elevation.csv", "validation.png"}
     assert "urban high seed 0" in capsys.readouterr().out
-    assert "two worlds are the same" in one_line_error(run, ["scenario=urban", "scenario.duration_s=60",
-                                                             "--against", "scenario=urban", "scenario.duration_s=60"])
+    assert "two worlds are the same" in one_line_error(
+        run, ["scenario=urban", "scenario.duration_s=60", "--against", "scenario=urban", "scenario.duration_s=60"]
+    )
 
 
-def test_report_shows_the_comparison_only_with_a_real_log_and_a_simulation(tmp_path: Path, hk: Scenario,
-                                                                           urban: Scenario) -> None:
-    summary = pd.DataFrame([{"scenario": "urban", "source": "simulated", "receiver": "low", "seed": 0,
-                             "estimator": "l2", "overrides": "{}", "variant": "", "uses_labels": False,
-                             "status": "ok", "horizontal_median": 1.0}], columns=list(SUMMARY_COLUMNS))
+def test_report_shows_the_comparison_only_with_a_real_log_and_a_simulation(
+    tmp_path: Path, hk: Scenario, urban: Scenario
+) -> None:
+    summary = pd.DataFrame(
+        [
+            {
+                "scenario": "urban",
+                "source": "simulated",
+                "receiver": "low",
+                "seed": 0,
+                "estimator": "l2",
+                "overrides": "{}",
+                "variant": "",
+                "uses_labels": False,
+                "status": "ok",
+                "horizontal_median": 1.0,
+            }
+        ],
+        columns=list(SUMMARY_COLUMNS),
+    )
     epochs = pd.DataFrame(columns=list(EPOCH_COLUMNS))
     claims = claims_table(summary, epochs)
     urban.save(tmp_path / "cache" / "sim")

@@ -1,4 +1,5 @@
 """Variants as typed data: overrides against the Config dataclass, canonical JSON, typed columns."""
+
 from __future__ import annotations
 
 import json
@@ -7,7 +8,7 @@ import pandas as pd
 
 from estimators.crt_lss import CrtLssConfig
 from estimators.ekf_ppp import EkfPppConfig
-from simbench.variants import (
+from simbench.analysis.variants import (
     NO_OVERRIDES,
     config_defaults,
     is_default,

@@ -1,13 +1,14 @@
 """Zero-baseline test: one environment, three receivers, single-point solutions compared."""
+
 from __future__ import annotations
 
 import numpy as np
 import pandas as pd
-import pytest
 
 import simbench
-from simbench.published import ZERO_BASELINE_MEAN_3D_M
-from simbench.zero_baseline import TABLE_NAME, main, single_point_positions, zero_baseline
+from simbench.analysis.published import ZERO_BASELINE_MEAN_3D_M
+from simbench.cli.zero_baseline import main
+from simbench.runs.zero_baseline import TABLE_NAME, single_point_positions, zero_baseline
 
 SHORT = {"scenario.duration_s": 120.0}
 
@@ -22,7 +23,7 @@ def test_presets_share_the_environment_and_differ_only_in_the_receiver() -> None
         np.testing.assert_allclose(both[f"{column}_g"], both[f"{column}_l"])
     # the street is the same: a satellite NLOS for one receiver is NLOS (or lost) for the other
     assert (both["nlos_g"] == both["nlos_l"]).all()
-    assert (both["noise_code_l1_g"].abs().mean() < both["noise_code_l1_l"].abs().mean())
+    assert both["noise_code_l1_g"].abs().mean() < both["noise_code_l1_l"].abs().mean()
 
 
 def test_single_point_fix_is_near_truth_and_geodetic_is_closest() -> None:

@@ -1,21 +1,34 @@
-"""File readers and real GNSS logs as scenarios: RINEX 3 with broadcast ephemeris (GPS, BeiDou), libRSF
-text, references; navigation, SP3 and trajectory files.
+"""File readers and real GNSS logs as scenarios: RINEX 3 with broadcast ephemeris, libRSF
+text, reference trajectories, SP3 orbits, RTKLIB solutions; and the writers of those formats
+(:mod:`simbench.data.export`). Beside :mod:`simbench.sim`, never importing it.
 
 :func:`load_rinex` and :func:`load_librsf` return a :class:`~simbench.contract.Scenario`
 with the simulator's observation columns, ``labels=None`` and an empty IMU
-table; :func:`simbench.scenarios.build_scenario` calls them for
+table; :func:`simbench.runs.scenarios.build_scenario` calls them for
 ``scenario.source=rinex`` / ``librsf``.
 """
+
 from __future__ import annotations
 
 from simbench.data.beidou import read_beidou_navigation
 from simbench.data.librsf import LibrsfLog, load_librsf, read_librsf, write_synthetic_librsf
-from simbench.data.navigation import read_gps_navigation
 from simbench.data.reference import Reference, match_reference, read_reference, truth_table
 from simbench.data.rinex import RinexObs, load_rinex, read_rinex_obs
 from simbench.data.sp3 import Sp3Orbits, read_sp3
-from simbench.data.trajectory_file import read_xyz_trajectory
 
-__all__ = ["read_beidou_navigation", "LibrsfLog", "load_librsf", "read_librsf", "write_synthetic_librsf",
-           "read_gps_navigation", "Reference", "match_reference", "read_reference", "truth_table", "RinexObs",
-           "load_rinex", "read_rinex_obs", "Sp3Orbits", "read_sp3", "read_xyz_trajectory"]
+__all__ = [
+    "read_beidou_navigation",
+    "LibrsfLog",
+    "load_librsf",
+    "read_librsf",
+    "write_synthetic_librsf",
+    "Reference",
+    "match_reference",
+    "read_reference",
+    "truth_table",
+    "RinexObs",
+    "load_rinex",
+    "read_rinex_obs",
+    "Sp3Orbits",
+    "read_sp3",
+]

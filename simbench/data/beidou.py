@@ -1,32 +1,53 @@
-"""RINEX 3 BeiDou navigation files -> :class:`~simbench.sim.beidou_orbits.BeidouEphemeris`.
+"""RINEX 3 BeiDou navigation files -> :class:`~simbench.core.beidou_orbits.BeidouEphemeris`.
 
 The ephemeris computation (CGCS2000 constants, BDT, geostationary rotation)
-lives in :mod:`simbench.sim.beidou_orbits`; the records come from the shared
-RINEX 3 reader :func:`simbench.data.navigation.read_rinex3_records`; this
+lives in :mod:`simbench.core.beidou_orbits`; the records come from the shared
+RINEX 3 reader :func:`simbench.gnss.navigation.read_rinex3_records`; this
 module picks the fields and converts BDT weeks and seconds to continuous GPS seconds.
 """
+
 from __future__ import annotations
 
 import os
 
 import numpy as np
 
-from simbench.data.navigation import read_rinex3_records
+from simbench.core.beidou_orbits import BDT_WEEK_OFFSET, GPS_MINUS_BDT_S, BeidouEphemeris
+from simbench.core.constants import SECONDS_PER_WEEK
+from simbench.core.gpstime import datetime64_to_gps
+from simbench.core.orbits import FIT_HALF_WINDOW_S
 from simbench.errors import SimbenchError
-from simbench.sim.beidou_orbits import BDT_WEEK_OFFSET, GPS_MINUS_BDT_S, BeidouEphemeris
-from simbench.sim.constants import SECONDS_PER_WEEK
-from simbench.sim.gpstime import datetime64_to_gps
-from simbench.sim.orbits import FIT_HALF_WINDOW_S
+from simbench.gnss.navigation import read_rinex3_records
 
 __all__ = ["read_beidou_navigation"]
 
 #: Record quantities the orbit and clock need (``tgd`` is TGD1, the B1I group delay).
-_FIELDS = ("af0", "af1", "af2", "crs", "dn", "m0", "cuc", "e", "cus", "sqrta", "cic", "omega0", "cis", "i0",
-           "crc", "w", "omegadot", "idot", "tgd")
+_FIELDS = (
+    "af0",
+    "af1",
+    "af2",
+    "crs",
+    "dn",
+    "m0",
+    "cuc",
+    "e",
+    "cus",
+    "sqrta",
+    "cic",
+    "omega0",
+    "cis",
+    "i0",
+    "crc",
+    "w",
+    "omegadot",
+    "idot",
+    "tgd",
+)
 
 
-def read_beidou_navigation(path: str | os.PathLike[str], max_age_s: float = FIT_HALF_WINDOW_S,
-                           setting: str = "scenario.nav_bds") -> BeidouEphemeris:
+def read_beidou_navigation(
+    path: str | os.PathLike[str], max_age_s: float = FIT_HALF_WINDOW_S, setting: str = "scenario.nav_bds"
+) -> BeidouEphemeris:
     """Read BeiDou ephemerides from a RINEX 3 navigation file (BeiDou-only or mixed).
 
     Parameters
@@ -54,14 +75,18 @@ def read_beidou_navigation(path: str | os.PathLike[str], max_age_s: float = FIT_
     nav = read_rinex3_records(p, "C", setting, fix)
     a = nav.values
     if a.shape[1] < len(_LAYOUT):
-        raise SimbenchError(f"{setting} '{p}'", f"has BeiDou records of {a.shape[1]} numbers, not {len(_LAYOUT)}",
-                            fix)
+        raise SimbenchError(f"{setting} '{p}'", f"has BeiDou records of {a.shape[1]} numbers, not {len(_LAYOUT)}", fix)
     col = {name: k for k, name in enumerate(_LAYOUT) if name}
     v = {key: a[:, col[key]] for key in _FIELDS}
     toc = datetime64_to_gps(nav.epoch) + GPS_MINUS_BDT_S
     week, toe_sow, health = a[:, col["week"]], a[:, col["toe"]], a[:, col["health"]]
-    keep = np.all(np.isfinite(np.stack(list(v.values()))), axis=0) & np.isfinite(week) & np.isfinite(toe_sow) \
-        & (health == 0) & (v["sqrta"] > 1000.0)
+    keep = (
+        np.all(np.isfinite(np.stack(list(v.values()))), axis=0)
+        & np.isfinite(week)
+        & np.isfinite(toe_sow)
+        & (health == 0)
+        & (v["sqrta"] > 1000.0)
+    )
     if not keep.any():
         raise SimbenchError(f"{setting} '{p}'", "has no complete healthy BeiDou record", fix)
     toe = (week[keep] + BDT_WEEK_OFFSET) * SECONDS_PER_WEEK + toe_sow[keep] + GPS_MINUS_BDT_S
@@ -74,6 +99,34 @@ def read_beidou_navigation(path: str | os.PathLike[str], max_age_s: float = FIT_
 
 
 #: Order of the 31 numbers of a RINEX 3 BeiDou record (3 on the first line, 4 on each of 7 more).
-_LAYOUT = ("af0", "af1", "af2", "aode", "crs", "dn", "m0", "cuc", "e", "cus", "sqrta", "toe", "cic", "omega0",
-           "cis", "i0", "crc", "w", "omegadot", "idot", "", "week", "", "accuracy", "health", "tgd", "tgd2",
-           "t_trans", "aodc")
+_LAYOUT = (
+    "af0",
+    "af1",
+    "af2",
+    "aode",
+    "crs",
+    "dn",
+    "m0",
+    "cuc",
+    "e",
+    "cus",
+    "sqrta",
+    "toe",
+    "cic",
+    "omega0",
+    "cis",
+    "i0",
+    "crc",
+    "w",
+    "omegadot",
+    "idot",
+    "",
+    "week",
+    "",
+    "accuracy",
+    "health",
+    "tgd",
+    "tgd2",
+    "t_trans",
+    "aodc",
+)

@@ -1,8 +1,8 @@
-"""RINEX 3 Galileo navigation records -> :class:`~simbench.sim.galileo_orbits.GalileoEphemeris`.
+"""RINEX 3 Galileo navigation records -> :class:`~simbench.core.galileo_orbits.GalileoEphemeris`.
 
 The records come from the shared reader
-:func:`simbench.data.navigation.read_rinex3_records` (Galileo-only or mixed
-files); the orbit and clock computation is in :mod:`simbench.sim.galileo_orbits`.
+:func:`simbench.gnss.navigation.read_rinex3_records` (Galileo-only or mixed
+files); the orbit and clock computation is in :mod:`simbench.core.galileo_orbits`.
 
 A RINEX file may hold both I/NAV (E1-B/E5b-I; clock for the E1-E5b pair) and
 F/NAV (E5a-I; clock for E1-E5a) records of a satellite. An E1 user wants the
@@ -10,34 +10,80 @@ I/NAV message: when a satellite has I/NAV records only those are kept, else its
 F/NAV ones, and each record's group delay is the BGD of its clock pair
 (RINEX 3 "data sources" bits 8/9; Galileo OS SIS ICD 5.1.5).
 """
+
 from __future__ import annotations
 
 import os
 
 import numpy as np
 
-from simbench.data.navigation import read_rinex3_records
+from simbench.core.constants import SECONDS_PER_WEEK
+from simbench.core.galileo_orbits import GalileoEphemeris
+from simbench.core.gpstime import datetime64_to_gps
+from simbench.core.orbits import FIT_HALF_WINDOW_S
 from simbench.errors import SimbenchError
-from simbench.sim.constants import SECONDS_PER_WEEK
-from simbench.sim.galileo_orbits import GalileoEphemeris
-from simbench.sim.gpstime import datetime64_to_gps
-from simbench.sim.orbits import FIT_HALF_WINDOW_S
+from simbench.gnss.navigation import read_rinex3_records
 
 __all__ = ["read_galileo_navigation"]
 
 #: Order of the numbers of a RINEX 3 Galileo record (3 on the first line, 4 on each further line).
-_LAYOUT = ("af0", "af1", "af2", "iod", "crs", "dn", "m0", "cuc", "e", "cus", "sqrta", "toe", "cic", "omega0",
-           "cis", "i0", "crc", "w", "omegadot", "idot", "sources", "week", "", "sisa", "health", "bgd_e5a",
-           "bgd_e5b")
+_LAYOUT = (
+    "af0",
+    "af1",
+    "af2",
+    "iod",
+    "crs",
+    "dn",
+    "m0",
+    "cuc",
+    "e",
+    "cus",
+    "sqrta",
+    "toe",
+    "cic",
+    "omega0",
+    "cis",
+    "i0",
+    "crc",
+    "w",
+    "omegadot",
+    "idot",
+    "sources",
+    "week",
+    "",
+    "sisa",
+    "health",
+    "bgd_e5a",
+    "bgd_e5b",
+)
 #: Record quantities the orbit and clock need.
-_FIELDS = ("af0", "af1", "af2", "crs", "dn", "m0", "cuc", "e", "cus", "sqrta", "cic", "omega0", "cis", "i0",
-           "crc", "w", "omegadot", "idot")
+_FIELDS = (
+    "af0",
+    "af1",
+    "af2",
+    "crs",
+    "dn",
+    "m0",
+    "cuc",
+    "e",
+    "cus",
+    "sqrta",
+    "cic",
+    "omega0",
+    "cis",
+    "i0",
+    "crc",
+    "w",
+    "omegadot",
+    "idot",
+)
 _INAV_CLOCK_BIT, _FNAV_CLOCK_BIT = 1 << 9, 1 << 8  # af0..af2 refer to (E5b, E1) / (E5a, E1)
 _INAV_SIGNAL_BITS = 0b101  # E1-B, E5b-I
 
 
-def read_galileo_navigation(path: str | os.PathLike[str], max_age_s: float = FIT_HALF_WINDOW_S,
-                            setting: str = "scenario.nav_gal") -> GalileoEphemeris:
+def read_galileo_navigation(
+    path: str | os.PathLike[str], max_age_s: float = FIT_HALF_WINDOW_S, setting: str = "scenario.nav_gal"
+) -> GalileoEphemeris:
     """Read Galileo ephemerides from a RINEX 3 navigation file (Galileo-only or mixed).
 
     Parameters
@@ -74,8 +120,13 @@ def read_galileo_navigation(path: str | os.PathLike[str], max_age_s: float = FIT
     src = np.nan_to_num(a[:, col["sources"]]).astype(np.int64)
     inav = ((src & _INAV_CLOCK_BIT) != 0) | (((src & _FNAV_CLOCK_BIT) == 0) & ((src & _INAV_SIGNAL_BITS) != 0))
     bgd = np.where(inav, a[:, col["bgd_e5b"]], a[:, col["bgd_e5a"]])
-    keep = np.all(np.isfinite(np.stack(list(v.values()))), axis=0) & np.isfinite(week) & np.isfinite(toe_sow) \
-        & (health == 0) & (v["sqrta"] > 1000.0)
+    keep = (
+        np.all(np.isfinite(np.stack(list(v.values()))), axis=0)
+        & np.isfinite(week)
+        & np.isfinite(toe_sow)
+        & (health == 0)
+        & (v["sqrta"] > 1000.0)
+    )
     # one message type per satellite, I/NAV first: the two clock models differ by the BGDs
     has_inav = {s for s, ok in zip(nav.sv.tolist(), keep & inav) if ok}
     keep &= inav | ~np.isin(nav.sv, list(has_inav))

@@ -1,21 +1,22 @@
-"""RINEX 3 GLONASS navigation records -> :class:`~simbench.sim.glonass_orbits.GlonassEphemeris`.
+"""RINEX 3 GLONASS navigation records -> :class:`~simbench.core.glonass_orbits.GlonassEphemeris`.
 
 The records come from the shared reader
-:func:`simbench.data.navigation.read_rinex3_records` (GLONASS-only or mixed
-files); the numerical integration is in :mod:`simbench.sim.glonass_orbits`.
+:func:`simbench.gnss.navigation.read_rinex3_records` (GLONASS-only or mixed
+files); the numerical integration is in :mod:`simbench.core.glonass_orbits`.
 RINEX 3 gives the record epoch (tb) in UTC, the clock as -TauN and +GammaN,
 and the state in km, km/s and km/s^2.
 """
+
 from __future__ import annotations
 
 import os
 
 import numpy as np
 
-from simbench.data.navigation import read_rinex3_records
+from simbench.core.glonass_orbits import GLO_MAX_AGE_S, GlonassEphemeris
+from simbench.core.gpstime import utc_to_gps
 from simbench.errors import SimbenchError
-from simbench.sim.glonass_orbits import GLO_MAX_AGE_S, GlonassEphemeris
-from simbench.sim.gpstime import utc_to_gps
+from simbench.gnss.navigation import read_rinex3_records
 
 __all__ = ["read_glonass_navigation"]
 
@@ -24,8 +25,9 @@ _LAYOUT = ("clock", "gamma", "t_frame", "x", "vx", "ax", "health", "y", "vy", "a
 _KM = 1_000.0
 
 
-def read_glonass_navigation(path: str | os.PathLike[str], max_age_s: float = GLO_MAX_AGE_S,
-                            setting: str = "scenario.nav_glo") -> GlonassEphemeris:
+def read_glonass_navigation(
+    path: str | os.PathLike[str], max_age_s: float = GLO_MAX_AGE_S, setting: str = "scenario.nav_glo"
+) -> GlonassEphemeris:
     """Read GLONASS ephemerides from a RINEX 3 navigation file (GLONASS-only or mixed).
 
     Parameters
@@ -62,18 +64,24 @@ def read_glonass_navigation(path: str | os.PathLike[str], max_age_s: float = GLO
     bad = np.isfinite(freq) & ((freq != np.round(freq)) | (freq < -7) | (freq > 13))
     if bad.any():
         k = int(np.argmax(bad))
-        raise SimbenchError(field, f"record {nav.sv[k]} {nav.epoch[k]} has frequency number {freq[k]:g}",
-                            "GLONASS FDMA channels are whole numbers -7..+13; check the file")
+        raise SimbenchError(
+            field,
+            f"record {nav.sv[k]} {nav.epoch[k]} has frequency number {freq[k]:g}",
+            "GLONASS FDMA channels are whole numbers -7..+13; check the file",
+        )
     need = ("clock", "gamma", "x", "vx", "ax", "y", "vy", "ay", "z", "vz", "az", "freq")
     keep = np.all(np.isfinite(np.stack([v[k] for k in need])), axis=0) & (v["health"] == 0)
     if not keep.any():
         raise SimbenchError(field, "has no complete healthy GLONASS record", fix)
     sats, sat_idx = np.unique(nav.sv[keep], return_inverse=True)
     records = {
-        "sat": sat_idx, "tb": utc_to_gps(nav.epoch[keep]),
+        "sat": sat_idx,
+        "tb": utc_to_gps(nav.epoch[keep]),
         "pos": _KM * np.stack([v["x"], v["y"], v["z"]], axis=1)[keep],
         "vel": _KM * np.stack([v["vx"], v["vy"], v["vz"]], axis=1)[keep],
         "acc": _KM * np.stack([v["ax"], v["ay"], v["az"]], axis=1)[keep],
-        "clock": v["clock"][keep], "gamma": v["gamma"][keep], "freq": v["freq"][keep].astype(int),
+        "clock": v["clock"][keep],
+        "gamma": v["gamma"][keep],
+        "freq": v["freq"][keep].astype(int),
     }
     return GlonassEphemeris(sats, records, source=os.path.basename(p), max_age_s=max_age_s)

@@ -40,6 +40,7 @@ variances ((m/s)^2, (rad/s)^2; smartLoc writes 0.0025 and 4e-6). ``vy``, ``vz``
 (zero in smartLoc: the car's non-holonomic constraint, which an estimator can
 apply itself) and the roll and pitch rates are not carried.
 """
+
 from __future__ import annotations
 
 import io
@@ -52,18 +53,26 @@ import numpy as np
 import pandas as pd
 
 from simbench.contract import ODOMETRY_COLUMNS, NavInfo, Scenario
+from simbench.core.constants import DEG, SECONDS_PER_WEEK
+from simbench.core.frames import dcm_ned_to_ecef, ecef_from_geodetic, geodetic_from_ecef
+from simbench.core.gpstime import day_of_year
+from simbench.core.orbits import NominalConstellation
 from simbench.data.reference import Reference, match_reference, read_reference, truth_table
 from simbench.data.rinex import empty_imu, epoch_grid
 from simbench.errors import SimbenchError
-from simbench.sim.constants import DEG, SECONDS_PER_WEEK
-from simbench.sim.frames import geodetic_from_ecef
-from simbench.gnss.geometry import elevation_azimuth
+from simbench.gnss.geometry import elevation_azimuth, sagnac_range
 from simbench.gnss.spp import ROUGH_FIX_MAX_RMS_M, solve_epochs
 from simbench.gnss.troposphere import troposphere_terms
-from simbench.sim.gpstime import day_of_year
 
-__all__ = ["LibrsfLog", "read_librsf", "read_librsf_points", "load_librsf", "write_synthetic_librsf",
-           "SYSTEM_LETTERS", "SYSTEM_FLAGS"]
+__all__ = [
+    "LibrsfLog",
+    "read_librsf",
+    "read_librsf_points",
+    "load_librsf",
+    "write_synthetic_librsf",
+    "SYSTEM_LETTERS",
+    "SYSTEM_FLAGS",
+]
 
 #: libRSF system bit flag -> RINEX system letter.
 SYSTEM_LETTERS: dict[int, str] = {1: "G", 2: "S", 4: "R", 8: "E", 16: "J", 32: "C"}
@@ -121,14 +130,23 @@ def _read_table(p: str) -> tuple[pd.DataFrame, np.ndarray]:
         raise _rsf_error(p, "contains no pseudorange3 lines")
     line_no = np.asarray(keep, np.int64) + 1
     try:
-        raw = pd.read_csv(io.StringIO("\n".join(content[i] for i in keep)), sep=r"\s+", header=None,
-                          names=list(range(15)), engine="c", dtype={0: str})
+        raw = pd.read_csv(
+            io.StringIO("\n".join(content[i] for i in keep)),
+            sep=r"\s+",
+            header=None,
+            names=list(range(15)),
+            engine="c",
+            dtype={0: str},
+        )
     except (pd.errors.ParserError, ValueError) as exc:
         msg = str(exc).splitlines()[0]
         row = re.search(r"line (\d+)", msg)
         line = int(line_no[int(row.group(1)) - 1]) if row and int(row.group(1)) <= len(line_no) else None
-        raise _rsf_error(p, "has more than 14 values after the keyword" if "Expected" in msg
-                         else f"cannot be parsed ({msg[:60]})", line) from None
+        raise _rsf_error(
+            p,
+            "has more than 14 values after the keyword" if "Expected" in msg else f"cannot be parsed ({msg[:60]})",
+            line,
+        ) from None
     return raw, line_no
 
 
@@ -159,8 +177,11 @@ def read_librsf(path: str | os.PathLike[str]) -> LibrsfLog:
     unknown = np.flatnonzero(pd.isna(kind))
     if unknown.size:
         names = sorted(set(raw[0].iloc[unknown].astype(str)))
-        raise _rsf_error(p, f"has unknown line types {names[:3]} (known: pseudorange3, range3, odom3, point3, "
-                         "gt3)", int(line_no[unknown[0]]))
+        raise _rsf_error(
+            p,
+            f"has unknown line types {names[:3]} (known: pseudorange3, range3, odom3, point3, gt3)",
+            int(line_no[unknown[0]]),
+        )
     present = raw.iloc[:, 1:].notna().to_numpy()
     num = raw.iloc[:, 1:].apply(pd.to_numeric, errors="coerce").to_numpy(float)
     not_number = np.argwhere(present & ~np.isfinite(num))
@@ -178,60 +199,98 @@ def read_librsf(path: str | os.PathLike[str]) -> LibrsfLog:
     nr = n_values[ri]
     if not np.isin(nr, (9, 10)).all():
         k = int(nr[~np.isin(nr, (9, 10))][0])
-        raise _rsf_error(p, f"pseudorange3 has {k} values after the keyword; expected 9 (t rho var x y z id el "
-                         "cn0) or 10 (... id system el cn0)", first_bad(ri, ~np.isin(nr, (9, 10))))
+        raise _rsf_error(
+            p,
+            f"pseudorange3 has {k} values after the keyword; expected 9 (t rho var x y z id el "
+            "cn0) or 10 (... id system el cn0)",
+            first_bad(ri, ~np.isin(nr, (9, 10))),
+        )
     if (nr != nr[0]).any():
-        raise _rsf_error(p, f"pseudorange3 has {int(nr[nr != nr[0]][0])} values after the keyword, the first "
-                         f"pseudorange3 line {int(nr[0])}; one file has one layout", first_bad(ri, nr != nr[0]))
+        raise _rsf_error(
+            p,
+            f"pseudorange3 has {int(nr[nr != nr[0]][0])} values after the keyword, the first "
+            f"pseudorange3 line {int(nr[0])}; one file has one layout",
+            first_bad(ri, nr != nr[0]),
+        )
     r = num[ri]
     with_system = nr == 10
     t0 = float(r[:, 0].min())
     sat_id = r[:, 6]
     bad_id = (sat_id != np.round(sat_id)) | (sat_id < 1)
     if bad_id.any():
-        raise _rsf_error(p, f"field 8 (satellite ID) is {sat_id[bad_id][0]:g}; expected a positive integer",
-                         first_bad(ri, bad_id))
+        raise _rsf_error(
+            p, f"field 8 (satellite ID) is {sat_id[bad_id][0]:g}; expected a positive integer", first_bad(ri, bad_id)
+        )
     flags = np.where(with_system, r[:, 7], 1.0)
     bad_flag = ~np.isin(flags, list(SYSTEM_LETTERS))
     if bad_flag.any():
-        raise _rsf_error(p, f"field 9 (satellite system) is {flags[bad_flag][0]:g}; expected 1 GPS, 2 SBAS, "
-                         "4 GLONASS, 8 Galileo, 16 QZSS or 32 BeiDou", first_bad(ri, bad_flag))
+        raise _rsf_error(
+            p,
+            f"field 9 (satellite system) is {flags[bad_flag][0]:g}; expected 1 GPS, 2 SBAS, "
+            "4 GLONASS, 8 Galileo, 16 QZSS or 32 BeiDou",
+            first_bad(ri, bad_flag),
+        )
     letters = np.array([SYSTEM_LETTERS[int(f)] for f in flags.tolist()])
     prn = sat_id.astype(np.int64)
     prn = np.where((letters == "R") & (prn > RTKLIB_GLONASS_OFFSET), prn - RTKLIB_GLONASS_OFFSET, prn)
     sat = np.char.add(letters, np.char.zfill(prn.astype(str), 2))
     el = np.where(with_system, r[:, 8], r[:, 7])
     cn0 = np.where(with_system, r[:, 9], r[:, 8])
-    ranges = pd.DataFrame({"t": r[:, 0] - t0, "sat": sat, "rho": r[:, 1], "var_rho": r[:, 2],
-                           "sat_x": r[:, 3], "sat_y": r[:, 4], "sat_z": r[:, 5], "el": el, "cn0": cn0})
+    ranges = pd.DataFrame(
+        {
+            "t": r[:, 0] - t0,
+            "sat": sat,
+            "rho": r[:, 1],
+            "var_rho": r[:, 2],
+            "sat_x": r[:, 3],
+            "sat_y": r[:, 4],
+            "sat_z": r[:, 5],
+            "el": el,
+            "cn0": cn0,
+        }
+    )
 
     oi = np.flatnonzero(kind == "odom")
     if (n_values[oi] != 13).any():
         bad = n_values[oi] != 13
-        raise _rsf_error(p, f"odom3 has {int(n_values[oi][bad][0])} values after the keyword; expected 13 "
-                         "(t, velocity xyz, turn rate xyz, their 6 variances)", first_bad(oi, bad))
+        raise _rsf_error(
+            p,
+            f"odom3 has {int(n_values[oi][bad][0])} values after the keyword; expected 13 "
+            "(t, velocity xyz, turn rate xyz, their 6 variances)",
+            first_bad(oi, bad),
+        )
     o = num[oi][:, :13]
     negative = (o[:, 7:13] < 0.0).any(axis=1)
     if negative.any():
         j = int(np.flatnonzero(o[negative][0, 7:13] < 0.0)[0])
-        raise _rsf_error(p, f"odom3 variance field {j + 9} is {o[negative][0, 7 + j]:g}; variances are >= 0",
-                         first_bad(oi, negative))
-    odometry = pd.DataFrame({"t": o[:, 0] - t0, "speed": o[:, 1], "yaw_rate": -o[:, 6],
-                             "var_speed": o[:, 7], "var_yaw_rate": o[:, 12]}, columns=list(ODOMETRY_COLUMNS))
+        raise _rsf_error(
+            p, f"odom3 variance field {j + 9} is {o[negative][0, 7 + j]:g}; variances are >= 0", first_bad(oi, negative)
+        )
+    odometry = pd.DataFrame(
+        {"t": o[:, 0] - t0, "speed": o[:, 1], "yaw_rate": -o[:, 6], "var_speed": o[:, 7], "var_yaw_rate": o[:, 12]},
+        columns=list(ODOMETRY_COLUMNS),
+    )
     odometry = odometry.sort_values("t", kind="stable").reset_index(drop=True)
 
     gi = np.flatnonzero(kind == "point")
     if (n_values[gi] < 4).any():
-        raise _rsf_error(p, "point3 needs at least 4 values after the keyword (t X Y Z)",
-                         first_bad(gi, n_values[gi] < 4))
+        raise _rsf_error(
+            p, "point3 needs at least 4 values after the keyword (t X Y Z)", first_bad(gi, n_values[gi] < 4)
+        )
     reference = pd.DataFrame(num[gi][:, :4], columns=["t", "x", "y", "z"])
     reference["t"] -= t0
     return LibrsfLog(t0=t0, ranges=ranges, odometry=odometry, reference=reference, path=p)
 
 
-def load_librsf(path: str | os.PathLike[str], truth_path: str | os.PathLike[str] | None = None, *,
-                gps_week: int, start_sow_s: float, name: str = "librsf",
-                truth_max_gap_s: float = 2.0) -> Scenario:
+def load_librsf(
+    path: str | os.PathLike[str],
+    truth_path: str | os.PathLike[str] | None = None,
+    *,
+    gps_week: int,
+    start_sow_s: float,
+    name: str = "librsf",
+    truth_max_gap_s: float = 2.0,
+) -> Scenario:
     """Ingest a libRSF GNSS file as a Scenario.
 
     Parameters
@@ -274,8 +333,15 @@ def load_librsf(path: str | os.PathLike[str], truth_path: str | os.PathLike[str]
     rho = rg["rho"].to_numpy(float)
     # one receiver clock per system: GLONASS (and any other) pseudoranges carry an inter-system bias
     system_index = np.unique(rg["sat"].str[0].to_numpy(), return_inverse=True)[1]
-    fix = solve_epochs(row_epoch, sat_pos, rho, n_epochs=t_epoch.size, system_index=system_index,
-                       max_rms_m=ROUGH_FIX_MAX_RMS_M, fill_untrusted=True)
+    fix = solve_epochs(
+        row_epoch,
+        sat_pos,
+        rho,
+        n_epochs=t_epoch.size,
+        system_index=system_index,
+        max_rms_m=ROUGH_FIX_MAX_RMS_M,
+        fill_untrusted=True,
+    )
     rx = fix.pos
     el_rad, az_rad = (a[:, 0] for a in elevation_azimuth(rx[row_epoch], sat_pos[:, None, :]))
     el_file = rg["el"].to_numpy(float)
@@ -289,14 +355,35 @@ def load_librsf(path: str | os.PathLike[str], truth_path: str | os.PathLike[str]
 
     n = len(rg)
     nan = np.full(n, np.nan)
-    observations = pd.DataFrame({
-        "epoch": grid[row_epoch], "t": t_epoch[row_epoch], "sat": rg["sat"].to_numpy(),
-        "code_l1": code, "phase_l1": nan, "doppler_l1": nan, "cn0_l1": rg["cn0"].to_numpy(float),
-        "lli_l1": np.zeros(n, bool), "code_l2": nan, "phase_l2": nan, "lli_l2": np.zeros(n, bool),
-        "sat_x": sat_pos[:, 0], "sat_y": sat_pos[:, 1], "sat_z": sat_pos[:, 2],
-        "sat_vx": nan, "sat_vy": nan, "sat_vz": nan, "sat_clock": np.zeros(n), "sat_clock_drift": np.zeros(n),
-        "el": el_deg, "az": np.degrees(az_rad),
-    }).sort_values(["epoch", "sat"], kind="stable").reset_index(drop=True)
+    observations = (
+        pd.DataFrame(
+            {
+                "epoch": grid[row_epoch],
+                "t": t_epoch[row_epoch],
+                "sat": rg["sat"].to_numpy(),
+                "code_l1": code,
+                "phase_l1": nan,
+                "doppler_l1": nan,
+                "cn0_l1": rg["cn0"].to_numpy(float),
+                "lli_l1": np.zeros(n, bool),
+                "code_l2": nan,
+                "phase_l2": nan,
+                "lli_l2": np.zeros(n, bool),
+                "sat_x": sat_pos[:, 0],
+                "sat_y": sat_pos[:, 1],
+                "sat_z": sat_pos[:, 2],
+                "sat_vx": nan,
+                "sat_vy": nan,
+                "sat_vz": nan,
+                "sat_clock": np.zeros(n),
+                "sat_clock_drift": np.zeros(n),
+                "el": el_deg,
+                "az": np.degrees(az_rad),
+            }
+        )
+        .sort_values(["epoch", "sat"], kind="stable")
+        .reset_index(drop=True)
+    )
 
     t_grid = np.arange(n_grid) * interval
     t_grid[grid] = t_epoch
@@ -306,35 +393,53 @@ def load_librsf(path: str | os.PathLike[str], truth_path: str | os.PathLike[str]
     else:
         pts = log.reference
         if pts.empty:
-            raise SimbenchError(f"scenario.obs '{log.path}'", "has no point3 reference lines and no scenario.truth",
-                                "pass a reference with scenario.truth=... (libRSF point3 or week,TOW,lat,lon,h)")
-        ref = Reference(t_gps=t_abs0 + pts["t"].to_numpy(float), xyz=pts[["x", "y", "z"]].to_numpy(float),
-                        path=log.path)
+            raise SimbenchError(
+                f"scenario.obs '{log.path}'",
+                "has no point3 reference lines and no scenario.truth",
+                "pass a reference with scenario.truth=... (libRSF point3 or week,TOW,lat,lon,h)",
+            )
+        ref = Reference(
+            t_gps=t_abs0 + pts["t"].to_numpy(float), xyz=pts[["x", "y", "z"]].to_numpy(float), path=log.path
+        )
     matched = match_reference(ref, t_abs0 + t_grid, truth_max_gap_s)
     counts = np.bincount(observations["epoch"].to_numpy(), minlength=n_grid)
     truth = truth_table(t_grid, matched, counts)
 
-    nav = NavInfo(gps_week=gps_week, start_sow_s=t0_sow, iono_alpha=(0.0,) * 4, iono_beta=(0.0,) * 4,
-                  dual_frequency=False, iono_corrected=True)
+    nav = NavInfo(
+        gps_week=gps_week,
+        start_sow_s=t0_sow,
+        iono_alpha=(0.0,) * 4,
+        iono_beta=(0.0,) * 4,
+        dual_frequency=False,
+        iono_corrected=True,
+    )
     meta = {
-        "name": name, "seed": 0, "source": "librsf",
+        "name": name,
+        "seed": 0,
+        "source": "librsf",
         "files": {"obs": str(Path(path)), "truth": str(truth_path or "")},
         "systems": "".join(sorted({s[0] for s in observations["sat"].unique().tolist()})),
-        "epochs": n_grid, "epochs_with_truth": len(truth), "odometry_rows": len(log.odometry),
+        "epochs": n_grid,
+        "epochs_with_truth": len(truth),
+        "odometry_rows": len(log.odometry),
         "rough_fix_rms_m": float(np.nanmedian(fix.rms_m[fix.trusted])),
         "corrections": "satellite clock, ionosphere and troposphere removed in the file; the modelled "
-                       "hydrostatic delay is added back for the shared model; no carrier phase",
+        "hydrostatic delay is added back for the shared model; no carrier phase",
     }
-    return Scenario(observations=observations, imu=empty_imu(), truth=truth, labels=None, nav=nav, meta=meta,
-                    odometry=log.odometry)
+    return Scenario(
+        observations=observations, imu=empty_imu(), truth=truth, labels=None, nav=nav, meta=meta, odometry=log.odometry
+    )
 
 
 def _external_reference(p: str, gps_week: int, t_file0_gps: float) -> Reference:
     """A reference from a separate file: libRSF point3 lines (file time; ``t_file0_gps`` is the
     GPS time of file time 0) or the CSV/SOW layouts (GPS time)."""
     if not os.path.isfile(p):
-        raise SimbenchError(f"scenario.truth '{p}'", "file does not exist",
-                            "pass a libRSF point3 file or a 'week,TOW,lat,lon,h' / 'SOW X Y Z' reference")
+        raise SimbenchError(
+            f"scenario.truth '{p}'",
+            "file does not exist",
+            "pass a libRSF point3 file or a 'week,TOW,lat,lon,h' / 'SOW X Y Z' reference",
+        )
     with open(p, errors="replace") as fh:
         first = fh.readline().split()
     if first and first[0] in ("point3", "gt3"):
@@ -349,11 +454,20 @@ def read_librsf_points(path: str) -> np.ndarray:
     return raw.iloc[:, 1:5].to_numpy(float)
 
 
-def write_synthetic_librsf(path: str | os.PathLike[str], duration_s: float = 10.0, *, rate_hz: float = 1.0,
-                           odometry_rate_hz: float = 10.0, start_gps_s: float = 2032 * SECONDS_PER_WEEK + 475_200.0,
-                           code_sigma_m: float = 0.5, systems: str = "G", glonass_bias_m: float = 0.0,
-                           speed_sigma_mps: float = 0.05, yaw_rate_sigma_rps: float = 0.002,
-                           seed: int = 0) -> Path:
+def write_synthetic_librsf(
+    path: str | os.PathLike[str],
+    duration_s: float = 10.0,
+    *,
+    rate_hz: float = 1.0,
+    odometry_rate_hz: float = 10.0,
+    start_gps_s: float = 2032 * SECONDS_PER_WEEK + 475_200.0,
+    code_sigma_m: float = 0.5,
+    systems: str = "G",
+    glonass_bias_m: float = 0.0,
+    speed_sigma_mps: float = 0.05,
+    yaw_rate_sigma_rps: float = 0.002,
+    seed: int = 0,
+) -> Path:
     """Write a synthetic libRSF GNSS file (test fixtures and the ingest benchmark).
 
     A car drives east at 10 m/s from Chemnitz (50.83 N, 12.92 E); pseudoranges
@@ -395,10 +509,6 @@ def write_synthetic_librsf(path: str | os.PathLike[str], duration_s: float = 10.
     SimbenchError
         For a system other than G and R.
     """
-    from simbench.sim.frames import dcm_ned_to_ecef, ecef_from_geodetic
-    from simbench.gnss.geometry import sagnac_range
-    from simbench.sim.orbits import NominalConstellation
-
     if not systems or set(systems) - {"G", "R"}:
         raise SimbenchError("systems", f"'{systems}' is not supported by the synthetic writer", "use 'G' or 'GR'")
     rng = np.random.default_rng(seed)
@@ -409,24 +519,29 @@ def write_synthetic_librsf(path: str | os.PathLike[str], duration_s: float = 10.
     constellation = NominalConstellation()
     lines = []
     for letter in systems:
-        shift, bias, id0 = (0.0, 0.0, 0) if letter == "G" else (_STANDIN_SHIFT_S, glonass_bias_m,
-                                                                RTKLIB_GLONASS_OFFSET)
+        shift, bias, id0 = (0.0, 0.0, 0) if letter == "G" else (_STANDIN_SHIFT_S, glonass_bias_m, RTKLIB_GLONASS_OFFSET)
         st = constellation.states(start_gps_s + shift + t)
         el, _ = elevation_azimuth(rx, st.pos)
         e_idx, s_idx = np.nonzero(el > 10.0 * DEG)
         sp = st.pos[e_idx, s_idx]
-        rho = (sagnac_range(sp, rx[e_idx]) + 100.0 + 1.0 * t[e_idx] + bias
-               + code_sigma_m * rng.standard_normal(e_idx.size))
+        rho = (
+            sagnac_range(sp, rx[e_idx]) + 100.0 + 1.0 * t[e_idx] + bias + code_sigma_m * rng.standard_normal(e_idx.size)
+        )
         cn0 = 35.0 + 15.0 * np.sin(el[e_idx, s_idx])
-        lines += [f"pseudorange3 {t[e]:.3f} {r:.3f} {code_sigma_m**2:.4f} {q[0]:.3f} {q[1]:.3f} {q[2]:.3f} "
-                  f"{id0 + s + 1} {SYSTEM_FLAGS[letter]} {np.degrees(el[e, s]):.2f} {c:.1f}"
-                  for e, s, r, q, c in zip(e_idx.tolist(), s_idx.tolist(), rho, sp, cn0)]
+        lines += [
+            f"pseudorange3 {t[e]:.3f} {r:.3f} {code_sigma_m**2:.4f} {q[0]:.3f} {q[1]:.3f} {q[2]:.3f} "
+            f"{id0 + s + 1} {SYSTEM_FLAGS[letter]} {np.degrees(el[e, s]):.2f} {c:.1f}"
+            for e, s, r, q, c in zip(e_idx.tolist(), s_idx.tolist(), rho, sp, cn0)
+        ]
     t_odo = np.arange(0.0, duration_s, 1.0 / odometry_rate_hz)
     v = 10.0 + speed_sigma_mps * rng.standard_normal(t_odo.size)
     wz = yaw_rate_sigma_rps * rng.standard_normal(t_odo.size)
     var_v, var_w = speed_sigma_mps**2, yaw_rate_sigma_rps**2
-    lines += [f"odom3 {to:.3f} {vx:.4f} 0 0 0 0 {w:.6f} {var_v:.6g} {var_v:.6g} {var_v:.6g} {var_w:.6g} "
-              f"{var_w:.6g} {var_w:.6g}" for to, vx, w in zip(t_odo, v, wz)]
+    lines += [
+        f"odom3 {to:.3f} {vx:.4f} 0 0 0 0 {w:.6f} {var_v:.6g} {var_v:.6g} {var_v:.6g} {var_w:.6g} "
+        f"{var_w:.6g} {var_w:.6g}"
+        for to, vx, w in zip(t_odo, v, wz)
+    ]
     lines += [f"point3 {ti:.3f} {x[0]:.4f} {x[1]:.4f} {x[2]:.4f} 0 0 0 0 0 0 0 0 0" for ti, x in zip(t, rx)]
     out = Path(path)
     out.write_text("\n".join(lines) + "\n")

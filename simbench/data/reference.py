@@ -3,13 +3,14 @@
 Two file layouts are read: ``week,TOW,lat,lon,h`` CSV (degrees, ellipsoidal
 metres; the Hong Kong UrbanNav-style ground truth) and ``SOW X Y Z``
 (whitespace or commas, ECEF metres; the WVU drives), where a time column of
-more than a week's seconds is continuous GPS seconds (``t,x,y,z``) instead. Epochs are matched by linear interpolation in
-time; an epoch further than ``max_gap_s`` from reference samples on either
+more than a week's seconds is continuous GPS seconds (``t,x,y,z``) instead.
+Epochs are matched by linear interpolation in time; an epoch further than ``max_gap_s`` from reference samples on either
 side gets no truth row: its observations stay in the scenario (estimators
-use them), but :func:`simbench.metrics.enu_errors` merges solutions with
+use them), but :func:`simbench.analysis.metrics.enu_errors` merges solutions with
 truth on ``epoch``, so it is not scored, and availability is counted over the
 epochs that have a reference.
 """
+
 from __future__ import annotations
 
 import os
@@ -19,10 +20,10 @@ import numpy as np
 import pandas as pd
 
 from simbench.contract import TRUTH_COLUMNS
+from simbench.core.constants import DEG, SECONDS_PER_WEEK
+from simbench.core.frames import ecef_from_geodetic
+from simbench.core.gpstime import format_gps_time
 from simbench.errors import SimbenchError
-from simbench.sim.constants import DEG, SECONDS_PER_WEEK
-from simbench.sim.frames import ecef_from_geodetic
-from simbench.sim.gpstime import format_gps_time
 
 __all__ = ["Reference", "read_reference", "match_reference", "truth_table"]
 
@@ -49,13 +50,16 @@ class Reference:
 
 
 def _ref_error(field: str, path: str, problem: str) -> SimbenchError:
-    return SimbenchError(f"{field} '{path}'", problem,
-                         "pass a 'week,TOW,lat,lon,h' CSV or a 'SOW X Y Z' or 't,X,Y,Z' file "
-                         "(GPS time, ECEF metres)")
+    return SimbenchError(
+        f"{field} '{path}'",
+        problem,
+        "pass a 'week,TOW,lat,lon,h' CSV or a 'SOW X Y Z' or 't,X,Y,Z' file (GPS time, ECEF metres)",
+    )
 
 
-def read_reference(path: str | os.PathLike[str], week_hint: int | None = None,
-                   field: str = "scenario.truth") -> Reference:
+def read_reference(
+    path: str | os.PathLike[str], week_hint: int | None = None, field: str = "scenario.truth"
+) -> Reference:
     """Read a reference trajectory file.
 
     Parameters
@@ -147,10 +151,12 @@ def match_reference(ref: Reference, t_gps: np.ndarray, max_gap_s: float = 2.0) -
         out[ok, 3:] = vel[ok]
     if not np.isfinite(out[:, 0]).any():
         span = f"{format_gps_time(rt[0])} .. {format_gps_time(rt[-1])}" if rt.size else "nothing"
-        raise SimbenchError(f"scenario.truth '{ref.path}'",
-                            f"does not overlap the observations: reference {span} GPS, observations "
-                            f"{format_gps_time(t.min())} .. {format_gps_time(t.max())} GPS",
-                            "pass the reference of the same log (GPS time)")
+        raise SimbenchError(
+            f"scenario.truth '{ref.path}'",
+            f"does not overlap the observations: reference {span} GPS, observations "
+            f"{format_gps_time(t.min())} .. {format_gps_time(t.max())} GPS",
+            "pass the reference of the same log (GPS time)",
+        )
     return out
 
 
@@ -172,10 +178,22 @@ def truth_table(t: np.ndarray, matched: np.ndarray | None, n_observed: np.ndarra
     n = t.size
     m = np.full((n, 6), np.nan) if matched is None else matched
     nan = np.full(n, np.nan)
-    table = pd.DataFrame({
-        "epoch": np.arange(n, dtype=np.int64), "t": t,
-        "x": m[:, 0], "y": m[:, 1], "z": m[:, 2], "vx": m[:, 3], "vy": m[:, 4], "vz": m[:, 5],
-        "roll": nan, "pitch": nan, "yaw": nan, "rx_clock": nan, "zwd": nan,
-        "n_visible": np.asarray(n_observed, np.int64),
-    })
+    table = pd.DataFrame(
+        {
+            "epoch": np.arange(n, dtype=np.int64),
+            "t": t,
+            "x": m[:, 0],
+            "y": m[:, 1],
+            "z": m[:, 2],
+            "vx": m[:, 3],
+            "vy": m[:, 4],
+            "vz": m[:, 5],
+            "roll": nan,
+            "pitch": nan,
+            "yaw": nan,
+            "rx_clock": nan,
+            "zwd": nan,
+            "n_visible": np.asarray(n_observed, np.int64),
+        }
+    )
     return table.loc[np.isfinite(m[:, 0]), list(TRUTH_COLUMNS)].reset_index(drop=True)

@@ -5,7 +5,7 @@ The observation table gets exactly the simulator's columns
 unchanged on real data:
 
 * satellite position, velocity and clock from the broadcast ephemeris
-  (IS-GPS-200 user algorithm, :class:`simbench.sim.orbits.BroadcastEphemeris`)
+  (IS-GPS-200 user algorithm, :class:`simbench.core.orbits.BroadcastEphemeris`)
   at the signal transmit time ``t_tx = t_rx - P / c - dt_sv(t_tx)``, in the
   Earth-fixed frame of ``t_tx``; the receiver clock error cancels in
   ``t_rx - P / c`` because the pseudorange carries it too;
@@ -25,8 +25,8 @@ go into :class:`~simbench.contract.NavInfo`, and the shared measurement model
 GPS (``G``, L1 C/A; L2 into the ``*_l2`` columns when the file has one of
 :data:`L2_SIGNALS`), GLONASS (``R``, L1 C/A FDMA: the wavelength of each
 satellite from the frequency channel of its navigation record; orbits by
-numerical integration, :mod:`simbench.sim.glonass_orbits`), Galileo (``E``,
-E1; clock minus BGD(E1,E5b), :mod:`simbench.sim.galileo_orbits`) and BeiDou
+numerical integration, :mod:`simbench.core.glonass_orbits`), Galileo (``E``,
+E1; clock minus BGD(E1,E5b), :mod:`simbench.core.galileo_orbits`) and BeiDou
 (``C``, B1I; :mod:`simbench.data.beidou`) are supported. Navigation data of a
 system come from its own file (``nav_glo``, ``nav_gal``, ``nav_bds``) when
 given, else from ``nav``, which may be a mixed RINEX 3 file. With several
@@ -38,6 +38,7 @@ The RINEX observation parser is our own fixed-column reader: georinex needs
 ~30 s for the Hong Kong log (7 s for GPS alone) and rounds epochs to
 microseconds; this reader takes well under a second.
 """
+
 from __future__ import annotations
 
 import os
@@ -48,26 +49,30 @@ import numpy as np
 import pandas as pd
 
 from simbench.contract import IMU_COLUMNS, NavInfo, RinexFiles, Scenario
+from simbench.core.constants import C_LIGHT, F_L1, LAMBDA_L2, SECONDS_PER_WEEK
+from simbench.core.glonass_orbits import GLO_F1_BASE_HZ, GlonassEphemeris, glonass_l1_frequency
+from simbench.core.gpstime import datetime64_to_gps, format_gps_time
+from simbench.core.orbits import BroadcastEphemeris
 from simbench.data.beidou import read_beidou_navigation
 from simbench.data.galileo import read_galileo_navigation
 from simbench.data.glonass import read_glonass_navigation
-from simbench.data.navigation import SYSTEM_NAMES, read_gps_navigation
 from simbench.data.reference import Reference, match_reference, read_reference, truth_table
 from simbench.errors import SimbenchError
-from simbench.sim.constants import C_LIGHT, F_L1, LAMBDA_L2, SECONDS_PER_WEEK
 from simbench.gnss.geometry import elevation_azimuth
+from simbench.gnss.navigation import SYSTEM_NAMES, read_gps_navigation
 from simbench.gnss.spp import ROUGH_FIX_MAX_RMS_M, solve_epochs
-from simbench.sim.gpstime import datetime64_to_gps, format_gps_time
-from simbench.sim.glonass_orbits import GLO_F1_BASE_HZ, GlonassEphemeris, glonass_l1_frequency
-from simbench.sim.orbits import BroadcastEphemeris
 
 __all__ = ["RinexObs", "read_rinex_obs", "load_rinex", "SIGNALS", "L2_SIGNALS", "NAV_SETTINGS"]
 
 #: Observation code (band + attribute) used per system and the carrier frequency [Hz]:
 #: GPS L1 C/A, GLONASS L1 C/A (channel 0; each satellite's channel k adds k * 0.5625 MHz),
 #: Galileo E1 (RINEX 3 code 1C: E1-C pilot) and BeiDou B1I (RINEX 3 band 2).
-SIGNALS: dict[str, tuple[str, float]] = {"G": ("1C", F_L1), "R": ("1C", GLO_F1_BASE_HZ), "E": ("1C", F_L1),
-                                         "C": ("2I", 1_561.098e6)}
+SIGNALS: dict[str, tuple[str, float]] = {
+    "G": ("1C", F_L1),
+    "R": ("1C", GLO_F1_BASE_HZ),
+    "E": ("1C", F_L1),
+    "C": ("2I", 1_561.098e6),
+}
 #: GPS L2 signals read into the ``*_l2`` columns, first present wins (P(Y) semi-codeless, L2C M+L, M, L).
 L2_SIGNALS: tuple[str, ...] = ("2W", "2X", "2L", "2S", "2P")
 #: Config setting of each system's own navigation file (``nav`` serves GPS and, mixed, the others).
@@ -123,7 +128,9 @@ class RinexObs:
     lli_l2: np.ndarray | None = None
 
 
-def _obs_error(path: str, problem: str, fix: str = "pass a RINEX 3 observation file (.obs, .yyo, .rnx)") -> SimbenchError:
+def _obs_error(
+    path: str, problem: str, fix: str = "pass a RINEX 3 observation file (.obs, .yyo, .rnx)"
+) -> SimbenchError:
     return SimbenchError(f"scenario.obs '{path}'", problem, fix)
 
 
@@ -157,8 +164,9 @@ def read_rinex_obs(path: str | os.PathLike[str], systems: str = "G") -> RinexObs
         raise _obs_error(p, "file does not exist", "check the path (relative paths start at the working directory)")
     unknown = sorted(set(systems) - set(SIGNALS))
     if unknown:
-        raise SimbenchError("scenario.systems", f"systems {unknown} are not supported",
-                            f"use a subset of '{''.join(SIGNALS)}'")
+        raise SimbenchError(
+            "scenario.systems", f"systems {unknown} are not supported", f"use a subset of '{''.join(SIGNALS)}'"
+        )
     with open(p, errors="replace") as fh:
         lines = fh.read().splitlines()
     if not lines or "RINEX VERSION / TYPE" not in lines[0]:
@@ -180,7 +188,7 @@ def read_rinex_obs(path: str | os.PathLike[str], systems: str = "G") -> RinexObs
                 types[last_sys] = []
             types[last_sys] += ln[7:60].split()
         elif label == "APPROX POSITION XYZ":
-            approx = np.array([_float(ln[k:k + 14]) for k in (0, 14, 28)])
+            approx = np.array([_float(ln[k : k + 14]) for k in (0, 14, 28)])
         elif label == "INTERVAL":
             interval = _float(ln[:10])
         elif label == "TIME OF FIRST OBS":
@@ -201,12 +209,17 @@ def read_rinex_obs(path: str | os.PathLike[str], systems: str = "G") -> RinexObs
         if f"C{band}" not in have:
             continue
         l2 = next((b for b in L2_SIGNALS if f"C{b}" in have), None) if s == "G" else None
-        cols[s] = tuple(have.index(f"{o}{b}") if b is not None and f"{o}{b}" in have else -1  # type: ignore[assignment]
-                        for o, b in (("C", band), ("L", band), ("D", band), ("S", band), ("C", l2), ("L", l2)))
+        cols[s] = tuple(
+            have.index(f"{o}{b}") if b is not None and f"{o}{b}" in have else -1  # type: ignore[assignment]
+            for o, b in (("C", band), ("L", band), ("D", band), ("S", band), ("C", l2), ("L", l2))
+        )
     if not cols:
         wanted = ", ".join(f"{s}: C{SIGNALS[s][0]}" for s in systems)
-        raise _obs_error(p, f"has no pseudorange observable for the requested systems ({wanted})",
-                         "pass a file with code observations, or other scenario.systems")
+        raise _obs_error(
+            p,
+            f"has no pseudorange observable for the requested systems ({wanted})",
+            "pass a file with code observations, or other scenario.systems",
+        )
 
     stamps: list[str] = []
     fracs: list[float] = []
@@ -227,22 +240,24 @@ def read_rinex_obs(path: str | os.PathLike[str], systems: str = "G") -> RinexObs
                 continue
             f = ln[1:29].split()
             whole, _, frac = f[5].partition(".")
-            stamps.append(f"{int(f[0]):04d}-{int(f[1]):02d}-{int(f[2]):02d}T{int(f[3]):02d}:{int(f[4]):02d}:"
-                          f"{int(whole):02d}")
+            stamps.append(
+                f"{int(f[0]):04d}-{int(f[1]):02d}-{int(f[2]):02d}T{int(f[3]):02d}:{int(f[4]):02d}:{int(whole):02d}"
+            )
             fracs.append(float("0." + frac) if frac else 0.0)
         except (ValueError, IndexError):
             raise _obs_error(p, f"has a malformed epoch line {i}: '{ln[:35].strip()}'") from None
         e = len(stamps) - 1
-        for ln in lines[i:i + count]:
+        for ln in lines[i : i + count]:
             c = cols.get(ln[:1])
             if c is None:
                 continue
             try:
-                vals = [_float(ln[3 + 16 * k:17 + 16 * k]) if k >= 0 else np.nan for k in c]
+                vals = [_float(ln[3 + 16 * k : 17 + 16 * k]) if k >= 0 else np.nan for k in c]
             except ValueError:
-                raise _obs_error(p, f"has a malformed observation line after epoch {stamps[-1]}: "
-                                    f"'{ln[:40].strip()}'") from None
-            lli_digits = [ln[17 + 16 * k:18 + 16 * k].strip() if k >= 0 else "" for k in (c[1], c[5])]
+                raise _obs_error(
+                    p, f"has a malformed observation line after epoch {stamps[-1]}: '{ln[:40].strip()}'"
+                ) from None
+            lli_digits = [ln[17 + 16 * k : 18 + 16 * k].strip() if k >= 0 else "" for k in (c[1], c[5])]
             r_epoch.append(e)
             r_sat.append(ln[:3].replace(" ", "0"))
             r_val.append((*vals, *(bool(int(d) & 1) if d.isdigit() else False for d in lli_digits)))
@@ -253,23 +268,40 @@ def read_rinex_obs(path: str | os.PathLike[str], systems: str = "G") -> RinexObs
     flags = np.array([v[6:] for v in r_val], dtype=bool)
     code = vals[:, 0]
     if not np.isfinite(code).any():
-        raise _obs_error(p, "has no pseudorange values (all code fields are blank)",
-                         "pass a file with code observations")
+        raise _obs_error(
+            p, "has no pseudorange values (all code fields are blank)", "pass a file with code observations"
+        )
     t_int = datetime64_to_gps(np.array(stamps, dtype="datetime64[s]")).astype(np.int64)
     t_frac = np.array(fracs)
     if not np.isfinite(interval) or interval <= 0:
         d = np.diff(t_int) + np.diff(t_frac)
         interval = float(np.median(d)) if d.size else 1.0
     return RinexObs(
-        epoch_t_int=t_int, epoch_t_frac=t_frac, row_epoch=np.array(r_epoch, dtype=np.int64),
-        sat=np.array(r_sat), code=code, phase_cycles=vals[:, 1], doppler_hz=vals[:, 2], cn0_dbhz=vals[:, 3],
-        lli=flags[:, 0], approx_position=approx, interval_s=float(interval), path=p, code_l2=vals[:, 4],
-        phase_l2_cycles=vals[:, 5], lli_l2=flags[:, 1])
+        epoch_t_int=t_int,
+        epoch_t_frac=t_frac,
+        row_epoch=np.array(r_epoch, dtype=np.int64),
+        sat=np.array(r_sat),
+        code=code,
+        phase_cycles=vals[:, 1],
+        doppler_hz=vals[:, 2],
+        cn0_dbhz=vals[:, 3],
+        lli=flags[:, 0],
+        approx_position=approx,
+        interval_s=float(interval),
+        path=p,
+        code_l2=vals[:, 4],
+        phase_l2_cycles=vals[:, 5],
+        lli_l2=flags[:, 1],
+    )
 
 
 Ephemeris = BroadcastEphemeris | GlonassEphemeris
-_READERS = {"G": read_gps_navigation, "R": read_glonass_navigation, "E": read_galileo_navigation,
-            "C": read_beidou_navigation}
+_READERS = {
+    "G": read_gps_navigation,
+    "R": read_glonass_navigation,
+    "E": read_galileo_navigation,
+    "C": read_beidou_navigation,
+}
 
 
 def _load_ephemeris(nav_path: str, own_file: bool, obs: RinexObs, system: str) -> Ephemeris:
@@ -279,24 +311,29 @@ def _load_ephemeris(nav_path: str, own_file: bool, obs: RinexObs, system: str) -
     """
     key = f"scenario.{NAV_SETTINGS[system]}"
     if not nav_path:
-        raise SimbenchError(key, f"no {SYSTEM_NAMES[system]} navigation file given",
-                            f"set {key} to a RINEX navigation file holding {SYSTEM_NAMES[system]} records, "
-                            "or scenario.nav to a mixed RINEX 3 navigation file")
+        raise SimbenchError(
+            key,
+            f"no {SYSTEM_NAMES[system]} navigation file given",
+            f"set {key} to a RINEX navigation file holding {SYSTEM_NAMES[system]} records, "
+            "or scenario.nav to a mixed RINEX 3 navigation file",
+        )
     setting = key if own_file else f"scenario.nav (no {key} given)"
     eph = read_gps_navigation(nav_path) if system == "G" else _READERS[system](nav_path, setting=setting)
     t0 = float(obs.epoch_t_int[0]) + obs.epoch_t_frac[0]
     t1 = float(obs.epoch_t_int[-1]) + obs.epoch_t_frac[-1]
     lo, hi = eph.t_coverage
     if t0 < lo or t1 > hi:
-        raise SimbenchError(f"{setting} '{nav_path}'",
-                            f"covers {format_gps_time(lo)} .. {format_gps_time(hi)} GPS with its "
-                            f"{SYSTEM_NAMES[system]} records, the observations span {format_gps_time(t0)} .. "
-                            f"{format_gps_time(t1)} GPS",
-                            "pass the navigation file of the observation day")
+        raise SimbenchError(
+            f"{setting} '{nav_path}'",
+            f"covers {format_gps_time(lo)} .. {format_gps_time(hi)} GPS with its "
+            f"{SYSTEM_NAMES[system]} records, the observations span {format_gps_time(t0)} .. "
+            f"{format_gps_time(t1)} GPS",
+            "pass the navigation file of the observation day",
+        )
     return eph
 
 
-def _satellite_states(obs: RinexObs, ephs: dict[str, Ephemeris]) -> dict[str, np.ndarray]:
+def satellite_states(obs: RinexObs, ephs: dict[str, Ephemeris]) -> dict[str, np.ndarray]:
     """Per-row satellite state at transmit time (NaN where the ephemeris has no record)."""
     out = {k: np.full(obs.sat.size, np.nan) for k in ("x", "y", "z", "vx", "vy", "vz", "clock", "drift")}
     n = obs.epoch_t_int.size
@@ -347,12 +384,18 @@ def empty_imu() -> pd.DataFrame:
     return pd.DataFrame({c: np.zeros(0) for c in IMU_COLUMNS})
 
 
-def load_rinex(obs_path: str | os.PathLike[str], nav_path: str | os.PathLike[str],
-               truth_path: str | os.PathLike[str] | None = None, *, systems: str = "G",
-               nav_bds_path: str | os.PathLike[str] | None = None,
-               nav_glo_path: str | os.PathLike[str] | None = None,
-               nav_gal_path: str | os.PathLike[str] | None = None, name: str = "rinex",
-               truth_max_gap_s: float = 2.0) -> Scenario:
+def load_rinex(
+    obs_path: str | os.PathLike[str],
+    nav_path: str | os.PathLike[str],
+    truth_path: str | os.PathLike[str] | None = None,
+    *,
+    systems: str = "G",
+    nav_bds_path: str | os.PathLike[str] | None = None,
+    nav_glo_path: str | os.PathLike[str] | None = None,
+    nav_gal_path: str | os.PathLike[str] | None = None,
+    name: str = "rinex",
+    truth_max_gap_s: float = 2.0,
+) -> Scenario:
     """Ingest a RINEX 3 observation file, its navigation file and a reference trajectory.
 
     Parameters
@@ -384,12 +427,16 @@ def load_rinex(obs_path: str | os.PathLike[str], nav_path: str | os.PathLike[str
         log's interval), ``labels=None`` and an empty IMU table.
     """
     obs = read_rinex_obs(obs_path, systems)
-    own = {"G": os.fspath(nav_path or ""), "C": os.fspath(nav_bds_path or ""),
-           "R": os.fspath(nav_glo_path or ""), "E": os.fspath(nav_gal_path or "")}
+    own = {
+        "G": os.fspath(nav_path or ""),
+        "C": os.fspath(nav_bds_path or ""),
+        "R": os.fspath(nav_glo_path or ""),
+        "E": os.fspath(nav_gal_path or ""),
+    }
     # the navigation file actually read for each system
     paths = {s: own[s] or own["G"] for s in own}
     ephs = {s: _load_ephemeris(paths[s], bool(own[s]), obs, s) for s in systems}
-    st = _satellite_states(obs, ephs)
+    st = satellite_states(obs, ephs)
     keep = np.isfinite(st["x"])
     n_dropped = int((~keep).sum())
 
@@ -402,8 +449,16 @@ def load_rinex(obs_path: str | os.PathLike[str], nav_path: str | os.PathLike[str
     letters = np.array([s[:1] for s in obs.sat[keep].tolist()])
     system_index = np.searchsorted(np.array(sorted(set(systems))), letters)
     x0 = obs.approx_position if obs.approx_position is not None and np.any(obs.approx_position) else None
-    rx = solve_epochs(re, sat_pos, corrected, n_epochs=obs.epoch_t_int.size, system_index=system_index, x0=x0,
-                      max_rms_m=ROUGH_FIX_MAX_RMS_M, fill_untrusted=True).pos
+    rx = solve_epochs(
+        re,
+        sat_pos,
+        corrected,
+        n_epochs=obs.epoch_t_int.size,
+        system_index=system_index,
+        x0=x0,
+        max_rms_m=ROUGH_FIX_MAX_RMS_M,
+        fill_untrusted=True,
+    ).pos
     el, az = elevation_azimuth(rx[re], sat_pos[:, None, :])
     no_l2 = np.full(obs.sat.size, np.nan)
     code_l2 = obs.code_l2 if obs.code_l2 is not None else no_l2
@@ -415,16 +470,35 @@ def load_rinex(obs_path: str | os.PathLike[str], nav_path: str | os.PathLike[str
         is_r = letters == "R"
         channel = dict(zip(glo.sats.tolist(), glo.freq_number.tolist()))
         freq[is_r] = glonass_l1_frequency([channel[s] for s in obs.sat[keep][is_r].tolist()])
-    observations = pd.DataFrame({
-        "epoch": grid[re], "t": t_rel_epoch[re], "sat": obs.sat[keep],
-        "code_l1": obs.code[keep], "phase_l1": obs.phase_cycles[keep] * (C_LIGHT / freq),
-        "doppler_l1": obs.doppler_hz[keep], "cn0_l1": obs.cn0_dbhz[keep], "lli_l1": obs.lli[keep],
-        "code_l2": code_l2[keep], "phase_l2": phase_l2[keep] * LAMBDA_L2, "lli_l2": lli_l2[keep],
-        "sat_x": sat_pos[:, 0], "sat_y": sat_pos[:, 1], "sat_z": sat_pos[:, 2],
-        "sat_vx": st["vx"][keep], "sat_vy": st["vy"][keep], "sat_vz": st["vz"][keep],
-        "sat_clock": st["clock"][keep], "sat_clock_drift": st["drift"][keep],
-        "el": np.degrees(el[:, 0]), "az": np.degrees(az[:, 0]),
-    }).sort_values(["epoch", "sat"], kind="stable").reset_index(drop=True)
+    observations = (
+        pd.DataFrame(
+            {
+                "epoch": grid[re],
+                "t": t_rel_epoch[re],
+                "sat": obs.sat[keep],
+                "code_l1": obs.code[keep],
+                "phase_l1": obs.phase_cycles[keep] * (C_LIGHT / freq),
+                "doppler_l1": obs.doppler_hz[keep],
+                "cn0_l1": obs.cn0_dbhz[keep],
+                "lli_l1": obs.lli[keep],
+                "code_l2": code_l2[keep],
+                "phase_l2": phase_l2[keep] * LAMBDA_L2,
+                "lli_l2": lli_l2[keep],
+                "sat_x": sat_pos[:, 0],
+                "sat_y": sat_pos[:, 1],
+                "sat_z": sat_pos[:, 2],
+                "sat_vx": st["vx"][keep],
+                "sat_vy": st["vy"][keep],
+                "sat_vz": st["vz"][keep],
+                "sat_clock": st["clock"][keep],
+                "sat_clock_drift": st["drift"][keep],
+                "el": np.degrees(el[:, 0]),
+                "az": np.degrees(az[:, 0]),
+            }
+        )
+        .sort_values(["epoch", "sat"], kind="stable")
+        .reset_index(drop=True)
+    )
 
     t0_gps = float(obs.epoch_t_int[0]) + obs.epoch_t_frac[0]
     t_grid = np.arange(n_grid) * obs.interval_s
@@ -442,21 +516,38 @@ def load_rinex(obs_path: str | os.PathLike[str], nav_path: str | os.PathLike[str
     klob = ephs.get("G")
     alpha = klob.iono_alpha if klob is not None and klob.iono_alpha is not None else np.zeros(4)
     beta = klob.iono_beta if klob is not None and klob.iono_beta is not None else np.zeros(4)
-    nav = NavInfo(gps_week=week, start_sow_s=t0_gps - week * SECONDS_PER_WEEK,
-                  iono_alpha=tuple(map(float, alpha)), iono_beta=tuple(map(float, beta)),
-                  dual_frequency=bool(np.isfinite(code_l2[keep]).any()))
+    nav = NavInfo(
+        gps_week=week,
+        start_sow_s=t0_gps - week * SECONDS_PER_WEEK,
+        iono_alpha=tuple(map(float, alpha)),
+        iono_beta=tuple(map(float, beta)),
+        dual_frequency=bool(np.isfinite(code_l2[keep]).any()),
+    )
     meta = {
-        "name": name, "seed": 0, "source": "rinex",
-        "files": {"obs": str(Path(obs_path)), "nav": paths["G"], "nav_bds": paths["C"], "nav_glo": paths["R"],
-                  "nav_gal": paths["E"], "truth": str(truth_path or "")},
-        "systems": systems, "signals": {s: SIGNALS[s][0] for s in systems},
+        "name": name,
+        "seed": 0,
+        "source": "rinex",
+        "files": {
+            "obs": str(Path(obs_path)),
+            "nav": paths["G"],
+            "nav_bds": paths["C"],
+            "nav_glo": paths["R"],
+            "nav_gal": paths["E"],
+            "truth": str(truth_path or ""),
+        },
+        "systems": systems,
+        "signals": {s: SIGNALS[s][0] for s in systems},
         "rows_without_ephemeris_or_code": n_dropped,
-        "epochs_with_truth": len(truth), "epochs": n_grid,
+        "epochs_with_truth": len(truth),
+        "epochs": n_grid,
         "corrections": "raw observables; Klobuchar (NavInfo) and Saastamoinen applied by the estimator model",
     }
     # absolute paths: tools run in their own working directory, and a cached scenario outlives the cwd
-    rinex = RinexFiles(obs=os.path.abspath(obs_path),
-                       nav=tuple(dict.fromkeys(os.path.abspath(paths[s]) for s in systems if paths.get(s))),
-                       systems=systems)
-    return Scenario(observations=observations, imu=empty_imu(), truth=truth, labels=None, nav=nav, meta=meta,
-                    rinex=rinex)
+    rinex = RinexFiles(
+        obs=os.path.abspath(obs_path),
+        nav=tuple(dict.fromkeys(os.path.abspath(paths[s]) for s in systems if paths.get(s))),
+        systems=systems,
+    )
+    return Scenario(
+        observations=observations, imu=empty_imu(), truth=truth, labels=None, nav=nav, meta=meta, rinex=rinex
+    )

@@ -14,6 +14,7 @@ layout is read:
   ellipsoidal metres (the default); degree-minute-second output (``-g``) and
   baselines (``-a``) are refused.
 """
+
 from __future__ import annotations
 
 import io
@@ -23,17 +24,19 @@ from typing import Literal
 import numpy as np
 import pandas as pd
 
+from simbench.core.constants import DEG, SECONDS_PER_WEEK
+from simbench.core.frames import ecef_from_geodetic
+from simbench.core.gpstime import datetime64_to_gps
 from simbench.errors import SimbenchError
-from simbench.sim.constants import DEG, SECONDS_PER_WEEK
-from simbench.sim.frames import ecef_from_geodetic
-from simbench.sim.gpstime import datetime64_to_gps
 
 __all__ = ["POS_COLUMNS", "parse_rtklib_pos", "read_rtklib_pos"]
 
 #: Columns of the table :func:`parse_rtklib_pos` returns.
 POS_COLUMNS: dict[str, str] = {
     "t_gps": "s, solution time, continuous GPS seconds since 1980-01-06",
-    "x": "m, ECEF x", "y": "m, ECEF y", "z": "m, ECEF z",
+    "x": "m, ECEF x",
+    "y": "m, ECEF y",
+    "z": "m, ECEF z",
     "q": "int, RTKLIB quality flag (1 fix, 2 float, 3 SBAS, 4 DGPS, 5 single, 6 PPP)",
     "ns": "int, number of satellites used",
 }
@@ -43,15 +46,21 @@ def _position_form(header: str, where: str) -> Literal["xyz", "llh"]:
     """Position layout from the column header line (the last ``%`` line); refuses non-GPS time."""
     words = header.lstrip("%").split()
     if not words or words[0] != "GPST":
-        raise SimbenchError(where, f"solution times are not GPS time (column header '{header.strip()}')",
-                            "write the .pos with GPST time (rnx2rtkp without -u; out-timesys = gpst)")
+        raise SimbenchError(
+            where,
+            f"solution times are not GPS time (column header '{header.strip()}')",
+            "write the .pos with GPST time (rnx2rtkp without -u; out-timesys = gpst)",
+        )
     if "x-ecef(m)" in words:
         pos: Literal["xyz", "llh"] = "xyz"
     elif "latitude(deg)" in words:
         pos = "llh"
     else:
-        raise SimbenchError(where, f"has neither ECEF nor decimal-degree positions (column header "
-                            f"'{header.strip()}')", "write the .pos with -e (ECEF) or the default lat/lon/height")
+        raise SimbenchError(
+            where,
+            f"has neither ECEF nor decimal-degree positions (column header '{header.strip()}')",
+            "write the .pos with -e (ECEF) or the default lat/lon/height",
+        )
     return pos
 
 
@@ -81,14 +90,18 @@ def parse_rtklib_pos(text: str, where: str = "rtklib .pos") -> pd.DataFrame:
     header = [ln for ln in lines if ln.startswith("%")]
     body = [ln for ln in lines if ln.strip() and not ln.startswith("%")]
     if not header or not any(w in header[-1] for w in ("GPST", "UTC", "JST")):
-        raise SimbenchError(where, "has no RTKLIB column header line ('%  GPST ...')",
-                            "pass a solution file written by rnx2rtkp or RTKPOST")
+        raise SimbenchError(
+            where,
+            "has no RTKLIB column header line ('%  GPST ...')",
+            "pass a solution file written by rnx2rtkp or RTKPOST",
+        )
     pos_form = _position_form(header[-1], where)
     if not body:
         return pd.DataFrame({c: np.zeros(0, dtype=np.int64 if c in ("q", "ns") else float) for c in POS_COLUMNS})
     try:
-        raw = pd.read_csv(io.StringIO("\n".join(body)), sep=r"\s+", header=None, usecols=range(7),
-                          dtype=str, engine="c")
+        raw = pd.read_csv(
+            io.StringIO("\n".join(body)), sep=r"\s+", header=None, usecols=range(7), dtype=str, engine="c"
+        )
         if "/" not in raw.iloc[0, 0]:  # 'week tow', not 'yyyy/mm/dd hh:mm:ss'; both have the same header
             t_gps = raw[0].astype(float).to_numpy() * SECONDS_PER_WEEK + raw[1].astype(float).to_numpy()
         else:
@@ -97,8 +110,11 @@ def parse_rtklib_pos(text: str, where: str = "rtklib .pos") -> pd.DataFrame:
         a, b, c = (raw[k].astype(float).to_numpy() for k in (2, 3, 4))
         q, ns = raw[5].astype(np.int64).to_numpy(), raw[6].astype(np.int64).to_numpy()
     except (ValueError, KeyError) as exc:
-        raise SimbenchError(where, f"has a malformed solution row ({str(exc).splitlines()[0]})",
-                            "pass an unmodified rnx2rtkp solution file with space separators") from None
+        raise SimbenchError(
+            where,
+            f"has a malformed solution row ({str(exc).splitlines()[0]})",
+            "pass an unmodified rnx2rtkp solution file with space separators",
+        ) from None
     xyz = np.stack([a, b, c], axis=1) if pos_form == "xyz" else ecef_from_geodetic(a * DEG, b * DEG, c)
     return pd.DataFrame({"t_gps": t_gps, "x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2], "q": q, "ns": ns})
 

@@ -1,10 +1,11 @@
 """Pairing the time tags of a solution file (RTKLIB, another program) with a receiver's epochs."""
+
 from __future__ import annotations
 
 import numpy as np
 
 from simbench.contract import ReceiverData
-from simbench.sim.constants import SECONDS_PER_WEEK
+from simbench.core.constants import SECONDS_PER_WEEK
 
 __all__ = ["match_to_epochs", "match_receiver_epochs"]
 

@@ -3,6 +3,7 @@
 Used as the reference the broadcast ephemeris is checked against; the
 simulator itself never needs precise orbits.
 """
+
 from __future__ import annotations
 
 import gzip
@@ -11,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from simbench.core.gpstime import datetime64_to_gps
 from simbench.errors import SimbenchError
-from simbench.sim.gpstime import datetime64_to_gps
 
 __all__ = ["Sp3Orbits", "read_sp3"]
 

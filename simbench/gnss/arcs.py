@@ -1,4 +1,5 @@
 """Continuous carrier-phase arcs of an observation table."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -61,8 +62,9 @@ def doppler_phase_jumps(obs: pd.DataFrame) -> np.ndarray:
     return out
 
 
-def arc_ids(obs: pd.DataFrame, max_gap_epochs: int = 1, *, use_l2: bool = False,
-            doppler_slip_m: float = 0.0) -> np.ndarray:
+def arc_ids(
+    obs: pd.DataFrame, max_gap_epochs: int = 1, *, use_l2: bool = False, doppler_slip_m: float = 0.0
+) -> np.ndarray:
     """Identify continuous carrier-phase arcs.
 
     A new arc starts at a satellite's first row, where the epoch index jumps by

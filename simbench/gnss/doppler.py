@@ -5,17 +5,17 @@ A Doppler measurement gives the range rate plus the receiver clock drift,
 is turned into the receive-time ECEF frame (rotation by ``omega_e tau``) and
 the range rate differentiated there; the light-time denominator is kept.
 """
+
 from __future__ import annotations
 
 import numpy as np
 
-from simbench.sim.constants import C_LIGHT, OMEGA_EARTH
+from simbench.core.constants import C_LIGHT, OMEGA_EARTH
 
 __all__ = ["range_rate", "doppler_velocity", "doppler_velocities"]
 
 
-def _rotated_satellite(sat_pos: np.ndarray, sat_vel: np.ndarray,
-                       rx_pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _rotated_satellite(sat_pos: np.ndarray, sat_vel: np.ndarray, rx_pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Satellite position and velocity of transmit time, turned into the receive-time ECEF frame."""
     tau = np.linalg.norm(sat_pos - rx_pos, axis=1) / C_LIGHT
     th = OMEGA_EARTH * tau
@@ -25,8 +25,9 @@ def _rotated_satellite(sat_pos: np.ndarray, sat_vel: np.ndarray,
     return q, w
 
 
-def range_rate(sat_pos: np.ndarray, sat_vel: np.ndarray, rx_pos: np.ndarray,
-               rx_vel: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def range_rate(
+    sat_pos: np.ndarray, sat_vel: np.ndarray, rx_pos: np.ndarray, rx_vel: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Geometric range rate and its gradients, with the Earth rotation during signal transit.
 
     Same model as the simulator: the satellite of transmit time is rotated
@@ -65,9 +66,15 @@ def range_rate(sat_pos: np.ndarray, sat_vel: np.ndarray, rx_pos: np.ndarray,
     return rdot, d_pos, d_vel
 
 
-def doppler_velocities(epoch: np.ndarray, sat_pos: np.ndarray, sat_vel: np.ndarray, rx_pos: np.ndarray,
-                       range_rate_obs: np.ndarray, sigma: np.ndarray,
-                       n_epochs: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+def doppler_velocities(
+    epoch: np.ndarray,
+    sat_pos: np.ndarray,
+    sat_vel: np.ndarray,
+    rx_pos: np.ndarray,
+    range_rate_obs: np.ndarray,
+    sigma: np.ndarray,
+    n_epochs: int | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
     """Weighted least-squares receiver velocity and clock drift of many epochs at once.
 
     The range rate is linear in the receiver velocity for a given receiver position
@@ -120,9 +127,11 @@ def doppler_velocities(epoch: np.ndarray, sat_pos: np.ndarray, sat_vel: np.ndarr
     return vel, drift
 
 
-def doppler_velocity(sat_pos: np.ndarray, sat_vel: np.ndarray, rx_pos: np.ndarray, range_rate_obs: np.ndarray,
-                     sigma: np.ndarray) -> tuple[np.ndarray, float]:
+def doppler_velocity(
+    sat_pos: np.ndarray, sat_vel: np.ndarray, rx_pos: np.ndarray, range_rate_obs: np.ndarray, sigma: np.ndarray
+) -> tuple[np.ndarray, float]:
     """:func:`doppler_velocities` of one epoch: velocity (3,) [m/s] and clock drift times c [m/s]."""
-    vel, drift = doppler_velocities(np.zeros(len(sigma), np.int64), sat_pos, sat_vel, rx_pos, range_rate_obs,
-                                    sigma, n_epochs=1)
+    vel, drift = doppler_velocities(
+        np.zeros(len(sigma), np.int64), sat_pos, sat_vel, rx_pos, range_rate_obs, sigma, n_epochs=1
+    )
     return vel[0], float(drift[0])

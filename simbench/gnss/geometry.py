@@ -6,13 +6,14 @@ measurement (log readers, single-point solutions, estimators) uses the
 first-order Sagnac range of this module and its gradient, so there is one
 range model and one Jacobian in the project.
 """
+
 from __future__ import annotations
 
 import numpy as np
 
+from simbench.core.constants import C_LIGHT, OMEGA_EARTH
+from simbench.core.frames import geodetic_from_ecef
 from simbench.errors import SimbenchError
-from simbench.sim.constants import C_LIGHT, OMEGA_EARTH
-from simbench.sim.frames import geodetic_from_ecef
 
 __all__ = ["sagnac_range", "sagnac_range_gradient", "elevation_azimuth", "enu_basis", "as_xyz"]
 

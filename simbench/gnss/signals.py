@@ -5,11 +5,12 @@ the satellite's system. GLONASS L1 is frequency-division multiplexed: its
 wavelength depends on the satellite's channel, which the table does not carry,
 so it is NaN here (a row without a usable Doppler).
 """
+
 from __future__ import annotations
 
 import numpy as np
 
-from simbench.sim.constants import C_LIGHT, F_B1I, F_L1
+from simbench.core.constants import C_LIGHT, F_B1I, F_L1
 
 __all__ = ["L1_FREQUENCY_HZ", "l1_wavelength_m"]
 

@@ -12,16 +12,17 @@ left in the clock.
 This is the project's only single-point solver: the log readers use it for
 elevation and azimuth, the estimators for initial values.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
 
+from simbench.core.frames import geodetic_from_ecef
 from simbench.errors import SimbenchError
 from simbench.gnss.geometry import sagnac_range_gradient
 from simbench.gnss.troposphere import troposphere_terms
-from simbench.sim.frames import geodetic_from_ecef
 
 __all__ = ["SppSolution", "solve_epochs", "system_clock_offsets", "ROUGH_FIX_MAX_RMS_M"]
 
@@ -67,11 +68,22 @@ class SppSolution:
     n_rows: np.ndarray
 
 
-def solve_epochs(epoch: np.ndarray, sat_pos: np.ndarray, code: np.ndarray, *, n_epochs: int | None = None,
-                 sigma: np.ndarray | None = None, system_index: np.ndarray | None = None,
-                 el: np.ndarray | None = None, doy: float | None = None, x0: np.ndarray | None = None,
-                 iterations: int = 12, tol_m: float = 1e-4, max_rms_m: float = np.inf,
-                 fill_untrusted: bool = False) -> SppSolution:
+def solve_epochs(
+    epoch: np.ndarray,
+    sat_pos: np.ndarray,
+    code: np.ndarray,
+    *,
+    n_epochs: int | None = None,
+    sigma: np.ndarray | None = None,
+    system_index: np.ndarray | None = None,
+    el: np.ndarray | None = None,
+    doy: float | None = None,
+    x0: np.ndarray | None = None,
+    iterations: int = 12,
+    tol_m: float = 1e-4,
+    max_rms_m: float = np.inf,
+    fill_untrusted: bool = False,
+) -> SppSolution:
     """Code-only iterative weighted least squares position and clocks of every epoch.
 
     Parameters
@@ -121,8 +133,11 @@ def solve_epochs(epoch: np.ndarray, sat_pos: np.ndarray, code: np.ndarray, *, n_
     code = np.asarray(code, dtype=float).reshape(-1)
     n = len(code)
     if len(epoch) != n or len(sat_pos) != n:
-        raise SimbenchError("observations", f"{len(epoch)} epoch indices, {len(sat_pos)} satellite positions "
-                            f"and {n} codes", "pass one epoch index and one satellite position per code")
+        raise SimbenchError(
+            "observations",
+            f"{len(epoch)} epoch indices, {len(sat_pos)} satellite positions and {n} codes",
+            "pass one epoch index and one satellite position per code",
+        )
     nk = int(n_epochs if n_epochs is not None else (epoch.max() + 1 if n else 0))
     sys_idx = np.zeros(n, np.int64) if system_index is None else np.asarray(system_index, np.int64).reshape(-1)
     n_sys = int(sys_idx.max(initial=0)) + 1
@@ -174,8 +189,14 @@ def solve_epochs(epoch: np.ndarray, sat_pos: np.ndarray, code: np.ndarray, *, n_
     res = c - sagnac_range_gradient(s, pos[e])[0] - clock[e, sy] - hydro
     rms[present] = np.sqrt(np.add.reduceat(res * res, starts) / n_rows_present)
     height = _lat_height(pos)[1]
-    trusted = (solvable & (step < _CONVERGED_STEP_M) & np.isfinite(pos).all(axis=1)
-               & (height > _MIN_HEIGHT_M) & (height < _MAX_HEIGHT_M) & (rms < max_rms_m))
+    trusted = (
+        solvable
+        & (step < _CONVERGED_STEP_M)
+        & np.isfinite(pos).all(axis=1)
+        & (height > _MIN_HEIGHT_M)
+        & (height < _MAX_HEIGHT_M)
+        & (rms < max_rms_m)
+    )
     if not fill_untrusted:
         pos[~trusted] = np.nan
         clock[~trusted] = np.nan
@@ -183,8 +204,11 @@ def solve_epochs(epoch: np.ndarray, sat_pos: np.ndarray, code: np.ndarray, *, n_
 
     good = np.flatnonzero(trusted)
     if good.size == 0:
-        raise SimbenchError("observations", "no epoch gives a trusted single-point solution",
-                            "check that the navigation data belong to the observations and the code is in metres")
+        raise SimbenchError(
+            "observations",
+            "no epoch gives a trusted single-point solution",
+            "check that the navigation data belong to the observations and the code is in metres",
+        )
     bad = ~trusted
     if bad.any():
         k = np.arange(nk)

@@ -1,15 +1,17 @@
 """The modelled slant troposphere of the estimator-side measurement model."""
+
 from __future__ import annotations
 
 import numpy as np
 
-from simbench.sim import atmosphere
+from simbench.core import atmosphere
 
 __all__ = ["troposphere_terms"]
 
 
-def troposphere_terms(el: np.ndarray, lat: np.ndarray | float, h: np.ndarray | float,
-                      doy: float) -> tuple[np.ndarray, np.ndarray]:
+def troposphere_terms(
+    el: np.ndarray, lat: np.ndarray | float, h: np.ndarray | float, doy: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Modelled slant hydrostatic delay ``ZHD m_h`` [m] and wet mapping ``m_w`` [-] per satellite.
 
     Saastamoinen zenith hydrostatic delay with the standard atmosphere and

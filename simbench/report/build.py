@@ -9,9 +9,10 @@ and the gap to the oracle, then run time and estimator diagnostics.
 
 Every statistic is read with the availability beside it; distributions and
 percentiles are over all reference epochs (an unsolved epoch counts as missed,
-:mod:`simbench.metrics`), and a percentile the availability does not reach is
+:mod:`simbench.analysis.metrics`), and a percentile the availability does not reach is
 shown as '—'.
 """
+
 from __future__ import annotations
 
 import html
@@ -24,24 +25,8 @@ import numpy as np
 import pandas as pd
 
 from estimators import registered
-from simbench.claims import CLAIMS, NOT_RUN, claims_by_world, claims_table
-from simbench.config import ScenarioSource
-from simbench.contract import Scenario
-from simbench.errors import SimbenchError
-from simbench.provenance import provenance
-from simbench.report.figures import (
-    box_figure,
-    ecdf_figure,
-    error_timeseries_figure,
-    mixture_evolution_figure,
-    runtime_figure,
-    sensitivity_figure,
-    validation_figure,
-)
-from simbench.runner import SUMMARY_COLUMNS
-from simbench.store import aggregate, diagnostics
-from simbench.studies import STUDY_TIMES, time_budget
-from simbench.tables import (
+from simbench.analysis.claims import CLAIMS, NOT_RUN, claims_by_world, claims_table
+from simbench.analysis.tables import (
     CONVERGENCE_S,
     GROUP,
     convergence_statistics,
@@ -52,9 +37,25 @@ from simbench.tables import (
     paired_comparisons,
     seed_statistics,
 )
-from simbench.validation import MIN_ROWS_PER_CLOCK, comparison_table, residual_sample
-from simbench.variants import NO_OVERRIDES, config_defaults, is_default, override_value
-from simbench.zero_baseline import TABLE_NAME as ZERO_BASELINE_TABLE
+from simbench.analysis.validation import MIN_ROWS_PER_CLOCK, comparison_table, residual_sample
+from simbench.analysis.variants import NO_OVERRIDES, config_defaults, is_default, override_value
+from simbench.contract import Scenario
+from simbench.errors import SimbenchError
+from simbench.report.figures import (
+    box_figure,
+    ecdf_figure,
+    error_timeseries_figure,
+    mixture_evolution_figure,
+    runtime_figure,
+    sensitivity_figure,
+    validation_figure,
+)
+from simbench.runs.provenance import provenance
+from simbench.runs.runner import SUMMARY_COLUMNS
+from simbench.runs.store import aggregate, diagnostics
+from simbench.runs.studies import STUDY_TIMES, time_budget
+from simbench.runs.zero_baseline import TABLE_NAME as ZERO_BASELINE_TABLE
+from simbench.sim.config import ScenarioSource
 
 #: The comparison baseline when present (the a priori L2 estimator), else the first estimator.
 BASELINES = ("l2", "isam2_ppp", "ekf_ppp")
@@ -94,22 +95,28 @@ def _ok_epochs(epochs: pd.DataFrame, summary: pd.DataFrame) -> pd.DataFrame:
     return epochs[pd.MultiIndex.from_frame(epochs[keys].fillna(NO_OVERRIDES)).isin(pd.MultiIndex.from_frame(ok))]
 
 
-def build_report(run_dir: Path, summary: pd.DataFrame, epochs: pd.DataFrame, claims: pd.DataFrame,
-                 diag: dict[str, list[dict]]) -> Path:
+def build_report(
+    run_dir: Path, summary: pd.DataFrame, epochs: pd.DataFrame, claims: pd.DataFrame, diag: dict[str, list[dict]]
+) -> Path:
     out = run_dir / "report"
     out.mkdir(parents=True, exist_ok=True)
     page = _Page()
     page.h1("simbench report")
-    page.p(f"Run directory <code>{html.escape(str(run_dir.resolve()))}</code>: {len(summary)} result rows, "
-           f"{summary['estimator'].nunique() if len(summary) else 0} estimators, "
-           f"{summary['seed'].nunique() if len(summary) else 0} seeds.")
+    page.p(
+        f"Run directory <code>{html.escape(str(run_dir.resolve()))}</code>: {len(summary)} result rows, "
+        f"{summary['estimator'].nunique() if len(summary) else 0} estimators, "
+        f"{summary['seed'].nunique() if len(summary) else 0} seeds."
+    )
     measured = claims["holds"] != NOT_MEASURED
     if measured.any():
         page.h2("Published claims")
         if claims.loc[measured, "world"].nunique() > 1:
-            page.p("One column per world (the scenario preset each claim's sweep ran on): measured value, 95 % "
-                   f"CI where the rule has one, verdict; {NOT_RUN} = the claim's sweep did not run on that world. "
-                   "Each verdict uses that world's rows alone; the table below has the notes.", cls="note")
+            page.p(
+                "One column per world (the scenario preset each claim's sweep ran on): measured value, 95 % "
+                f"CI where the rule has one, verdict; {NOT_RUN} = the claim's sweep did not run on that world. "
+                "Each verdict uses that world's rows alone; the table below has the notes.",
+                cls="note",
+            )
             page.table(claims_by_world(claims))
         page.table(claims[measured], classes=lambda r: r["holds"].split()[0])
         if not measured.all():
@@ -123,24 +130,31 @@ def build_report(run_dir: Path, summary: pd.DataFrame, epochs: pd.DataFrame, cla
     failed = summary[summary["status"] != "ok"]
     if len(failed):
         page.h2("Jobs not ok (left out of the figures and statistics)")
-        page.table(failed.assign(data=_labels(failed))[["sweep", "data", "seed", "estimator", "variant", "status",
-                                                        "message"]])
+        page.table(
+            failed.assign(data=_labels(failed))[["sweep", "data", "seed", "estimator", "variant", "status", "message"]]
+        )
     drives = drive_comparison(summary)
     if len(drives):
         page.h2("Morgantown drives: our medians beside the dissertation's")
-        page.p("median_ref = mean over seeds of the median horizontal error over reference epochs [m]; published = "
-               "the dissertation's median on the real drive (Ch.7 tables and the ICE paper; Ch.6 Table 6.3.1 for "
-               "ch6_bce_ad, which processed the collects again) for the same estimator family "
-               "(batch and incremental variants are both set beside it); ratio = median_ref / published. Our drives "
-               "are the recorded trajectories under the broadcast orbits of the day in a simulated suburban street, "
-               "not the recorded observables.", cls="note")
+        page.p(
+            "median_ref = mean over seeds of the median horizontal error over reference epochs [m]; published = "
+            "the dissertation's median on the real drive (Ch.7 tables and the ICE paper; Ch.6 Table 6.3.1 for "
+            "ch6_bce_ad, which processed the collects again) for the same estimator family "
+            "(batch and incremental variants are both set beside it); ratio = median_ref / published. Our drives "
+            "are the recorded trajectories under the broadcast orbits of the day in a simulated suburban street, "
+            "not the recorded observables.",
+            cls="note",
+        )
         page.table(drives)
     zero = run_dir / ZERO_BASELINE_TABLE
     if zero.exists():
         page.h2("Zero-baseline test: each preset's single-point solution against the geodetic receiver's")
-        page.p("Same scenario and seed for every receiver preset (identical sky, street and NLOS), code-only "
-               "single-point fixes; mean and median 3-D difference from the geodetic fix over the epochs both "
-               "fixed [m], beside the dissertation's Table 5.3.2 for the drive the scenario replays.", cls="note")
+        page.p(
+            "Same scenario and seed for every receiver preset (identical sky, street and NLOS), code-only "
+            "single-point fixes; mean and median 3-D difference from the geodetic fix over the epochs both "
+            "fixed [m], beside the dissertation's Table 5.3.2 for the drive the scenario replays.",
+            cls="note",
+        )
         page.table(pd.read_csv(zero))
     stats = seed_statistics(summary)
     for keys, group in epochs.groupby(GROUP, dropna=False) if len(epochs) else []:
@@ -160,40 +174,55 @@ def build_report(run_dir: Path, summary: pd.DataFrame, epochs: pd.DataFrame, cla
         shown["estimator"] = shown["estimator"].map(marked)
         n_reference = {marked[e]: n for e, n in n_reference.items()}
         for metric, label in (("horizontal", "horizontal"), ("error_3d", "3-D")):
-            page.img(ecdf_figure(shown, metric, out / f"ecdf_{metric}_{tag}.png",
-                                 f"ECDF of {label} error: {name}", n_reference))
+            page.img(
+                ecdf_figure(
+                    shown, metric, out / f"ecdf_{metric}_{tag}.png", f"ECDF of {label} error: {name}", n_reference
+                )
+            )
         page.img(box_figure(shown, out / f"box_{tag}.png", f"Horizontal error per estimator: {name}", n_reference))
         if shown["seed"].nunique() == 1:
             page.img(error_timeseries_figure(shown, out / f"error_time_{tag}.png", f"Horizontal error: {name}"))
         group_stats = stats[_in_group(stats, keys)]
         page.h3("Statistics over seeds (errors in m, availability beside them)")
-        page.p("availability = solved / reference epochs (epochs with truth). The <code>*_ref</code> percentiles "
-               "are over all reference epochs, an unsolved epoch counting as an infinite error: "
-               f"{UNDEFINED} when the availability is below the percentile (below 0.5 for a median, 0.95 for "
-               "p95). horizontal_median_ref is the mean of per-seed medians with its 95 % bootstrap CI; "
-               "<code>*_solved</code> and max are over the solved epochs only.", cls="note")
+        page.p(
+            "availability = solved / reference epochs (epochs with truth). The <code>*_ref</code> percentiles "
+            "are over all reference epochs, an unsolved epoch counting as an infinite error: "
+            f"{UNDEFINED} when the availability is below the percentile (below 0.5 for a median, 0.95 for "
+            "p95). horizontal_median_ref is the mean of per-seed medians with its 95 % bootstrap CI; "
+            "<code>*_solved</code> and max are over the solved epochs only.",
+            cls="note",
+        )
         page.table(group_stats.drop(columns=GROUP + ["overrides"]))
         early = convergence_statistics(group)
         if len(early):
-            page.h3(f"Convergence: 3-D error over the first {CONVERGENCE_S / 60:.0f} minutes (mean over seeds of "
-                    "each run's median, mean and max; 95 % bootstrap CI of the mean) [m]")
+            page.h3(
+                f"Convergence: 3-D error over the first {CONVERGENCE_S / 60:.0f} minutes (mean over seeds of "
+                "each run's median, mean and max; 95 % bootstrap CI of the mean) [m]"
+            )
             page.table(early.drop(columns=["overrides"]))
         sensitivity = _sensitivity_curves(group_stats)
         if sensitivity is not None:
-            page.img(sensitivity_figure(sensitivity, out / f"sensitivity_{tag}.png",
-                                        f"Sensitivity to the a priori covariance: {name}"))
+            page.img(
+                sensitivity_figure(
+                    sensitivity, out / f"sensitivity_{tag}.png", f"Sensitivity to the a priori covariance: {name}"
+                )
+            )
         present = set(summary["estimator"])
         baseline = next((b for b in BASELINES if b in present), None)
         if baseline:
             pairs = paired_comparisons(summary[_in_group(summary, keys)], baseline)
             if len(pairs):
-                page.h3(f"Paired comparison with {baseline} on the same seeds (ratio of mean medians over the "
-                        "solved epochs; wins = share of seeds with a lower median; read with both availabilities)")
+                page.h3(
+                    f"Paired comparison with {baseline} on the same seeds (ratio of mean medians over the "
+                    "solved epochs; wins = share of seeds with a lower median; read with both availabilities)"
+                )
                 page.table(pairs.drop(columns=GROUP))
         gap = oracle_gap(summary[_in_group(summary, keys)])
         if len(gap):
-            page.h3("Gap to the oracle (mean per-seed median over the solved epochs minus the oracle's, with "
-                    "both availabilities) [m]")
+            page.h3(
+                "Gap to the oracle (mean per-seed median over the solved epochs minus the oracle's, with "
+                "both availabilities) [m]"
+            )
             page.table(gap.drop(columns=GROUP))
         if group_stats["time_per_obs_s"].notna().any():
             page.img(runtime_figure(group_stats, out / f"runtime_{tag}.png", f"Run time: {name}"))
@@ -206,10 +235,12 @@ def build_report(run_dir: Path, summary: pd.DataFrame, epochs: pd.DataFrame, cla
 
 
 def _labels(summary: pd.DataFrame) -> pd.Series:
-    """:func:`~simbench.tables.data_label` of each row."""
-    return pd.Series([data_label(sc, rx, src) for sc, rx, src in
-                      zip(summary["scenario"], summary["receiver"], summary["source"])], index=summary.index,
-                     dtype=object)
+    """:func:`~simbench.analysis.tables.data_label` of each row."""
+    return pd.Series(
+        [data_label(sc, rx, src) for sc, rx, src in zip(summary["scenario"], summary["receiver"], summary["source"])],
+        index=summary.index,
+        dtype=object,
+    )
 
 
 def _reference_epochs(summary: pd.DataFrame, epochs: pd.DataFrame) -> dict[str, int]:
@@ -226,26 +257,31 @@ def _not_measured_line(claims: pd.DataFrame) -> str:
     missing = set(claims["claim_id"]) - set(claims.loc[claims["holds"] != NOT_MEASURED, "claim_id"])
     sweeps = [c.sweep for c in CLAIMS if c.claim_id in missing]
     per_sweep = ", ".join(f"{s} ({sweeps.count(s)})" for s in dict.fromkeys(sweeps))
-    return (f"{len(missing)} of {claims['claim_id'].nunique()} published claims not measured here: their sweeps "
-            f"did not run (<code>python -m simbench +sweep=NAME</code>, all: <code>+sweep=thesis</code>): {per_sweep}. "
-            "claims.csv lists them.")
+    return (
+        f"{len(missing)} of {claims['claim_id'].nunique()} published claims not measured here: their sweeps "
+        f"did not run (<code>python -m simbench +sweep=NAME</code>, all: <code>+sweep=thesis</code>): {per_sweep}. "
+        "claims.csv lists them."
+    )
 
 
-def _study_times_section(page: "_Page", run_dir: Path, summary: pd.DataFrame) -> None:
+def _study_times_section(page: _Page, run_dir: Path, summary: pd.DataFrame) -> None:
     """Wall time per study x world of a run of several studies, and the estimators' time by sweep."""
     path = run_dir / STUDY_TIMES
     if not path.is_file():
         return
     page.h2("Where the time went")
     times = pd.read_csv(path, keep_default_na=False)
-    page.p(f"Wall time per study and world (simbench.studies; total {times['wall_s'].sum() / 60:.1f} min), then "
-           "the estimators' own run time summed over jobs per sweep, world and estimator (largest first; "
-           "scenario generation, process start and report are in the wall times only).", cls="note")
+    page.p(
+        f"Wall time per study and world (simbench.runs.studies; total {times['wall_s'].sum() / 60:.1f} min), then "
+        "the estimators' own run time summed over jobs per sweep, world and estimator (largest first; "
+        "scenario generation, process start and report are in the wall times only).",
+        cls="note",
+    )
     page.table(times.drop(columns=["results_dir"]))
     page.table(time_budget(summary).head(20))
 
 
-def _unmeasured_claims_section(page: "_Page", claims: pd.DataFrame) -> None:
+def _unmeasured_claims_section(page: _Page, claims: pd.DataFrame) -> None:
     page.h2("Published claims")
     page.p(_not_measured_line(claims), cls="note")
 
@@ -256,19 +292,23 @@ def _in_group(summary: pd.DataFrame, keys: tuple) -> np.ndarray:
 
 def _sensitivity_curves(group_stats: pd.DataFrame) -> pd.DataFrame | None:
     """Median against the a priori covariance scale, for a group that ran at least two scales."""
-    # a solution scored from a file (python -m simbench.score) has no estimator class and no settings
-    defaults = {name: config_defaults(name).get("prior_scale") for name in group_stats["estimator"].unique()
-                if name in registered()}
+    # a solution scored from a file (python -m simbench score) has no estimator class and no settings
+    defaults = {
+        name: config_defaults(name).get("prior_scale")
+        for name in group_stats["estimator"].unique()
+        if name in registered()
+    }
     scaled = group_stats[group_stats["estimator"].map(defaults).notna()]
     if override_value(scaled["overrides"], "prior_scale", None).notna().sum() < 2:
         return None
-    scale = pd.concat([override_value(rows["overrides"], "prior_scale", defaults[name])
-                       for name, rows in scaled.groupby("estimator")]).astype(float)
+    scale = pd.concat(
+        [override_value(rows["overrides"], "prior_scale", defaults[name]) for name, rows in scaled.groupby("estimator")]
+    ).astype(float)
     curves = scaled.assign(scale=scale)
     return curves[["estimator", "scale", "horizontal_median_ref", "ci_low", "ci_high"]]
 
 
-def _diagnostics_section(page: "_Page", diag: dict[str, list[dict]], out: Path) -> None:
+def _diagnostics_section(page: _Page, diag: dict[str, list[dict]], out: Path) -> None:
     """Each estimator's diagnostics from its first job: scalars, tables (lists of records), and the
     learned-mixture evolution and selected features where an estimator records them."""
     shown = False
@@ -290,25 +330,43 @@ def _diagnostics_section(page: "_Page", diag: dict[str, list[dict]], out: Path) 
             del tables["model_history"]
             # the job that adapted most shows the most (the first one often never adapts)
             busiest = max(jobs, key=lambda j: len(j["diagnostics"].get("model_history", [])))
-            history = [{"iteration": i, "mixture": {"weights": m["weights"], "covariances": m["covs"]}}
-                       for i, m in enumerate(busiest["diagnostics"]["model_history"])]
+            history = [
+                {"iteration": i, "mixture": {"weights": m["weights"], "covariances": m["covs"]}}
+                for i, m in enumerate(busiest["diagnostics"]["model_history"])
+            ]
             job = busiest["job"]
-            page.img(mixture_evolution_figure(
-                history, out / f"mixture_{estimator}.png",
-                f"{estimator}: noise model after each adaptation (0: a priori), {_job_label(job)}, "
-                f"seed {job.get('seed', '')}", xlabel="adaptation"))
+            page.img(
+                mixture_evolution_figure(
+                    history,
+                    out / f"mixture_{estimator}.png",
+                    f"{estimator}: noise model after each adaptation (0: a priori), {_job_label(job)}, "
+                    f"seed {job.get('seed', '')}",
+                    xlabel="adaptation",
+                )
+            )
         counts = _adaptation_counts(jobs)
         if counts is not None:
             page.p("<b>model adaptations in every job</b> (naive: one per T_c tested residuals)")
             page.table(counts)
         for key, records in tables.items():
             if any("mixture" in r for r in records):
-                page.img(mixture_evolution_figure(records, out / f"mixture_{estimator}.png",
-                                                  f"{estimator}: learned noise mixture per iteration, {where}"))
+                page.img(
+                    mixture_evolution_figure(
+                        records,
+                        out / f"mixture_{estimator}.png",
+                        f"{estimator}: learned noise mixture per iteration, {where}",
+                    )
+                )
             if any("selected_features" in r for r in records):
                 page.p("<b>selected features per iteration</b>")
-                page.table(pd.DataFrame([{"iteration": r.get("iteration"),
-                                          "selected": ", ".join(r.get("selected_features", []))} for r in records]))
+                page.table(
+                    pd.DataFrame(
+                        [
+                            {"iteration": r.get("iteration"), "selected": ", ".join(r.get("selected_features", []))}
+                            for r in records
+                        ]
+                    )
+                )
             flat = pd.DataFrame(records)
             flat = flat[[c for c in flat.columns if not flat[c].map(lambda v: isinstance(v, (dict, list))).any()]]
             if flat.shape[1]:
@@ -317,26 +375,39 @@ def _diagnostics_section(page: "_Page", diag: dict[str, list[dict]], out: Path) 
 
 
 def _job_label(job: dict[str, Any]) -> str:
-    """:func:`~simbench.tables.data_label` of a job's summary row (a dict)."""
+    """:func:`~simbench.analysis.tables.data_label` of a job's summary row (a dict)."""
     return data_label(job.get("scenario", ""), job.get("receiver", ""), job.get("source"))
 
 
 def _adaptation_counts(jobs: list[dict]) -> pd.DataFrame | None:
     """Adaptation and naive counts per sweep/scenario/receiver over all jobs of an adaptive estimator."""
-    rows = [{"sweep": j["job"].get("sweep", ""), "scenario": j["job"].get("scenario", ""),
-             "receiver": j["job"].get("receiver", ""), "adaptations": j["diagnostics"]["n_adaptations"],
-             "naive": j["diagnostics"]["naive_adaptations"], "outliers": j["diagnostics"].get("n_outliers", 0),
-             "residuals": j["diagnostics"].get("n_residuals", 0)}
-            for j in jobs if "n_adaptations" in j["diagnostics"] and "naive_adaptations" in j["diagnostics"]]
+    rows = [
+        {
+            "sweep": j["job"].get("sweep", ""),
+            "scenario": j["job"].get("scenario", ""),
+            "receiver": j["job"].get("receiver", ""),
+            "adaptations": j["diagnostics"]["n_adaptations"],
+            "naive": j["diagnostics"]["naive_adaptations"],
+            "outliers": j["diagnostics"].get("n_outliers", 0),
+            "residuals": j["diagnostics"].get("n_residuals", 0),
+        }
+        for j in jobs
+        if "n_adaptations" in j["diagnostics"] and "naive_adaptations" in j["diagnostics"]
+    ]
     if not rows:
         return None
     table = pd.DataFrame(rows).groupby(["sweep", "scenario", "receiver"], dropna=False)
-    return table.agg(jobs=("adaptations", "size"), adaptations=("adaptations", "sum"), naive=("naive", "sum"),
-                     outliers=("outliers", "sum"), residuals=("residuals", "sum")).reset_index()
+    return table.agg(
+        jobs=("adaptations", "size"),
+        adaptations=("adaptations", "sum"),
+        naive=("naive", "sum"),
+        outliers=("outliers", "sum"),
+        residuals=("residuals", "sum"),
+    ).reset_index()
 
 
-def _validation_section(page: "_Page", run_dir: Path, out: Path) -> None:
-    """Sim-vs-real statistics (:mod:`simbench.validation`) of the run's cached scenarios, when the cache
+def _validation_section(page: _Page, run_dir: Path, out: Path) -> None:
+    """Sim-vs-real statistics (:mod:`simbench.analysis.validation`) of the run's cached scenarios, when the cache
     holds both a real log with a reference trajectory and a simulation; nothing otherwise."""
     dirs = sorted(p.parent for p in (run_dir / "cache").glob("*/observations.parquet"))
     n_real = sum(not (d / "labels.parquet").is_file() for d in dirs)  # real logs have no error labels
@@ -357,14 +428,22 @@ def _validation_section(page: "_Page", run_dir: Path, out: Path) -> None:
             samples[i] = replace(sample, name=f"{sample.name} #{counts[sample.name]}")
     table = comparison_table(samples)
     page.h2("Simulated worlds against real logs")
-    page.p("One procedure for every world (<code>simbench.validation</code>): code + satellite clock - Sagnac range "
-           "to the reference - Saastamoinen/Niell - Klobuchar, minus the per-epoch, per-system median (epochs with "
-           f"at least {MIN_ROWS_PER_CLOCK} satellites of the system). KS = two-sample Kolmogorov-Smirnov distance of the |residual| and "
-           f"C/N0 distributions against <b>{html.escape(str(table['ks_against'].iloc[0]))}</b>. "
-           "<code>python -m simbench.validate</code> gives the same table for any worlds.", cls="note")
+    page.p(
+        "One procedure for every world (<code>simbench.analysis.validation</code>): code + satellite clock - "
+        "Sagnac range to the reference - Saastamoinen/Niell - Klobuchar, minus the per-epoch, per-system median "
+        "(epochs with "
+        f"at least {MIN_ROWS_PER_CLOCK} satellites of the system). KS = two-sample Kolmogorov-Smirnov distance "
+        "of the |residual| and "
+        f"C/N0 distributions against <b>{html.escape(str(table['ks_against'].iloc[0]))}</b>. "
+        "<code>python -m simbench validate</code> gives the same table for any worlds.",
+        cls="note",
+    )
     page.table(table.drop(columns=["ks_against"]))
-    page.img(validation_figure(samples, out / "validation.png", "Sim vs real: |code residual|, C/N0 against "
-                                                                "elevation, tracked satellites"))
+    page.img(
+        validation_figure(
+            samples, out / "validation.png", "Sim vs real: |code residual|, C/N0 against elevation, tracked satellites"
+        )
+    )
 
 
 class _Page:
@@ -408,8 +487,10 @@ class _Page:
         self.md += [shown.to_markdown(index=False, floatfmt=".4g") if len(df) else "(none)", ""]
 
     def write(self, out: Path) -> Path:
-        page = (f"<!doctype html><html><head><meta charset='utf-8'><title>simbench report</title>"
-                f"<style>{_CSS}</style></head><body>{''.join(self.html)}</body></html>")
+        page = (
+            f"<!doctype html><html><head><meta charset='utf-8'><title>simbench report</title>"
+            f"<style>{_CSS}</style></head><body>{''.join(self.html)}</body></html>"
+        )
         for name, text in (("index.html", page), ("README.md", "\n".join(self.md) + "\n")):
             tmp = out / f".{name}.tmp"
             tmp.write_text(text)

@@ -2,9 +2,10 @@
 
 Each estimator keeps one colour and line style (:func:`estimator_styles`), so
 14 and more estimators stay distinct. Error distributions are drawn over all
-reference epochs (:func:`simbench.metrics.reference_ecdf`): a curve ends at its
+reference epochs (:func:`simbench.analysis.metrics.reference_ecdf`): a curve ends at its
 estimator's availability, below 1 when it left epochs unsolved.
 """
+
 from __future__ import annotations
 
 import textwrap
@@ -14,14 +15,14 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-from matplotlib.ticker import MaxNLocator  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+from matplotlib.ticker import MaxNLocator
 
-from simbench.errors import SimbenchError  # noqa: E402
-from simbench.metrics import reference_ecdf, reference_percentile  # noqa: E402
-from simbench.validation import ValidationSample, cn0_by_elevation  # noqa: E402
+from simbench.analysis.metrics import reference_ecdf, reference_percentile
+from simbench.analysis.validation import ValidationSample, cn0_by_elevation
+from simbench.errors import SimbenchError
 
 METRIC_LABELS = {"horizontal": "horizontal error [m]", "error_3d": "3-D error [m]"}
 #: After the ten colours of tab10 the line style changes, so 40 estimators get distinct lines.
@@ -35,8 +36,10 @@ REFERENCE_NOTE = "over all reference epochs: a curve ends at its availability, u
 def estimator_styles(names: Iterable[str]) -> dict[str, dict[str, object]]:
     """A distinct ``color`` and ``linestyle`` per estimator name, by sorted name (same set, same styles)."""
     colors = plt.get_cmap("tab10").colors
-    return {name: {"color": colors[i % len(colors)], "linestyle": LINESTYLES[(i // len(colors)) % len(LINESTYLES)]}
-            for i, name in enumerate(sorted(set(names)))}
+    return {
+        name: {"color": colors[i % len(colors)], "linestyle": LINESTYLES[(i // len(colors)) % len(LINESTYLES)]}
+        for i, name in enumerate(sorted(set(names)))
+    }
 
 
 def availability_text(fraction: float) -> str:
@@ -51,13 +54,17 @@ def availability_text(fraction: float) -> str:
 def _references(epochs: pd.DataFrame, n_reference: Mapping[str, int]) -> dict[str, int]:
     missing = sorted(set(epochs["estimator"]) - set(n_reference))
     if missing:
-        raise SimbenchError("n_reference", f"has no reference epoch count for {', '.join(missing)}",
-                            "pass the summed n_epochs of each estimator's jobs")
+        raise SimbenchError(
+            "n_reference",
+            f"has no reference epoch count for {', '.join(missing)}",
+            "pass the summed n_epochs of each estimator's jobs",
+        )
     return {name: int(n_reference[name]) for name in epochs["estimator"].unique()}
 
 
-def ecdf_figure(epochs: pd.DataFrame, metric: str, path: str | Path, title: str,
-                n_reference: Mapping[str, int]) -> Path:
+def ecdf_figure(
+    epochs: pd.DataFrame, metric: str, path: str | Path, title: str, n_reference: Mapping[str, int]
+) -> Path:
     """ECDF of one error metric per estimator over all reference epochs, log-scaled error axis.
 
     Parameters
@@ -87,8 +94,14 @@ def ecdf_figure(epochs: pd.DataFrame, metric: str, path: str | Path, title: str,
     for median, _, name, x, p in sorted(curves, key=lambda c: c[:3]):
         x = np.maximum(x, 1e-3)
         shown = f"{median:.2f} m" if np.isfinite(median) else "—"
-        ax.step(np.r_[x[0], x], np.r_[0.0, p], where="post", lw=1.5, **styles[name],
-                label=f"{name} ({availability_text(p[-1])}, median {shown})")
+        ax.step(
+            np.r_[x[0], x],
+            np.r_[0.0, p],
+            where="post",
+            lw=1.5,
+            **styles[name],
+            label=f"{name} ({availability_text(p[-1])}, median {shown})",
+        )
         ax.plot(x[-1], p[-1], marker="o", ms=3, color=styles[name]["color"])  # where the curve stops
     ax.set_xscale("log")
     ax.set_xlabel(METRIC_LABELS.get(metric, metric))
@@ -122,8 +135,9 @@ def _legend(ax: plt.Axes, entries: int, inside: str) -> None:
     if entries <= LEGEND_INSIDE_MAX:
         ax.legend(loc=inside, fontsize=8, frameon=True)
     else:
-        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False,
-                  ncols=1 if entries <= 20 else 2)
+        ax.legend(
+            loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False, ncols=1 if entries <= 20 else 2
+        )
 
 
 def _wrap(fig: plt.Figure, text: str, fontsize: float, width_in: float | None = None) -> str:
@@ -151,16 +165,18 @@ def _save(fig: plt.Figure, path: str | Path) -> Path:
     return path
 
 
-def box_figure(epochs: pd.DataFrame, path: str | Path, title: str, n_reference: Mapping[str, int],
-               metric: str = "horizontal") -> Path:
+def box_figure(
+    epochs: pd.DataFrame, path: str | Path, title: str, n_reference: Mapping[str, int], metric: str = "horizontal"
+) -> Path:
     """Box plot of the solved epochs' errors per estimator (dissertation Fig. 5.3.2), log scale.
 
     Each label gives the estimator's availability (solved / ``n_reference`` epochs,
     as in :func:`ecdf_figure`): the boxes describe only the epochs it solved.
     """
     counts = _references(epochs, n_reference)
-    order = sorted(epochs["estimator"].unique(), key=lambda n: np.nanmedian(
-        epochs.loc[epochs["estimator"] == n, metric]))
+    order = sorted(
+        epochs["estimator"].unique(), key=lambda n: np.nanmedian(epochs.loc[epochs["estimator"] == n, metric])
+    )
     data = [epochs.loc[epochs["estimator"] == n, metric].dropna().to_numpy() for n in order]
     labels = [f"{n}\n{availability_text(len(d) / counts[n])}" for n, d in zip(order, data)]
     fig, ax = plt.subplots(figsize=(max(4.0, 0.9 * len(order) + 1.5), 4.2), dpi=150)
@@ -185,8 +201,15 @@ def sensitivity_figure(curves: pd.DataFrame, path: str | Path, title: str) -> Pa
     for name, group in curves.groupby("estimator"):
         group = group[np.isfinite(group["horizontal_median_ref"])].sort_values("scale")
         median = group["horizontal_median_ref"]
-        ax.errorbar(group["scale"], median, yerr=[median - group["ci_low"], group["ci_high"] - median],
-                    marker="o", capsize=3, label=name, **styles[name])
+        ax.errorbar(
+            group["scale"],
+            median,
+            yerr=[median - group["ci_low"], group["ci_high"] - median],
+            marker="o",
+            capsize=3,
+            label=name,
+            **styles[name],
+        )
     ax.set_xscale("log")
     ax.set_xlabel("a priori covariance scale s")
     ax.set_ylabel("median horizontal error [m]\n(over reference epochs)")
@@ -240,9 +263,8 @@ def mixture_evolution_figure(history: list[dict], path: str | Path, title: str, 
     return _save(fig, path)
 
 
-def validation_figure(samples: Sequence[ValidationSample], path: str | Path, title: str,
-                      bin_deg: float = 10.0) -> Path:
-    """Sim-vs-real panels (:mod:`simbench.validation`): ECDF of the |code residual|, C/N0 median
+def validation_figure(samples: Sequence[ValidationSample], path: str | Path, title: str, bin_deg: float = 10.0) -> Path:
+    """Sim-vs-real panels (:mod:`simbench.analysis.validation`): ECDF of the |code residual|, C/N0 median
     (and 10-90 % band) against elevation, and the distribution of tracked satellites per epoch.
 
     Each world keeps one colour and line style (:func:`estimator_styles` on the world names); a
@@ -261,8 +283,9 @@ def validation_figure(samples: Sequence[ValidationSample], path: str | Path, tit
         cn0_ax.plot(centre, bins["cn0_p50"], marker="o", markersize=3, **style)
         cn0_ax.fill_between(centre, bins["cn0_p10"], bins["cn0_p90"], color=style["color"], alpha=0.12)
         counts = np.bincount(sample.tracked_per_epoch)
-        sats_ax.plot(np.arange(len(counts)), counts / max(counts.sum(), 1), marker="o", markersize=4,
-                     label=sample.name, **style)
+        sats_ax.plot(
+            np.arange(len(counts)), counts / max(counts.sum(), 1), marker="o", markersize=4, label=sample.name, **style
+        )
     ecdf_ax.set_xscale("log")
     # the median satellite of an epoch has residual 0 exactly: those rows sit left of the axis
     ecdf_ax.set_xlim(left=1e-2)
@@ -276,7 +299,12 @@ def validation_figure(samples: Sequence[ValidationSample], path: str | Path, tit
     for ax in (ecdf_ax, cn0_ax, sats_ax):
         ax.grid(True, which="both", alpha=0.3)
     legend_ax.axis("off")
-    legend_ax.legend(*sats_ax.get_legend_handles_labels(), loc="center", fontsize=9, frameon=False,
-                     ncols=1 if len(samples) <= 12 else 2)
+    legend_ax.legend(
+        *sats_ax.get_legend_handles_labels(),
+        loc="center",
+        fontsize=9,
+        frameon=False,
+        ncols=1 if len(samples) <= 12 else 2,
+    )
     fig.suptitle(_wrap(fig, title, 11), fontsize=11)
     return _save(fig, path)

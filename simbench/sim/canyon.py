@@ -43,6 +43,7 @@ frozen multipath, a moving one a fading one. Carrier phases are
 ``-2 pi (extra path) / lambda`` plus ``pi`` per bounce. Elevations are
 preserved by vertical walls, so every ray sees the antenna gain of the direct one.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -50,8 +51,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import norm
 
-from simbench.config import FacadeMaterial, NlosConfig
-from simbench.sim.constants import F_L1, LAMBDA_L1
+from simbench.core.constants import F_L1, LAMBDA_L1
+from simbench.sim.config import FacadeMaterial, NlosConfig
 from simbench.sim.processes import gauss_markov
 
 #: Persistence of a reflection path; reflections come and go as the car passes facades.
@@ -133,10 +134,19 @@ def fresnel_circular(cos_incidence: np.ndarray, material: FacadeMaterial) -> tup
     return 0.5 * (te + tm), 0.5 * (te - tm)
 
 
-def canyon_rays(el_rad: np.ndarray, az_rad: np.ndarray, road_heading_rad: np.ndarray,
-                wall_left_m: np.ndarray, wall_right_m: np.ndarray, height_left_m: np.ndarray,
-                height_right_m: np.ndarray, travelled_m: np.ndarray, cfg: NlosConfig, dt_s: float,
-                rng: np.random.Generator) -> CanyonRays:
+def canyon_rays(
+    el_rad: np.ndarray,
+    az_rad: np.ndarray,
+    road_heading_rad: np.ndarray,
+    wall_left_m: np.ndarray,
+    wall_right_m: np.ndarray,
+    height_left_m: np.ndarray,
+    height_right_m: np.ndarray,
+    travelled_m: np.ndarray,
+    cfg: NlosConfig,
+    dt_s: float,
+    rng: np.random.Generator,
+) -> CanyonRays:
     """Direct, single-bounce and double-bounce rays of every satellite in the street canyon.
 
     Parameters
@@ -180,8 +190,13 @@ def canyon_rays(el_rad: np.ndarray, az_rad: np.ndarray, road_heading_rad: np.nda
     n, m = el_rad.shape
     gate = gauss_markov(n, m, 1.0, REFLECTION_TAU_S, dt_s, rng) < norm.ppf(cfg.reflection_probability)
     single = gate & (h_far > 0.0) & (blocked | ((k * d_far < h_far) & (k * (2.0 * d_far + d_near) > h_near)))
-    double = (gate & blocked & (h_far > 0.0) & (k * (2.0 * d_near + d_far) < h_far)
-              & (k * (3.0 * d_near + 2.0 * d_far) > h_near))
+    double = (
+        gate
+        & blocked
+        & (h_far > 0.0)
+        & (k * (2.0 * d_near + d_far) < h_far)
+        & (k * (3.0 * d_near + 2.0 * d_far) > h_near)
+    )
 
     cos_inc = np.cos(el_rad) * abs_s
     co, cross = fresnel_circular(cos_inc, cfg.facade_material)

@@ -1,6 +1,6 @@
 """Scenario generation: trajectory, sky, error sources, observables, IMU, odometry.
 
-:func:`generate` turns a typed :class:`~simbench.config.SimConfig` into a
+:func:`generate` turns a typed :class:`~simbench.sim.config.SimConfig` into a
 :class:`~simbench.contract.Scenario`, deterministically: every error source
 draws from its own named random stream of the seed. All physics is
 vectorised over (epoch, satellite) arrays of shape (n, m).
@@ -23,6 +23,7 @@ L2 likewise with ``I2 = (f1/f2)^2 I1``. The receiver is handed the product
 satellite position and clock (truth plus orbit/clock error), the elevation and
 azimuth, C/N0 and loss-of-lock flags.
 """
+
 from __future__ import annotations
 
 import os
@@ -32,20 +33,29 @@ import numpy as np
 import pandas as pd
 import pymap3d
 
-from simbench.config import ConstellationKind, SimConfig, TrajectoryKind, validate_sim
 from simbench.contract import NavInfo, Scenario, empty_odometry
-from simbench.data.navigation import read_gps_navigation
+from simbench.core import atmosphere
+from simbench.core.constants import (
+    C_LIGHT,
+    CHIP_LENGTH_CA,
+    DEG,
+    IONO_L2_SCALE,
+    LAMBDA_L1,
+    LAMBDA_L2,
+    SECONDS_PER_WEEK,
+    WGS84_A,
+)
+from simbench.core.frames import dcm_body_to_ned
+from simbench.core.gpstime import day_of_year
+from simbench.core.orbits import NominalConstellation
 from simbench.errors import SimbenchError
-from simbench.sim import atmosphere, tracking
+from simbench.gnss.navigation import read_gps_navigation
+from simbench.sim import tracking
 from simbench.sim.canyon import CanyonRays, canyon_rays
-from simbench.sim.constants import (C_LIGHT, CHIP_LENGTH_CA, DEG, IONO_L2_SCALE, LAMBDA_L1, LAMBDA_L2,
-                                     SECONDS_PER_WEEK, WGS84_A)
-from simbench.sim.frames import dcm_body_to_ned
+from simbench.sim.config import ConstellationKind, SimConfig, TrajectoryKind, validate_sim
 from simbench.sim.geometry import line_of_sight
-from simbench.sim.gpstime import day_of_year
 from simbench.sim.imu import simulate_imu
 from simbench.sim.odometry import simulate_odometry
-from simbench.sim.orbits import NominalConstellation
 from simbench.sim.processes import gauss_markov, random_walk, receiver_clock, stream
 from simbench.sim.slips import phase_arcs
 from simbench.sim.trajectory import Trajectory, flight, replay, roadside_street, urban_drive
@@ -77,8 +87,11 @@ def generate(cfg: SimConfig) -> Scenario:
     traj, start_sow = _trajectory(cfg)
     step = cfg.imu.rate_hz / sc.rate_hz
     if abs(step - round(step)) > 1e-9:
-        raise SimbenchError("scenario.rate_hz", f"IMU rate {cfg.imu.rate_hz} Hz is not a multiple of {sc.rate_hz} Hz",
-                            "choose rates such that imu.rate_hz / scenario.rate_hz is an integer")
+        raise SimbenchError(
+            "scenario.rate_hz",
+            f"IMU rate {cfg.imu.rate_hz} Hz is not a multiple of {sc.rate_hz} Hz",
+            "choose rates such that imu.rate_hz / scenario.rate_hz is an integer",
+        )
     idx = np.arange(0, len(traj.t), int(round(step)))
     idx = idx[traj.valid[idx]]
     t = traj.t[idx]
@@ -110,9 +123,19 @@ def generate(cfg: SimConfig) -> Scenario:
         st = traj.street
         speed = np.linalg.norm(vel, axis=1)
         travelled = np.concatenate(([0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]) * np.diff(t))))
-        rays = canyon_rays(el, az, st.road_heading_rad[idx], st.wall_left_m[idx], st.wall_right_m[idx],
-                           st.height_left_m[idx], st.height_right_m[idx], travelled, err.nlos, dt,
-                           stream(seed, "nlos"))
+        rays = canyon_rays(
+            el,
+            az,
+            st.road_heading_rad[idx],
+            st.wall_left_m[idx],
+            st.wall_right_m[idx],
+            st.height_left_m[idx],
+            st.height_right_m[idx],
+            travelled,
+            err.nlos,
+            dt,
+            stream(seed, "nlos"),
+        )
         reflected = rays.reference > 0  # locked to a bounce; a ray diffracted over the roof is nearly direct
         nlos_delay, canyon_code, canyon_phase, prompt_db, canyon_sigma = _track_rays(rays, in_view, spacing, fe_bw)
         # The DLL (time constant 1/(4 B)) averages reflections that fade faster than it: a first-order
@@ -124,17 +147,20 @@ def generate(cfg: SimConfig) -> Scenario:
         canyon_code, canyon_sigma = canyon_code * averaging, canyon_sigma * averaging
 
     c0 = err.cn0
-    cn0 = (tracking.cn0_mean_dbhz(off_boresight, c0.received_power_dbw, c0.constant_db)
-           + gauss_markov(n, m, c0.fade_sigma_db, c0.fade_tau_s, dt, stream(seed, "cn0_fade"))
-           + c0.noise_db * stream(seed, "cn0_noise").standard_normal((n, m))
-           + prompt_db)
+    cn0 = (
+        tracking.cn0_mean_dbhz(off_boresight, c0.received_power_dbw, c0.constant_db)
+        + gauss_markov(n, m, c0.fade_sigma_db, c0.fade_tau_s, dt, stream(seed, "cn0_fade"))
+        + c0.noise_db * stream(seed, "cn0_noise").standard_normal((n, m))
+        + prompt_db
+    )
 
     # ------------------------------------------------------------------ tracking noise, lock
     sig_code = tracking.dll_jitter_m(cn0, rx.dll_bw_hz, spacing, fe_bw, rx.integration_s)
     pll_rad = tracking.pll_jitter_rad(cn0, rx.pll_bw_hz, rx.integration_s)
     in_lock = in_view & (cn0 >= rx.lock_threshold_dbhz) & (3.0 * sig_code <= 0.5 * spacing * CHIP_LENGTH_CA)
-    tracked = tracking.channel_lock_states(cn0 >= rx.acquisition_threshold_dbhz, in_lock,
-                                           1 + int(round(rx.reacquisition_s / dt)))
+    tracked = tracking.channel_lock_states(
+        cn0 >= rx.acquisition_threshold_dbhz, in_lock, 1 + int(round(rx.reacquisition_s / dt))
+    )
     nlos = reflected & tracked
     nlos_delay = np.where(tracked, nlos_delay, 0.0)
     # Kaplan's PLL rule of thumb 3 sigma_j + theta_e <= 45 deg, in the 1-sigma form the slip model tests.
@@ -151,8 +177,9 @@ def generate(cfg: SimConfig) -> Scenario:
     # ------------------------------------------------------------------ clocks
     if err.receiver_clock.enabled:
         rc = err.receiver_clock
-        clk_s, drift = receiver_clock(t, rc.bias0_sigma_s, rc.drift0_sigma_sps, rc.h0, rc.h_2,
-                                      stream(seed, "receiver_clock"))
+        clk_s, drift = receiver_clock(
+            t, rc.bias0_sigma_s, rc.drift0_sigma_sps, rc.h0, rc.h_2, stream(seed, "receiver_clock")
+        )
     else:
         clk_s, drift = np.zeros(n), np.zeros(n)
     rx_clock_m, rx_drift_mps = C_LIGHT * clk_s, C_LIGHT * drift
@@ -162,8 +189,10 @@ def generate(cfg: SimConfig) -> Scenario:
     if err.troposphere.enabled:
         zhd, zwd_model = atmosphere.saastamoinen_zenith_m(lat, h)
         trng = stream(seed, "troposphere")
-        zwd = (zwd_model * max(0.0, 1.0 + err.troposphere.wet_scale_sigma * trng.standard_normal())
-               + random_walk(n, 1, err.troposphere.wet_rw_mps, dt, trng)[:, 0])
+        zwd = (
+            zwd_model * max(0.0, 1.0 + err.troposphere.wet_scale_sigma * trng.standard_normal())
+            + random_walk(n, 1, err.troposphere.wet_rw_mps, dt, trng)[:, 0]
+        )
         zwd = np.maximum(zwd, 0.0)
         m_h, m_w = atmosphere.niell_mapping(el, lat[:, None], h[:, None], doy)
         tropo = zhd[:, None] * m_h + zwd[:, None] * m_w
@@ -172,8 +201,9 @@ def generate(cfg: SimConfig) -> Scenario:
     if err.ionosphere.enabled:
         io = err.ionosphere
         irng = stream(seed, "ionosphere")
-        klob = atmosphere.klobuchar_l1_delay_m((start_sow + t)[:, None], lat[:, None], lon[:, None], el, az,
-                                               np.asarray(alpha), np.asarray(beta))
+        klob = atmosphere.klobuchar_l1_delay_m(
+            (start_sow + t)[:, None], lat[:, None], lon[:, None], el, az, np.asarray(alpha), np.asarray(beta)
+        )
         obliquity = 1.0 / np.sqrt(1.0 - (WGS84_A * np.cos(el) / (WGS84_A + IONO_SHELL_M)) ** 2)
         scale = max(0.0, 1.0 + io.scale_sigma * irng.standard_normal())
         residual = gauss_markov(n, m, io.residual_sigma_m, io.residual_tau_s, dt, irng)
@@ -201,8 +231,11 @@ def generate(cfg: SimConfig) -> Scenario:
     mp = err.multipath
     if mp.enabled:
         mrng = stream(seed, "multipath")
-        sigma_mp = (mp.el_a_m + mp.el_b_m * np.exp(-np.degrees(el) / mp.el_c_deg)) if mp.elevation_dependent \
+        sigma_mp = (
+            (mp.el_a_m + mp.el_b_m * np.exp(-np.degrees(el) / mp.el_c_deg))
+            if mp.elevation_dependent
             else mp.code_sigma_m
+        )
         sigma_mp = np.broadcast_to(sigma_mp, (n, m))
         unit = gauss_markov(n, 2 * m, 1.0, mp.tau_s, dt, mrng)
         mp_code = sigma_mp * unit[:, :m]
@@ -228,9 +261,15 @@ def generate(cfg: SimConfig) -> Scenario:
         out = np.zeros((n, m))
         if err.sample_grid:  # tracked channels only: a fifth of (epoch, satellite) or less
             out[tracked] = CHIP_LENGTH_CA * tracking.sample_grid_code_error_chips(
-                pseudorange[tracked] / CHIP_LENGTH_CA + grid_offset, pseudorange_rate[tracked] / CHIP_LENGTH_CA,
-                cn0_dbhz[tracked], sampling_hz=rx.sampling_mhz * 1e6, dll_bw_hz=rx.dll_bw_hz,
-                spacing_chips=spacing, front_end_bw_hz=fe_bw, integration_s=rx.integration_s)
+                pseudorange[tracked] / CHIP_LENGTH_CA + grid_offset,
+                pseudorange_rate[tracked] / CHIP_LENGTH_CA,
+                cn0_dbhz[tracked],
+                sampling_hz=rx.sampling_mhz * 1e6,
+                dll_bw_hz=rx.dll_bw_hz,
+                spacing_chips=spacing,
+                front_end_bw_hz=fe_bw,
+                integration_s=rx.integration_s,
+            )
         return out
 
     e_grid = grid_error(common + iono, cn0)
@@ -242,10 +281,20 @@ def generate(cfg: SimConfig) -> Scenario:
         cn0_l2 = cn0 - L2_CN0_LOSS_DB
         sig2 = gain * tracking.dll_jitter_m(cn0_l2, rx.dll_bw_hz, spacing, fe_bw, rx.integration_s)
         sig2p = gain * tracking.pll_jitter_m(cn0_l2, rx.pll_bw_hz, rx.integration_s)
-        code_l2 = (common + IONO_L2_SCALE * iono + mp_code_l2 + grid_error(common + IONO_L2_SCALE * iono, cn0_l2)
-                   + sig2 * l2rng.standard_normal((n, m)))
-        phase_l2 = (common - IONO_L2_SCALE * iono + LAMBDA_L2 * arcs[1].ambiguity + mp_phase
-                    + sig2p * l2rng.standard_normal((n, m)))
+        code_l2 = (
+            common
+            + IONO_L2_SCALE * iono
+            + mp_code_l2
+            + grid_error(common + IONO_L2_SCALE * iono, cn0_l2)
+            + sig2 * l2rng.standard_normal((n, m))
+        )
+        phase_l2 = (
+            common
+            - IONO_L2_SCALE * iono
+            + LAMBDA_L2 * arcs[1].ambiguity
+            + mp_phase
+            + sig2p * l2rng.standard_normal((n, m))
+        )
         lli_l2, amb_l2 = arcs[1].lli, arcs[1].ambiguity
     else:
         code_l2 = phase_l2 = np.full((n, m), np.nan)
@@ -258,55 +307,109 @@ def generate(cfg: SimConfig) -> Scenario:
     def pick(a: np.ndarray) -> np.ndarray:
         return a[ei, si]
 
-    observations = pd.DataFrame({
-        "epoch": ei.astype(np.int64), "t": t[ei], "sat": sats[si],
-        "code_l1": pick(code_l1), "phase_l1": pick(phase_l1), "doppler_l1": pick(doppler_l1),
-        "cn0_l1": pick(cn0), "lli_l1": pick(arcs[0].lli),
-        "code_l2": pick(code_l2), "phase_l2": pick(phase_l2), "lli_l2": pick(lli_l2),
-        "sat_x": sat_pos_product[ei, si, 0], "sat_y": sat_pos_product[ei, si, 1],
-        "sat_z": sat_pos_product[ei, si, 2],
-        "sat_vx": los.sat_vel_tx[ei, si, 0], "sat_vy": los.sat_vel_tx[ei, si, 1],
-        "sat_vz": los.sat_vel_tx[ei, si, 2],
-        "sat_clock": pick(sat_clock_product_m), "sat_clock_drift": C_LIGHT * pick(los.sat_clock_drift),
-        "el": np.degrees(pick(el)), "az": np.degrees(pick(az)),
-    })
-    labels = pd.DataFrame({
-        "epoch": ei.astype(np.int64), "sat": sats[si],
-        "sigma_code_l1": gain * pick(sig_code), "sigma_phase_l1": gain * pick(sig_phase),
-        "multipath_code_l1": pick(mp_code), "sigma_multipath_code_l1": pick(sigma_mp),
-        "multipath_phase_l1": pick(mp_phase),
-        "nlos": pick(nlos), "nlos_delay": pick(nlos_delay),
-        "iono_l1": pick(iono), "tropo": pick(tropo), "orbit_clock_error": pick(orbit_clock_error),
-        "ambiguity_l1": pick(arcs[0].ambiguity), "ambiguity_l2": pick(amb_l2),
-        "slip": pick(arcs[0].slip), "noise_code_l1": pick(e_code), "noise_phase_l1": pick(e_phase),
-        "sample_grid_code_l1": pick(e_grid),
-    })
-    truth = pd.DataFrame({
-        "epoch": np.arange(n, dtype=np.int64), "t": t,
-        "x": pos[:, 0], "y": pos[:, 1], "z": pos[:, 2], "vx": vel[:, 0], "vy": vel[:, 1], "vz": vel[:, 2],
-        "roll": att[:, 0], "pitch": att[:, 1], "yaw": att[:, 2],
-        "rx_clock": rx_clock_m, "zwd": zwd, "n_visible": above.sum(axis=1).astype(np.int64),
-    })
+    observations = pd.DataFrame(
+        {
+            "epoch": ei.astype(np.int64),
+            "t": t[ei],
+            "sat": sats[si],
+            "code_l1": pick(code_l1),
+            "phase_l1": pick(phase_l1),
+            "doppler_l1": pick(doppler_l1),
+            "cn0_l1": pick(cn0),
+            "lli_l1": pick(arcs[0].lli),
+            "code_l2": pick(code_l2),
+            "phase_l2": pick(phase_l2),
+            "lli_l2": pick(lli_l2),
+            "sat_x": sat_pos_product[ei, si, 0],
+            "sat_y": sat_pos_product[ei, si, 1],
+            "sat_z": sat_pos_product[ei, si, 2],
+            "sat_vx": los.sat_vel_tx[ei, si, 0],
+            "sat_vy": los.sat_vel_tx[ei, si, 1],
+            "sat_vz": los.sat_vel_tx[ei, si, 2],
+            "sat_clock": pick(sat_clock_product_m),
+            "sat_clock_drift": C_LIGHT * pick(los.sat_clock_drift),
+            "el": np.degrees(pick(el)),
+            "az": np.degrees(pick(az)),
+        }
+    )
+    labels = pd.DataFrame(
+        {
+            "epoch": ei.astype(np.int64),
+            "sat": sats[si],
+            "sigma_code_l1": gain * pick(sig_code),
+            "sigma_phase_l1": gain * pick(sig_phase),
+            "multipath_code_l1": pick(mp_code),
+            "sigma_multipath_code_l1": pick(sigma_mp),
+            "multipath_phase_l1": pick(mp_phase),
+            "nlos": pick(nlos),
+            "nlos_delay": pick(nlos_delay),
+            "iono_l1": pick(iono),
+            "tropo": pick(tropo),
+            "orbit_clock_error": pick(orbit_clock_error),
+            "ambiguity_l1": pick(arcs[0].ambiguity),
+            "ambiguity_l2": pick(amb_l2),
+            "slip": pick(arcs[0].slip),
+            "noise_code_l1": pick(e_code),
+            "noise_phase_l1": pick(e_phase),
+            "sample_grid_code_l1": pick(e_grid),
+        }
+    )
+    truth = pd.DataFrame(
+        {
+            "epoch": np.arange(n, dtype=np.int64),
+            "t": t,
+            "x": pos[:, 0],
+            "y": pos[:, 1],
+            "z": pos[:, 2],
+            "vx": vel[:, 0],
+            "vy": vel[:, 1],
+            "vz": vel[:, 2],
+            "roll": att[:, 0],
+            "pitch": att[:, 1],
+            "yaw": att[:, 2],
+            "rx_clock": rx_clock_m,
+            "zwd": zwd,
+            "n_visible": above.sum(axis=1).astype(np.int64),
+        }
+    )
     imu = simulate_imu(traj, cfg.imu, stream(seed, "imu"))
-    imu_table = pd.DataFrame({"t": imu.t, "ax": imu.accel[:, 0], "ay": imu.accel[:, 1], "az": imu.accel[:, 2],
-                              "gx": imu.gyro[:, 0], "gy": imu.gyro[:, 1], "gz": imu.gyro[:, 2]})
+    imu_table = pd.DataFrame(
+        {
+            "t": imu.t,
+            "ax": imu.accel[:, 0],
+            "ay": imu.accel[:, 1],
+            "az": imu.accel[:, 2],
+            "gx": imu.gyro[:, 0],
+            "gy": imu.gyro[:, 1],
+            "gz": imu.gyro[:, 2],
+        }
+    )
     # absolute: a cached scenario is read from other working directories
-    ephemeris = "nominal" if sc.constellation.kind == ConstellationKind.nominal \
-        else os.path.abspath(sc.constellation.nav_path)
-    nav = NavInfo(gps_week=sc.gps_week, start_sow_s=float(start_sow), iono_alpha=tuple(map(float, alpha)),
-                  iono_beta=tuple(map(float, beta)), dual_frequency=sc.dual_frequency, ephemeris=ephemeris)
+    ephemeris = (
+        "nominal" if sc.constellation.kind == ConstellationKind.nominal else os.path.abspath(sc.constellation.nav_path)
+    )
+    nav = NavInfo(
+        gps_week=sc.gps_week,
+        start_sow_s=float(start_sow),
+        iono_alpha=tuple(map(float, alpha)),
+        iono_beta=tuple(map(float, beta)),
+        dual_frequency=sc.dual_frequency,
+        ephemeris=ephemeris,
+    )
     meta = {"name": sc.name, "seed": seed, "config": asdict(cfg)}
     odometry = empty_odometry()
     if sc.odometry.enabled:
         odo = simulate_odometry(traj, sc.odometry, stream(seed, "odometry"))
         odometry = odo.table
         meta["odometry_errors"] = {"scale_factor": odo.scale_factor, "yaw_rate_bias_rps": odo.yaw_rate_bias_rps}
-    return Scenario(observations=observations, imu=imu_table, truth=truth, labels=labels, nav=nav, meta=meta,
-                    odometry=odometry)
+    return Scenario(
+        observations=observations, imu=imu_table, truth=truth, labels=labels, nav=nav, meta=meta, odometry=odometry
+    )
 
 
-def _track_rays(rays: CanyonRays, in_view: np.ndarray, spacing_chips: float,
-                front_end_bw_hz: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _track_rays(
+    rays: CanyonRays, in_view: np.ndarray, spacing_chips: float, front_end_bw_hz: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """What the DLL and PLL make of the canyon rays, per (epoch, satellite).
 
     Returns the extra path of the ray the loops lock to [m], the code error of
@@ -326,8 +429,13 @@ def _track_rays(rays: CanyonRays, in_view: np.ndarray, spacing_chips: float,
     if mixed.any():
         start = ref_delay[mixed] / CHIP_LENGTH_CA
         tau, prompt[mixed], prompt_phase = tracking.dll_tracking_point(
-            rays.amplitude[mixed], rays.delay_m[mixed] / CHIP_LENGTH_CA, rays.phase_rad[mixed], start,
-            spacing_chips, front_end_bw_hz)
+            rays.amplitude[mixed],
+            rays.delay_m[mixed] / CHIP_LENGTH_CA,
+            rays.phase_rad[mixed],
+            start,
+            spacing_chips,
+            front_end_bw_hz,
+        )
         code[mixed] = (tau - start) * CHIP_LENGTH_CA
         # The phase observable grows with path length: a lag of psi radians reads as +psi lambda / 2 pi.
         lag = np.take_along_axis(rays.phase_rad, ref, -1)[..., 0][mixed] - prompt_phase

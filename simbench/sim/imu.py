@@ -12,16 +12,17 @@ The error model per axis is: turn-on bias ~ N(0, sigma), plus a stationary
 first-order Gauss-Markov bias drift, plus white noise of standard deviation
 density * sqrt(rate). Biases are returned as truth, apart from the measurements.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
 
-from simbench.config import ImuConfig
+from simbench.core.constants import DEG, J2_EARTH, MU_EARTH_WGS84, OMEGA_EARTH, WGS84_A
+from simbench.core.frames import dcm_body_to_ecef
 from simbench.errors import SimbenchError
-from simbench.sim.constants import DEG, J2_EARTH, MU_EARTH_WGS84, OMEGA_EARTH, WGS84_A
-from simbench.sim.frames import dcm_body_to_ecef
+from simbench.sim.config import ImuConfig
 from simbench.sim.processes import gauss_markov
 from simbench.sim.trajectory import Trajectory
 
@@ -77,9 +78,14 @@ def gravity_ecef(pos: np.ndarray) -> np.ndarray:
     j2 = 1.5 * J2_EARTH * WGS84_A**2 / r2
     scale = -MU_EARTH_WGS84 / (r2 * r)
     w2 = OMEGA_EARTH**2
-    return np.stack([scale * x * (1.0 + j2 * (1.0 - 5.0 * zr2)) + w2 * x,
-                     scale * y * (1.0 + j2 * (1.0 - 5.0 * zr2)) + w2 * y,
-                     scale * z * (1.0 + j2 * (3.0 - 5.0 * zr2))], axis=-1)
+    return np.stack(
+        [
+            scale * x * (1.0 + j2 * (1.0 - 5.0 * zr2)) + w2 * x,
+            scale * y * (1.0 + j2 * (1.0 - 5.0 * zr2)) + w2 * y,
+            scale * z * (1.0 + j2 * (3.0 - 5.0 * zr2)),
+        ],
+        axis=-1,
+    )
 
 
 def ideal_imu(traj: Trajectory) -> tuple[np.ndarray, np.ndarray]:
@@ -98,8 +104,7 @@ def ideal_imu(traj: Trajectory) -> tuple[np.ndarray, np.ndarray]:
     """
     c_b_e = dcm_body_to_ecef(traj.pos, traj.att)
     vel = traj.vel
-    coriolis = np.stack([-2.0 * OMEGA_EARTH * vel[:, 1], 2.0 * OMEGA_EARTH * vel[:, 0],
-                         np.zeros(len(vel))], axis=-1)
+    coriolis = np.stack([-2.0 * OMEGA_EARTH * vel[:, 1], 2.0 * OMEGA_EARTH * vel[:, 0], np.zeros(len(vel))], axis=-1)
     f_e = traj.acc + coriolis - gravity_ecef(traj.pos)
     f_b = np.einsum("kji,kj->ki", c_b_e, f_e)
     # C_e^b [0, 0, w_ie] is w_ie times the third row of C_b^e
@@ -134,22 +139,38 @@ def simulate_imu(traj: Trajectory, cfg: ImuConfig, rng: np.random.Generator) -> 
     dt = 1.0 / cfg.rate_hz
     steps = np.diff(traj.t)
     if len(steps) and np.abs(steps - dt).max() > 1e-6 * dt + 1e-9:
-        raise SimbenchError("imu.rate_hz", f"trajectory is sampled at {1.0 / np.median(steps):g} Hz, "
-                            f"not {cfg.rate_hz:g} Hz", "generate the trajectory at the IMU rate")
+        raise SimbenchError(
+            "imu.rate_hz",
+            f"trajectory is sampled at {1.0 / np.median(steps):g} Hz, not {cfg.rate_hz:g} Hz",
+            "generate the trajectory at the IMU rate",
+        )
     if not cfg.bias_tau_s > 0.0:
-        raise SimbenchError("imu.bias_tau_s", f"must be positive, got {cfg.bias_tau_s}",
-                            "give the bias correlation time in seconds, e.g. imu.bias_tau_s=300")
-    for name in ("accel_bias_sigma_mps2", "gyro_bias_sigma_dph", "accel_noise_mps2_rthz", "gyro_noise_dph_rthz",
-                 "accel_bias_instability_mps2", "gyro_bias_instability_dph"):
+        raise SimbenchError(
+            "imu.bias_tau_s",
+            f"must be positive, got {cfg.bias_tau_s}",
+            "give the bias correlation time in seconds, e.g. imu.bias_tau_s=300",
+        )
+    for name in (
+        "accel_bias_sigma_mps2",
+        "gyro_bias_sigma_dph",
+        "accel_noise_mps2_rthz",
+        "gyro_noise_dph_rthz",
+        "accel_bias_instability_mps2",
+        "gyro_bias_instability_dph",
+    ):
         if getattr(cfg, name) < 0.0:
-            raise SimbenchError(f"imu.{name}", f"must be non-negative, got {getattr(cfg, name)}",
-                                "see conf/imu/ for the grades")
+            raise SimbenchError(
+                f"imu.{name}", f"must be non-negative, got {getattr(cfg, name)}", "see conf/imu/ for the grades"
+            )
     k = len(traj.t)
     f_b, w_ib_b = ideal_imu(traj)
-    accel_bias = (cfg.accel_bias_sigma_mps2 * rng.standard_normal(3)
-                  + gauss_markov(k, 3, cfg.accel_bias_instability_mps2, cfg.bias_tau_s, dt, rng))
-    gyro_bias = DPH * (cfg.gyro_bias_sigma_dph * rng.standard_normal(3)
-                       + gauss_markov(k, 3, cfg.gyro_bias_instability_dph, cfg.bias_tau_s, dt, rng))
+    accel_bias = cfg.accel_bias_sigma_mps2 * rng.standard_normal(3) + gauss_markov(
+        k, 3, cfg.accel_bias_instability_mps2, cfg.bias_tau_s, dt, rng
+    )
+    gyro_bias = DPH * (
+        cfg.gyro_bias_sigma_dph * rng.standard_normal(3)
+        + gauss_markov(k, 3, cfg.gyro_bias_instability_dph, cfg.bias_tau_s, dt, rng)
+    )
     root_rate = np.sqrt(cfg.rate_hz)  # white noise of density N per sqrt(Hz) sampled at f_s has std N sqrt(f_s)
     accel = f_b + accel_bias + cfg.accel_noise_mps2_rthz * root_rate * rng.standard_normal((k, 3))
     gyro = w_ib_b + gyro_bias + DPH * cfg.gyro_noise_dph_rthz * root_rate * rng.standard_normal((k, 3))

@@ -11,6 +11,7 @@ standing car's wheels do not turn, so the speed is exactly 0 then (no ticks,
 no noise), while the gyro keeps its noise and bias. The reported variances
 are the configured noise variances, as a vehicle reports them, not the truth.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -18,10 +19,10 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from simbench.config import OdometryConfig
 from simbench.contract import ODOMETRY_COLUMNS
+from simbench.core.frames import dcm_body_to_ecef
 from simbench.errors import SimbenchError
-from simbench.sim.frames import dcm_body_to_ecef
+from simbench.sim.config import OdometryConfig
 from simbench.sim.trajectory import Trajectory
 
 #: Below this true speed the wheels stand still and the odometer reads 0 [m/s]
@@ -72,18 +73,24 @@ def simulate_odometry(traj: Trajectory, cfg: OdometryConfig, rng: np.random.Gene
         or a negative sigma.
     """
     if not cfg.rate_hz > 0.0:
-        raise SimbenchError("scenario.odometry.rate_hz", f"must be positive, got {cfg.rate_hz}",
-                            "set e.g. scenario.odometry.rate_hz=10")
+        raise SimbenchError(
+            "scenario.odometry.rate_hz", f"must be positive, got {cfg.rate_hz}", "set e.g. scenario.odometry.rate_hz=10"
+        )
     for name in ("speed_sigma_mps", "scale_factor_sigma", "yaw_rate_sigma_rps", "yaw_rate_bias_sigma_rps"):
         if not getattr(cfg, name) >= 0.0:
-            raise SimbenchError(f"scenario.odometry.{name}", f"must be non-negative, got {getattr(cfg, name)}",
-                                "give a standard deviation >= 0 (0 switches that error off)")
+            raise SimbenchError(
+                f"scenario.odometry.{name}",
+                f"must be non-negative, got {getattr(cfg, name)}",
+                "give a standard deviation >= 0 (0 switches that error off)",
+            )
     traj_rate = 1.0 / float(np.median(np.diff(traj.t))) if len(traj.t) > 1 else cfg.rate_hz
     step = traj_rate / cfg.rate_hz
     if abs(step - round(step)) > 1e-6 or round(step) < 1:
-        raise SimbenchError("scenario.odometry.rate_hz", f"{cfg.rate_hz:g} Hz does not divide the "
-                            f"{traj_rate:g} Hz trajectory (IMU) rate",
-                            "choose an odometry rate such that imu.rate_hz / scenario.odometry.rate_hz is an integer")
+        raise SimbenchError(
+            "scenario.odometry.rate_hz",
+            f"{cfg.rate_hz:g} Hz does not divide the {traj_rate:g} Hz trajectory (IMU) rate",
+            "choose an odometry rate such that imu.rate_hz / scenario.odometry.rate_hz is an integer",
+        )
     idx = np.arange(0, len(traj.t), int(round(step)))
     idx = idx[traj.valid[idx]]
 
@@ -98,9 +105,14 @@ def simulate_odometry(traj: Trajectory, cfg: OdometryConfig, rng: np.random.Gene
     moving = np.abs(v_x) >= STANDSTILL_MPS
     speed = np.where(moving, (1.0 + scale) * v_x + cfg.speed_sigma_mps * noise[0], 0.0)
     yaw_rate = w_z + bias + cfg.yaw_rate_sigma_rps * noise[1]
-    table = pd.DataFrame({
-        "t": traj.t[idx], "speed": speed, "yaw_rate": yaw_rate,
-        "var_speed": np.full(idx.size, cfg.speed_sigma_mps**2),
-        "var_yaw_rate": np.full(idx.size, cfg.yaw_rate_sigma_rps**2),
-    }, columns=list(ODOMETRY_COLUMNS))
+    table = pd.DataFrame(
+        {
+            "t": traj.t[idx],
+            "speed": speed,
+            "yaw_rate": yaw_rate,
+            "var_speed": np.full(idx.size, cfg.speed_sigma_mps**2),
+            "var_yaw_rate": np.full(idx.size, cfg.yaw_rate_sigma_rps**2),
+        },
+        columns=list(ODOMETRY_COLUMNS),
+    )
     return OdometrySamples(table=table, scale_factor=float(scale), yaw_rate_bias_rps=float(bias))

@@ -4,6 +4,7 @@ Every function takes an explicit :class:`numpy.random.Generator`; the generator
 gives each error source its own stream (see :func:`stream`) so that switching
 one source off does not change the random numbers of the others.
 """
+
 from __future__ import annotations
 
 import zlib
@@ -26,8 +27,9 @@ def stream(seed: int, name: str) -> np.random.Generator:
     return np.random.default_rng([int(seed), zlib.crc32(name.encode())])
 
 
-def gauss_markov(n_steps: int, n_channels: int, sigma: float | np.ndarray, tau_s: float, dt_s: float,
-                 rng: np.random.Generator) -> np.ndarray:
+def gauss_markov(
+    n_steps: int, n_channels: int, sigma: float | np.ndarray, tau_s: float, dt_s: float, rng: np.random.Generator
+) -> np.ndarray:
     """Stationary first-order Gauss-Markov processes, exact discretisation.
 
     ``x[k+1] = a x[k] + sigma sqrt(1 - a^2) w[k]`` with ``a = exp(-dt/tau)``,
@@ -58,8 +60,9 @@ def gauss_markov(n_steps: int, n_channels: int, sigma: float | np.ndarray, tau_s
     return unit * np.asarray(sigma)
 
 
-def random_walk(n_steps: int, n_channels: int, density: float, dt_s: float, rng: np.random.Generator,
-                x0: np.ndarray | float = 0.0) -> np.ndarray:
+def random_walk(
+    n_steps: int, n_channels: int, density: float, dt_s: float, rng: np.random.Generator, x0: np.ndarray | float = 0.0
+) -> np.ndarray:
     """Random walk ``x[k+1] = x[k] + density sqrt(dt) w[k]``.
 
     Parameters
@@ -76,8 +79,9 @@ def random_walk(n_steps: int, n_channels: int, density: float, dt_s: float, rng:
     return np.cumsum(steps, axis=0) + x0
 
 
-def receiver_clock(t_s: np.ndarray, bias0_sigma_s: float, drift0_sigma_sps: float, h0: float, h_2: float,
-                   rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+def receiver_clock(
+    t_s: np.ndarray, bias0_sigma_s: float, drift0_sigma_sps: float, h0: float, h_2: float, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
     """Two-state receiver clock (bias and drift) driven by Allan-variance coefficients.
 
     The standard discretisation (Brown & Hwang) uses the white-frequency
@@ -98,9 +102,13 @@ def receiver_clock(t_s: np.ndarray, bias0_sigma_s: float, drift0_sigma_sps: floa
     n = len(t_s)
     dt = np.diff(t_s, prepend=t_s[0])
     drift = drift0_sigma_sps * rng.standard_normal() + np.cumsum(
-        np.sqrt(2.0 * np.pi**2 * h_2 * dt) * rng.standard_normal(n))
+        np.sqrt(2.0 * np.pi**2 * h_2 * dt) * rng.standard_normal(n)
+    )
     # trapezoidal integration of the drift keeps bias and drift consistent at any rate
     bias_steps = 0.5 * (drift + np.concatenate(([drift[0]], drift[:-1]))) * dt
-    bias = bias0_sigma_s * rng.standard_normal() + np.cumsum(bias_steps) + np.cumsum(
-        np.sqrt(0.5 * h0 * dt) * rng.standard_normal(n))
+    bias = (
+        bias0_sigma_s * rng.standard_normal()
+        + np.cumsum(bias_steps)
+        + np.cumsum(np.sqrt(0.5 * h0 * dt) * rng.standard_normal(n))
+    )
     return bias, drift

@@ -6,13 +6,14 @@ threshold (with some probability per epoch), when PLL jitter exceeds its
 threshold, and at a small Poisson rate; a slip adds a non-zero integer to the
 ambiguity and is flagged by the receiver with a configurable probability.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
 
-from simbench.config import CycleSlipConfig
+from simbench.sim.config import CycleSlipConfig
 
 #: Range of the initial ambiguity of an arc [cycles]; receivers start phase arbitrarily.
 INITIAL_AMBIGUITY_CYCLES = 1_000_000
@@ -28,8 +29,15 @@ class PhaseArcs:
     ambiguity: np.ndarray  #: integer ambiguity [cycles] (int64), meaningful where tracked
 
 
-def phase_arcs(tracked: np.ndarray, cn0_dbhz: np.ndarray, pll_jitter_rad: np.ndarray, cfg: CycleSlipConfig,
-               dt_s: float, rng: np.random.Generator, n_frequencies: int = 1) -> list[PhaseArcs]:
+def phase_arcs(
+    tracked: np.ndarray,
+    cn0_dbhz: np.ndarray,
+    pll_jitter_rad: np.ndarray,
+    cfg: CycleSlipConfig,
+    dt_s: float,
+    rng: np.random.Generator,
+    n_frequencies: int = 1,
+) -> list[PhaseArcs]:
     """Draw arcs, slips and ambiguities for every (epoch, satellite).
 
     Parameters
@@ -69,8 +77,7 @@ def phase_arcs(tracked: np.ndarray, cn0_dbhz: np.ndarray, pll_jitter_rad: np.nda
     for _ in range(n_frequencies):
         magnitude = rng.integers(1, max(cfg.max_jump_cycles, 1) + 1, size=(n, m))
         jumps = np.where(slip, magnitude * rng.choice([-1, 1], size=(n, m)), 0)
-        initial = rng.integers(-INITIAL_AMBIGUITY_CYCLES, INITIAL_AMBIGUITY_CYCLES + 1,
-                               size=(int(arc_id.max()) + 1, m))
+        initial = rng.integers(-INITIAL_AMBIGUITY_CYCLES, INITIAL_AMBIGUITY_CYCLES + 1, size=(int(arc_id.max()) + 1, m))
         cum = np.cumsum(jumps, axis=0)
         # jumps accumulate only within the current arc: subtract the sum reached at its start
         start_row = np.maximum.accumulate(np.where(arc_start, np.arange(n)[:, None], -1), axis=0)

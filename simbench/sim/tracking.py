@@ -9,6 +9,7 @@ stress) turn multipath rays and vehicle dynamics into tracking errors. All
 functions are vectorised over their array arguments; receiver parameters are
 scalars that select the formula.
 """
+
 from __future__ import annotations
 
 import math
@@ -19,8 +20,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.special import sici
 
+from simbench.core.constants import CHIP_LENGTH_CA, CHIP_RATE_CA, DEG, LAMBDA_L1
 from simbench.errors import SimbenchError
-from simbench.sim.constants import CHIP_LENGTH_CA, CHIP_RATE_CA, DEG, LAMBDA_L1
 
 __all__ = [
     "dll_jitter_chips",
@@ -48,11 +49,13 @@ def _positive_scalar(value: float, field: str, unit_scale: float = 1.0, unit: st
     try:
         x = float(value)
     except (TypeError, ValueError):
-        raise SimbenchError(field, f"expected one number, got {value!r}",
-                            "receiver parameters are scalars; see conf/receiver/ for presets") from None
+        raise SimbenchError(
+            field,
+            f"expected one number, got {value!r}",
+            "receiver parameters are scalars; see conf/receiver/ for presets",
+        ) from None
     if not (math.isfinite(x) and x > 0.0):
-        raise SimbenchError(field, f"must be positive, got {x / unit_scale:g}{unit}",
-                            "see conf/receiver/ for presets")
+        raise SimbenchError(field, f"must be positive, got {x / unit_scale:g}{unit}", "see conf/receiver/ for presets")
     return x
 
 
@@ -117,8 +120,11 @@ def dll_jitter_chips(
     bw = _positive_scalar(dll_bw_hz, "receiver.dll_bw_hz", unit=" Hz")
     d = _positive_scalar(spacing_chips, "receiver.correlator_spacing_chips", unit=" chip")
     if d >= 2.0:
-        raise SimbenchError("receiver.correlator_spacing_chips", f"must be below 2 chips, got {d:g}",
-                            "use an early-late spacing such as 0.1-1 chip")
+        raise SimbenchError(
+            "receiver.correlator_spacing_chips",
+            f"must be below 2 chips, got {d:g}",
+            "use an early-late spacing such as 0.1-1 chip",
+        )
     bfe = _positive_scalar(front_end_bw_hz, "receiver.front_end_bw_mhz", 1e6, " MHz")
     t = _positive_scalar(integration_s, "receiver.integration_s", unit=" s")
 
@@ -170,9 +176,7 @@ def dll_jitter_m(
     numpy.ndarray
         1-sigma pseudorange jitter [m].
     """
-    return CHIP_LENGTH_CA * dll_jitter_chips(
-        cn0_dbhz, dll_bw_hz, spacing_chips, front_end_bw_hz, integration_s
-    )
+    return CHIP_LENGTH_CA * dll_jitter_chips(cn0_dbhz, dll_bw_hz, spacing_chips, front_end_bw_hz, integration_s)
 
 
 def pll_jitter_rad(cn0_dbhz: ArrayLike, pll_bw_hz: float, integration_s: float) -> FloatArray:
@@ -427,11 +431,14 @@ def sample_grid_code_error_chips(
     """
     q, grid_drift = _sample_grid(sampling_hz, integration_s)
     bw = _positive_scalar(dll_bw_hz, "receiver.dll_bw_hz", unit=" Hz")
-    sigma_t = dll_jitter_chips(cn0_dbhz, bw, spacing_chips, front_end_bw_hz, integration_s) \
-        / math.sqrt(2.0 * bw * integration_s)
-    x, rate, dither = np.broadcast_arrays(np.asarray(code_phase_chips, dtype=float) / q,
-                                          (np.asarray(code_rate_chips_per_s, dtype=float) + grid_drift) / q,
-                                          -2.0 * math.pi**2 * (sigma_t / q) ** 2)
+    sigma_t = dll_jitter_chips(cn0_dbhz, bw, spacing_chips, front_end_bw_hz, integration_s) / math.sqrt(
+        2.0 * bw * integration_s
+    )
+    x, rate, dither = np.broadcast_arrays(
+        np.asarray(code_phase_chips, dtype=float) / q,
+        (np.asarray(code_rate_chips_per_s, dtype=float) + grid_drift) / q,
+        -2.0 * math.pi**2 * (sigma_t / q) ** 2,
+    )
     turn = np.exp(2j * math.pi * x)
     harmonic = np.ones_like(turn)
     error = np.zeros(x.shape)
@@ -498,8 +505,9 @@ def band_limited_correlation(tau_chips: ArrayLike, front_end_bw_hz: float) -> tu
     return table[i] + frac * (s * _CORR_STEP_CHIPS), np.where((u > 0.0) & (u < len(slope)), s, 0.0)
 
 
-def _composite(x: FloatArray, gain_re: FloatArray, gain_im: FloatArray, delay: FloatArray,
-               bfe: float) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+def _composite(
+    x: FloatArray, gain_re: FloatArray, gain_im: FloatArray, delay: FloatArray, bfe: float
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """Sum over rays (last axis) of ``a e^{j theta} R(x - tau)`` and its slope, as real and imaginary parts."""
     r, dr = band_limited_correlation(x[..., None] - delay, bfe)
     return ((gain_re * r).sum(-1), (gain_im * r).sum(-1), (gain_re * dr).sum(-1), (gain_im * dr).sum(-1))
@@ -561,8 +569,10 @@ def dll_tracking_point(
     def discriminator(x: FloatArray) -> tuple[FloatArray, FloatArray]:
         e_re, e_im, de_re, de_im = _composite(x - half, g_re, g_im, delay, bfe)
         l_re, l_im, dl_re, dl_im = _composite(x + half, g_re, g_im, delay, bfe)
-        return (e_re**2 + e_im**2 - l_re**2 - l_im**2,
-                2.0 * (e_re * de_re + e_im * de_im - l_re * dl_re - l_im * dl_im))
+        return (
+            e_re**2 + e_im**2 - l_re**2 - l_im**2,
+            2.0 * (e_re * de_re + e_im * de_im - l_re * dl_re - l_im * dl_im),
+        )
 
     x0 = np.array(start_chips, dtype=float, copy=True)
     f0, _ = discriminator(x0)
@@ -654,8 +664,9 @@ def pll_dynamic_stress_deg(los_jerk_mps3: ArrayLike, pll_bw_hz: float) -> FloatA
     return 0.4828 * np.abs(np.asarray(los_jerk_mps3, dtype=float)) * (360.0 / LAMBDA_L1) / bw**3
 
 
-def channel_lock_states(acquirable: NDArray[np.bool_], in_lock: NDArray[np.bool_],
-                        acquisition_epochs: int) -> NDArray[np.bool_]:
+def channel_lock_states(
+    acquirable: NDArray[np.bool_], in_lock: NDArray[np.bool_], acquisition_epochs: int
+) -> NDArray[np.bool_]:
     """Which channels are tracked: hysteresis between acquisition and loss of lock, vectorised.
 
     Along axis 0 (epochs), a channel enters tracking once ``acquirable`` has

@@ -20,6 +20,7 @@ are exact rather than numerical:
   tangent plane at the origin: the ellipsoidal height rises by r^2 / (2 R)
   (3 cm at 600 m from the origin).
 """
+
 from __future__ import annotations
 
 import cmath
@@ -30,12 +31,8 @@ import numpy as np
 from scipy.interpolate import BSpline, CubicSpline, make_smoothing_spline
 from scipy.special import fresnel
 
-from simbench.config import (FlightConfig, HeightDistribution, NlosConfig, ReplayConfig, TrajectoryConfig,
-                             UrbanDriveConfig)
-from simbench.data.trajectory_file import REPLAY_PATH_FIELD, read_xyz_trajectory
-from simbench.errors import SimbenchError
-from simbench.sim.constants import DEG, G0_STD, WGS84_A, WGS84_E2
-from simbench.sim.frames import (
+from simbench.core.constants import DEG, G0_STD, WGS84_A, WGS84_E2
+from simbench.core.frames import (
     dcm_body_to_ned,
     dcm_body_to_ned_from_trig,
     dcm_ned_to_ecef,
@@ -45,6 +42,16 @@ from simbench.sim.frames import (
     geodetic_from_ecef,
     geodetic_trig,
 )
+from simbench.errors import SimbenchError
+from simbench.sim.config import (
+    FlightConfig,
+    HeightDistribution,
+    NlosConfig,
+    ReplayConfig,
+    TrajectoryConfig,
+    UrbanDriveConfig,
+)
+from simbench.sim.trajectory_file import REPLAY_PATH_FIELD, read_xyz_trajectory
 
 #: A smoothstep speed change of dv over T seconds peaks at 1.5 dv / T.
 _SMOOTHSTEP_PEAK = 1.5
@@ -137,12 +144,19 @@ class Trajectory:
 # =========================================================================== frames
 
 
-def _euler_rates_to_body(sr: np.ndarray, cr: np.ndarray, sp: np.ndarray, cp: np.ndarray, roll_dot: np.ndarray,
-                         pitch_dot: np.ndarray, yaw_dot: np.ndarray) -> np.ndarray:
+def _euler_rates_to_body(
+    sr: np.ndarray,
+    cr: np.ndarray,
+    sp: np.ndarray,
+    cp: np.ndarray,
+    roll_dot: np.ndarray,
+    pitch_dot: np.ndarray,
+    yaw_dot: np.ndarray,
+) -> np.ndarray:
     """Body angular rate [rad/s] from sin/cos of roll and pitch and the z-y-x Euler rates [rad/s]."""
-    return np.stack([roll_dot - yaw_dot * sp,
-                     pitch_dot * cr + yaw_dot * sr * cp,
-                     -pitch_dot * sr + yaw_dot * cr * cp], axis=-1)
+    return np.stack(
+        [roll_dot - yaw_dot * sp, pitch_dot * cr + yaw_dot * sr * cp, -pitch_dot * sr + yaw_dot * cr * cp], axis=-1
+    )
 
 
 # =========================================================================== path geometry
@@ -233,8 +247,9 @@ class _PathBuilder:
 
     def build(self) -> _Path:
         s0, length, z0, h0, k0, dk, tag = zip(*self._rows)
-        return _Path(np.array(s0), np.array(length), np.array(z0), np.array(h0), np.array(k0),
-                     np.array(dk), np.array(tag))
+        return _Path(
+            np.array(s0), np.array(length), np.array(z0), np.array(h0), np.array(k0), np.array(dk), np.array(tag)
+        )
 
 
 def _eval_path(path: _Path, s: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -251,8 +266,9 @@ def _eval_path(path: _Path, s: np.ndarray) -> tuple[np.ndarray, ...]:
 # v = v0 + dv S(tau), S = 3 tau^2 - 2 tau^3, tau = (t - t0) / T. Holds have dv = 0.
 
 
-def _plan_speed(kp_s: np.ndarray, kp_u: np.ndarray, kp_stop_s: np.ndarray, cap: np.ndarray,
-                a_max: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _plan_speed(
+    kp_s: np.ndarray, kp_u: np.ndarray, kp_stop_s: np.ndarray, cap: np.ndarray, a_max: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Fastest smoothstep profile through keypoints with speed caps and stops.
 
     Parameters
@@ -304,8 +320,9 @@ def _drop_empty(T: np.ndarray, v0: np.ndarray, dv: np.ndarray) -> tuple[np.ndarr
     return T[keep], v0[keep], dv[keep]
 
 
-def _eval_speed(T: np.ndarray, v0: np.ndarray, dv: np.ndarray,
-                t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _eval_speed(
+    T: np.ndarray, v0: np.ndarray, dv: np.ndarray, t: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Distance [m], speed [m/s] and acceleration [m/s^2] of a phase list at times t [s].
 
     Beyond the last phase the final speed is held.
@@ -327,21 +344,38 @@ def _eval_speed(T: np.ndarray, v0: np.ndarray, dv: np.ndarray,
 
 def _time_grid(duration_s: float, rate_hz: float) -> np.ndarray:
     if not duration_s > 0.0:
-        raise SimbenchError("scenario.duration_s", f"must be positive, got {duration_s}",
-                            "give the scenario length in seconds, e.g. scenario.duration_s=600")
+        raise SimbenchError(
+            "scenario.duration_s",
+            f"must be positive, got {duration_s}",
+            "give the scenario length in seconds, e.g. scenario.duration_s=600",
+        )
     if not rate_hz > 0.0:
         raise SimbenchError("imu.rate_hz", f"must be positive, got {rate_hz}", "set e.g. imu.rate_hz=100")
     k = int(round(duration_s * rate_hz))
     if k < 2:
-        raise SimbenchError("scenario.duration_s", f"{duration_s} s gives fewer than 2 samples at {rate_hz} Hz",
-                            "use a longer duration")
+        raise SimbenchError(
+            "scenario.duration_s", f"{duration_s} s gives fewer than 2 samples at {rate_hz} Hz", "use a longer duration"
+        )
     return np.arange(k) / rate_hz
 
 
-def _assemble_local(cfg: TrajectoryConfig, t: np.ndarray, z: np.ndarray, up: np.ndarray, yaw: np.ndarray,
-                    v_h: np.ndarray, a_h: np.ndarray, kappa: np.ndarray, v_u: np.ndarray, a_u: np.ndarray,
-                    roll: np.ndarray, roll_dot: np.ndarray, pitch: np.ndarray, pitch_dot: np.ndarray,
-                    street: StreetGeometry | None) -> Trajectory:
+def _assemble_local(
+    cfg: TrajectoryConfig,
+    t: np.ndarray,
+    z: np.ndarray,
+    up: np.ndarray,
+    yaw: np.ndarray,
+    v_h: np.ndarray,
+    a_h: np.ndarray,
+    kappa: np.ndarray,
+    v_u: np.ndarray,
+    a_u: np.ndarray,
+    roll: np.ndarray,
+    roll_dot: np.ndarray,
+    pitch: np.ndarray,
+    pitch_dot: np.ndarray,
+    street: StreetGeometry | None,
+) -> Trajectory:
     """Trajectory from a path in the origin's NED frame (NED0, Earth-fixed).
 
     Attitude angles and rates are given w.r.t. NED0, where the Euler-rate relation
@@ -379,8 +413,9 @@ _DI = (0, 1, 0, -1)  #: grid column change per direction (east index)
 _DJ = (1, 0, -1, 0)  #: grid row change per direction (north index)
 
 
-def urban_drive(cfg: TrajectoryConfig, nlos: NlosConfig, duration_s: float, rate_hz: float,
-                rng: np.random.Generator) -> Trajectory:
+def urban_drive(
+    cfg: TrajectoryConfig, nlos: NlosConfig, duration_s: float, rate_hz: float, rng: np.random.Generator
+) -> Trajectory:
     """Drive through a rectangular street grid centred on the origin.
 
     At every intersection the car goes straight or turns left or right
@@ -420,11 +455,17 @@ def urban_drive(cfg: TrajectoryConfig, nlos: NlosConfig, duration_s: float, rate
     for name in ("block_length_m", "cruise_speed_mps", "turn_speed_mps", "max_accel_mps2", "turn_radius_m"):
         _positive(getattr(u, name), f"{where}.{name}", "see conf/scenario/ for typical values")
     if u.n_blocks_east < 1 or u.n_blocks_north < 1:
-        raise SimbenchError(f"{where}.n_blocks_east", "the grid needs at least one block each way",
-                            "set n_blocks_east and n_blocks_north >= 1")
+        raise SimbenchError(
+            f"{where}.n_blocks_east",
+            "the grid needs at least one block each way",
+            "set n_blocks_east and n_blocks_north >= 1",
+        )
     if min(u.stop_duration_s) < 0.0 or u.start_static_s < 0.0:
-        raise SimbenchError(f"{where}.stop_duration_s", "durations must be non-negative",
-                            "give e.g. stop_duration_s=[5, 30] and start_static_s=30")
+        raise SimbenchError(
+            f"{where}.stop_duration_s",
+            "durations must be non-negative",
+            "give e.g. stop_duration_s=[5, 30] and start_static_s=30",
+        )
     _check_buildings(nlos)
 
     L, R = u.block_length_m, u.turn_radius_m
@@ -434,8 +475,11 @@ def urban_drive(cfg: TrajectoryConfig, nlos: NlosConfig, duration_s: float, rate
     tangent = corner.z.real  # vertex to turn start; equals corner.z.imag by symmetry
     turn_len = corner.s
     if 2.0 * tangent >= L:
-        raise SimbenchError(f"{where}.turn_radius_m", f"corners of radius {R} m need blocks longer than "
-                            f"{2 * tangent:.1f} m", "reduce turn_radius_m or increase block_length_m")
+        raise SimbenchError(
+            f"{where}.turn_radius_m",
+            f"corners of radius {R} m need blocks longer than {2 * tangent:.1f} m",
+            "reduce turn_radius_m or increase block_length_m",
+        )
     v_cruise = u.cruise_speed_mps
     v_turn = min(u.turn_speed_mps, v_cruise)
 
@@ -521,7 +565,8 @@ def urban_drive(cfg: TrajectoryConfig, nlos: NlosConfig, duration_s: float, rate
         wall_left_m=np.maximum(dl + rel.imag, _MIN_WALL_DISTANCE_M),
         wall_right_m=np.maximum(dr - rel.imag, _MIN_WALL_DISTANCE_M),
         height_left_m=np.where(to_crossing < dl, 0.0, hl),
-        height_right_m=np.where(to_crossing < dr, 0.0, hr))
+        height_right_m=np.where(to_crossing < dr, 0.0, hr),
+    )
     zero = np.zeros_like(t)
     return _assemble_local(cfg, t, z, zero, heading, v, a, kappa, zero, zero, zero, zero, zero, zero, street)
 
@@ -558,15 +603,24 @@ def block_sides(nlos: NlosConfig, shape: tuple[int, ...], rng: np.random.Generat
 
 def _check_buildings(nlos: NlosConfig) -> None:
     if min(nlos.wall_distance_m) <= 0.0 or min(nlos.building_height_m) < 0.0:
-        raise SimbenchError("scenario.errors.nlos.wall_distance_m", "facade distances must be positive "
-                            "and heights non-negative", "give e.g. wall_distance_m=[8, 20]")
+        raise SimbenchError(
+            "scenario.errors.nlos.wall_distance_m",
+            "facade distances must be positive and heights non-negative",
+            "give e.g. wall_distance_m=[8, 20]",
+        )
     if nlos.height_distribution == HeightDistribution.rayleigh:
-        _positive(nlos.building_height_scale_m, "scenario.errors.nlos.building_height_scale_m",
-                  "set e.g. building_height_scale_m=50 (ITU-R P.1410 high-rise)")
+        _positive(
+            nlos.building_height_scale_m,
+            "scenario.errors.nlos.building_height_scale_m",
+            "set e.g. building_height_scale_m=50 (ITU-R P.1410 high-rise)",
+        )
     low, high = nlos.reflector_beyond_m
     if not 0.0 <= low <= high:
-        raise SimbenchError("scenario.errors.nlos.reflector_beyond_m", f"needs 0 <= low <= high, got [{low}, {high}]",
-                            "give e.g. reflector_beyond_m=[0, 100], or [0, 0] for the far facade")
+        raise SimbenchError(
+            "scenario.errors.nlos.reflector_beyond_m",
+            f"needs 0 <= low <= high, got [{low}, {high}]",
+            "give e.g. reflector_beyond_m=[0, 100], or [0, 0] for the far facade",
+        )
 
 
 def roadside_street(traj: Trajectory, nlos: NlosConfig, rng: np.random.Generator) -> StreetGeometry:
@@ -598,9 +652,13 @@ def roadside_street(traj: Trajectory, nlos: NlosConfig, rng: np.random.Generator
     segment = (travelled // nlos.roadside_segment_m).astype(np.int64)
     n_seg = int(segment[-1]) + 1
     dist, height = block_sides(nlos, (n_seg, 2), rng)
-    return StreetGeometry(road_heading_rad=traj.att[:, 2] % (2 * np.pi),
-                          wall_left_m=dist[segment, 0], wall_right_m=dist[segment, 1],
-                          height_left_m=height[segment, 0], height_right_m=height[segment, 1])
+    return StreetGeometry(
+        road_heading_rad=traj.att[:, 2] % (2 * np.pi),
+        wall_left_m=dist[segment, 0],
+        wall_right_m=dist[segment, 1],
+        height_left_m=height[segment, 0],
+        height_right_m=height[segment, 1],
+    )
 
 
 # =========================================================================== flight
@@ -641,19 +699,28 @@ def flight(cfg: TrajectoryConfig, duration_s: float, rate_hz: float, rng: np.ran
         _positive(getattr(f, name), f"{where}.{name}", "see conf/scenario/flight.yaml")
     v, R, H, climb = f.airspeed_mps, f.turn_radius_m, f.cruise_altitude_m, f.climb_rate_mps
     if f.start_static_s < 0.0:
-        raise SimbenchError(f"{where}.start_static_s", f"must be non-negative, got {f.start_static_s}",
-                            "give the time on the ground before take-off, e.g. 30")
+        raise SimbenchError(
+            f"{where}.start_static_s",
+            f"must be non-negative, got {f.start_static_s}",
+            "give the time on the ground before take-off, e.g. 30",
+        )
     if H < climb * CLIMB_TRANSITION_S:
-        raise SimbenchError(f"{where}.cruise_altitude_m", f"{H} m is too low for a {climb} m/s climb",
-                            f"use at least {climb * CLIMB_TRANSITION_S:.0f} m")
+        raise SimbenchError(
+            f"{where}.cruise_altitude_m",
+            f"{H} m is too low for a {climb} m/s climb",
+            f"use at least {climb * CLIMB_TRANSITION_S:.0f} m",
+        )
 
     # speeds: ground roll then constant airspeed; vertical speed: ramp up, hold, ramp down
     t_roll = _SMOOTHSTEP_PEAK * v / TAKEOFF_ACCEL_MPS2
     speed = (np.array([f.start_static_s, t_roll]), np.array([0.0, 0.0]), np.array([0.0, v]))
     t_liftoff = f.start_static_s + t_roll
     t_hold = H / climb - CLIMB_TRANSITION_S
-    vert = (np.array([t_liftoff, CLIMB_TRANSITION_S, t_hold, CLIMB_TRANSITION_S]),
-            np.array([0.0, 0.0, climb, climb]), np.array([0.0, climb, 0.0, -climb]))
+    vert = (
+        np.array([t_liftoff, CLIMB_TRANSITION_S, t_hold, CLIMB_TRANSITION_S]),
+        np.array([0.0, 0.0, climb, climb]),
+        np.array([0.0, climb, 0.0, -climb]),
+    )
     speed, vert = _drop_empty(*speed), _drop_empty(*vert)
 
     clothoid = min(v * ROLL_IN_S, 0.5 * math.pi * R)
@@ -662,8 +729,11 @@ def flight(cfg: TrajectoryConfig, duration_s: float, rate_hz: float, rng: np.ran
     fig8.turn(-2 * math.pi, R, clothoid, 0, 0)
     drift = fig8.z.real  # the figure eight moves the aircraft along its heading; the next leg makes up for it
     if f.leg_length_m <= drift:
-        raise SimbenchError(f"{where}.leg_length_m", f"must exceed {drift:.0f} m for this turn radius",
-                            "increase leg_length_m or reduce turn_radius_m")
+        raise SimbenchError(
+            f"{where}.leg_length_m",
+            f"must exceed {drift:.0f} m for this turn radius",
+            "increase leg_length_m or reduce turn_radius_m",
+        )
     first_leg = max(f.leg_length_m, 0.5 * v * t_roll + v * (H / climb + CLIMB_TRANSITION_S + LEVEL_OFF_MARGIN_S))
     path = _PathBuilder(0j, float(rng.uniform(0.0, 2.0 * math.pi)))
     path.add(first_leg, 0.0, 0)
@@ -694,8 +764,7 @@ def flight(cfg: TrajectoryConfig, duration_s: float, rate_hz: float, rng: np.ran
     speed2 = v_h * v_h + v_u * v_u
     pitch = np.arctan2(v_u, v_h)
     pitch_dot = np.where(speed2 > 0.0, (v_h * a_u - v_u * a_h) / np.where(speed2 > 0.0, speed2, 1.0), 0.0)
-    return _assemble_local(cfg, t, z, up, heading, v_h, a_h, kappa, v_u, a_u, roll, roll_dot, pitch, pitch_dot,
-                           None)
+    return _assemble_local(cfg, t, z, up, heading, v_h, a_h, kappa, v_u, a_u, roll, roll_dot, pitch, pitch_dot, None)
 
 
 # =========================================================================== replay
@@ -744,8 +813,9 @@ def replay(cfg: ReplayConfig, rate_hz: float, duration_s: float | None = None) -
     if not rate_hz > 0.0:
         raise SimbenchError("imu.rate_hz", f"must be positive, got {rate_hz}", "set e.g. imu.rate_hz=100")
     if not cfg.max_gap_s > 0.0:
-        raise SimbenchError("scenario.trajectory.replay.max_gap_s", f"must be positive, got {cfg.max_gap_s}",
-                            "set e.g. max_gap_s=2")
+        raise SimbenchError(
+            "scenario.trajectory.replay.max_gap_s", f"must be positive, got {cfg.max_gap_s}", "set e.g. max_gap_s=2"
+        )
     data = read_xyz_trajectory(cfg.path)
     sow, xyz = data[:, 0], data[:, 1:]
     t0_sow = math.ceil(sow[0] * rate_hz - 1e-6) / rate_hz
@@ -754,8 +824,11 @@ def replay(cfg: ReplayConfig, rate_hz: float, duration_s: float | None = None) -
     if duration_s is not None:
         k = min(k, int(round(duration_s * rate_hz)))
     if k < 2:
-        raise SimbenchError(REPLAY_PATH_FIELD, f"'{cfg.path}' spans less than two samples at {rate_hz} Hz",
-                            "use a longer record or a higher rate")
+        raise SimbenchError(
+            REPLAY_PATH_FIELD,
+            f"'{cfg.path}' spans less than two samples at {rate_hz} Hz",
+            "use a longer record or a higher rate",
+        )
     t = np.arange(k) / rate_hz
     tol = 1e-6 / rate_hz
 
@@ -773,8 +846,11 @@ def replay(cfg: ReplayConfig, rate_hz: float, duration_s: float | None = None) -
         pos[sel], vel[sel], acc[sel] = spline(ts), spline(ts, 1), spline(ts, 2)
         valid[sel] = True
     if not valid.any():
-        raise SimbenchError(REPLAY_PATH_FIELD, f"'{cfg.path}' has no two epochs closer than max_gap_s",
-                            "raise scenario.trajectory.replay.max_gap_s")
+        raise SimbenchError(
+            REPLAY_PATH_FIELD,
+            f"'{cfg.path}' has no two epochs closer than max_gap_s",
+            "raise scenario.trajectory.replay.max_gap_s",
+        )
     _bridge_gaps(t, pos, vel, acc, valid)
     att, omega = _attitude_from_velocity(t, pos, vel, acc, int(math.ceil(MIN_MOVING_S * rate_hz)))
     return Trajectory(t=t, pos=pos, vel=vel, acc=acc, att=att, omega_eb_b=omega, valid=valid), t0_sow
@@ -834,10 +910,15 @@ def _bridge_gaps(t: np.ndarray, pos: np.ndarray, vel: np.ndarray, acc: np.ndarra
         h = (t[i1] - t[i0])[:, None]
         x = (t[both] - t[i0])[:, None] / h
         p0, p1, m0, m1 = pos[i0], pos[i1], vel[i0] * h, vel[i1] * h
-        pos[both] = ((2 * x**3 - 3 * x**2 + 1) * p0 + (x**3 - 2 * x**2 + x) * m0
-                     + (-2 * x**3 + 3 * x**2) * p1 + (x**3 - x**2) * m1)
-        vel[both] = ((6 * x**2 - 6 * x) * p0 + (3 * x**2 - 4 * x + 1) * m0
-                     + (-6 * x**2 + 6 * x) * p1 + (3 * x**2 - 2 * x) * m1) / h
+        pos[both] = (
+            (2 * x**3 - 3 * x**2 + 1) * p0
+            + (x**3 - 2 * x**2 + x) * m0
+            + (-2 * x**3 + 3 * x**2) * p1
+            + (x**3 - x**2) * m1
+        )
+        vel[both] = (
+            (6 * x**2 - 6 * x) * p0 + (3 * x**2 - 4 * x + 1) * m0 + (-6 * x**2 + 6 * x) * p1 + (3 * x**2 - 2 * x) * m1
+        ) / h
         acc[both] = ((12 * x - 6) * p0 + (6 * x - 4) * m0 + (-12 * x + 6) * p1 + (6 * x - 2) * m1) / h**2
     lead = gap & (prev < 0)
     tail = gap & (nxt >= len(t))
@@ -845,8 +926,9 @@ def _bridge_gaps(t: np.ndarray, pos: np.ndarray, vel: np.ndarray, acc: np.ndarra
     pos[tail], vel[tail], acc[tail] = pos[prev[tail]], 0.0, 0.0
 
 
-def _attitude_from_velocity(t: np.ndarray, pos: np.ndarray, vel: np.ndarray, acc: np.ndarray,
-                            min_moving: int) -> tuple[np.ndarray, np.ndarray]:
+def _attitude_from_velocity(
+    t: np.ndarray, pos: np.ndarray, vel: np.ndarray, acc: np.ndarray, min_moving: int
+) -> tuple[np.ndarray, np.ndarray]:
     """Roll 0, yaw and pitch along the direction of travel in local NED, and the exact omega_eb_b.
 
     The course is followed only within runs of at least ``min_moving`` samples
@@ -881,16 +963,26 @@ def _attitude_from_velocity(t: np.ndarray, pos: np.ndarray, vel: np.ndarray, acc
         sign = np.where(moving, _run_directions(np.arctan2(ve, vn), vh, starts, ends)[np.maximum(run, 0)], 1.0)
         vh_safe = np.where(moving, vh, 1.0)
         ah = (vn * an + ve * ae) / vh_safe
-        yaw, yaw_dot = _turn_between_runs(t, moving, np.arctan2(sign * ve, sign * vn),
-                                          np.where(moving, (vn * ae - ve * an) / vh_safe**2, 0.0), wrap=True)
-        pitch, pitch_dot = _turn_between_runs(t, moving, np.arctan2(-sign * vd, vh),
-                                              np.where(moving, sign * (-vh * ad + vd * ah) / (vh_safe**2 + vd * vd),
-                                                       0.0), wrap=False)
+        yaw, yaw_dot = _turn_between_runs(
+            t,
+            moving,
+            np.arctan2(sign * ve, sign * vn),
+            np.where(moving, (vn * ae - ve * an) / vh_safe**2, 0.0),
+            wrap=True,
+        )
+        pitch, pitch_dot = _turn_between_runs(
+            t,
+            moving,
+            np.arctan2(-sign * vd, vh),
+            np.where(moving, sign * (-vh * ad + vd * ah) / (vh_safe**2 + vd * vd), 0.0),
+            wrap=False,
+        )
     att = np.stack([np.zeros_like(yaw), pitch, yaw], axis=-1)
     c_b_n = dcm_body_to_ned(att)
     zero, one = np.zeros_like(yaw), np.ones_like(yaw)
-    omega = np.einsum("kji,kj->ki", c_b_n, w_en) + _euler_rates_to_body(zero, one, np.sin(pitch), np.cos(pitch),
-                                                                         zero, pitch_dot, yaw_dot)
+    omega = np.einsum("kji,kj->ki", c_b_n, w_en) + _euler_rates_to_body(
+        zero, one, np.sin(pitch), np.cos(pitch), zero, pitch_dot, yaw_dot
+    )
     return att, omega
 
 
@@ -920,8 +1012,9 @@ def _run_directions(course: np.ndarray, speed: np.ndarray, starts: np.ndarray, e
     return np.where(reverse, -1.0, 1.0)
 
 
-def _turn_between_runs(t: np.ndarray, moving: np.ndarray, angle: np.ndarray, rate: np.ndarray,
-                       wrap: bool) -> tuple[np.ndarray, np.ndarray]:
+def _turn_between_runs(
+    t: np.ndarray, moving: np.ndarray, angle: np.ndarray, rate: np.ndarray, wrap: bool
+) -> tuple[np.ndarray, np.ndarray]:
     """Fill the samples outside the runs: a smoothstep turn between runs, held before the first and after the last.
 
     Parameters

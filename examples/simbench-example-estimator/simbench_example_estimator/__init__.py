@@ -7,6 +7,7 @@ and part of the default run and the sweeps. Its parameters are :class:`HuberSppC
 (``estimator.huber_spp.huber_k=2`` on the command line); ``huber_spp.yaml`` beside
 this file may override their defaults.
 """
+
 from __future__ import annotations
 
 import time
@@ -20,11 +21,11 @@ from estimators.base import Estimator, solution_frame
 from estimators.measurement import prepare_ppp
 from estimators.ppp_config import MeasurementMode
 from simbench.contract import ReceiverData
+from simbench.core.frames import geodetic_from_ecef
 from simbench.errors import require_positive
 from simbench.gnss.geometry import sagnac_range
 from simbench.gnss.spp import solve_epochs
 from simbench.gnss.troposphere import troposphere_terms
-from simbench.sim.frames import geodetic_from_ecef
 
 
 @dataclass
@@ -47,19 +48,35 @@ class HuberSpp(Estimator):
 
     def _estimate(self, data: ReceiverData) -> tuple[pd.DataFrame, dict[str, Any]]:
         start, cfg = time.perf_counter(), self.config
-        obs = prepare_ppp(data, ionosphere_free=False, code_sigma_m=cfg.code_sigma_m, phase_sigma_m=1.0,
-                          elevation_mask_deg=cfg.elevation_mask_deg, measurements=MeasurementMode.code)
-        rows = dict(epoch=obs.epoch, sat_pos=obs.sat_pos, code=obs.code, n_epochs=int(obs.epoch_ids.max()) + 1,
-                    system_index=obs.system_index, el=obs.el, doy=obs.doy)
+        obs = prepare_ppp(
+            data,
+            ionosphere_free=False,
+            code_sigma_m=cfg.code_sigma_m,
+            phase_sigma_m=1.0,
+            elevation_mask_deg=cfg.elevation_mask_deg,
+            measurements=MeasurementMode.code,
+        )
+        rows = dict(
+            epoch=obs.epoch,
+            sat_pos=obs.sat_pos,
+            code=obs.code,
+            n_epochs=int(obs.epoch_ids.max()) + 1,
+            system_index=obs.system_index,
+            el=obs.el,
+            doy=obs.doy,
+        )
         sol = solve_epochs(sigma=obs.sigma_code, **rows)
         for _ in range(cfg.reweightings):
             # rows of epochs without a trusted fit (position NaN) keep their plain weight
             ok = sol.trusted[obs.epoch]
             at = sol.pos[obs.epoch[ok]]
             lat, _, h = geodetic_from_ecef(at)
-            residual = (obs.code[ok] - sagnac_range(obs.sat_pos[ok], at)
-                        - sol.clock_m[obs.epoch[ok], obs.system_index[ok]]
-                        - troposphere_terms(obs.el[ok], lat, h, obs.doy)[0])
+            residual = (
+                obs.code[ok]
+                - sagnac_range(obs.sat_pos[ok], at)
+                - sol.clock_m[obs.epoch[ok], obs.system_index[ok]]
+                - troposphere_terms(obs.el[ok], lat, h, obs.doy)[0]
+            )
             # Huber weight min(1, k/|z|) as an inflated sigma: sigma / sqrt(weight)
             sigma = obs.sigma_code.copy()
             sigma[ok] *= np.sqrt(np.maximum(1.0, np.abs(residual) / obs.sigma_code[ok] / cfg.huber_k))

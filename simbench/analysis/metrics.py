@@ -1,0 +1,136 @@
+"""Scoring: per-epoch ENU error against truth, summary statistics, ECDF.
+
+Errors are taken relative to the true antenna position in the local
+east-north-up frame at that position, without any alignment (dissertation
+scoring); horizontal error is sqrt(dE^2 + dN^2) ("RSOS").
+
+Statistics "over reference epochs" count every epoch that has truth, solved
+or not: an unsolved epoch is a missed epoch with an infinite error. So an
+estimator that skips hard epochs is never rewarded for it: its ECDF ends at
+its availability instead of 1, and a percentile above its availability does
+not exist (``inf``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pymap3d
+from scipy import stats
+
+from simbench.errors import SimbenchError
+
+
+def enu_errors(solution: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
+    """Per-epoch east, north, up, horizontal and 3-D error [m].
+
+    Parameters
+    ----------
+    solution : pandas.DataFrame
+        Columns ``epoch, x, y, z`` (ECEF metres), plus any others (kept).
+    truth : pandas.DataFrame
+        Columns ``epoch, x, y, z``.
+
+    Returns
+    -------
+    pandas.DataFrame
+        The solution rows that have a truth epoch, with ``e, n, u, horizontal, error_3d`` added.
+    """
+    merged = solution.merge(truth[["epoch", "x", "y", "z"]], on="epoch", suffixes=("", "_true"))
+    lat, lon, _ = pymap3d.ecef2geodetic(
+        merged["x_true"].to_numpy(), merged["y_true"].to_numpy(), merged["z_true"].to_numpy()
+    )
+    d = [merged[c].to_numpy() - merged[f"{c}_true"].to_numpy() for c in ("x", "y", "z")]
+    e, n, u = pymap3d.ecef2enuv(d[0], d[1], d[2], lat, lon)
+    out = merged.drop(columns=["x_true", "y_true", "z_true"])
+    out["e"], out["n"], out["u"] = e, n, u
+    out["horizontal"] = np.hypot(e, n)
+    out["error_3d"] = np.sqrt(e * e + n * n + u * u)
+    return out
+
+
+def summary_stats(values: np.ndarray, prefix: str) -> dict[str, float]:
+    """Median, mean, variance, standard deviation, p95 and max of an error series [m, m^2].
+
+    NaNs are ignored; an empty series gives NaN statistics.
+    """
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return {f"{prefix}_{k}": np.nan for k in ("median", "mean", "var", "std", "p95", "max")}
+    return {
+        f"{prefix}_median": float(np.median(v)),
+        f"{prefix}_mean": float(v.mean()),
+        f"{prefix}_var": float(v.var()),
+        f"{prefix}_std": float(v.std()),
+        f"{prefix}_p95": float(np.percentile(v, 95)),
+        f"{prefix}_max": float(v.max()),
+    }
+
+
+def ecdf(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Empirical CDF (scipy.stats.ecdf): sorted unique values and their probabilities."""
+    v = np.asarray(values, float)
+    res = stats.ecdf(v[np.isfinite(v)])
+    return res.cdf.quantiles, res.cdf.probabilities
+
+
+def reference_ecdf(values: np.ndarray, n_reference: int) -> tuple[np.ndarray, np.ndarray]:
+    """ECDF over all reference epochs: sorted errors and the fraction of reference epochs at or below each.
+
+    Parameters
+    ----------
+    values : numpy.ndarray
+        Errors of the solved epochs [m]; non-finite values count as unsolved.
+    n_reference : int
+        Reference epochs (epochs with truth) the errors were taken from, solved or not.
+
+    Returns
+    -------
+    x, p : numpy.ndarray
+        Sorted unique errors [m] and fractions; ``p[-1]`` is the availability
+        (solved / reference epochs), below 1 when epochs were missed.
+    """
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    _check_reference(v.size, n_reference)
+    if v.size == 0:
+        return np.empty(0), np.empty(0)
+    x, p = ecdf(v)
+    return x, p * (v.size / n_reference)
+
+
+def reference_percentile(values: np.ndarray, n_reference: int, q: float) -> float:
+    """The ``q``-th percentile over all reference epochs, an unsolved epoch counting as an infinite error [m].
+
+    The smallest error ``x`` whose ECDF over reference epochs (:func:`reference_ecdf`)
+    reaches ``q`` % (NumPy's ``inverted_cdf``): ``inf`` when the availability is
+    below ``q`` %, NaN when there are no reference epochs.
+    """
+    v = np.asarray(values, float)
+    v = np.sort(v[np.isfinite(v)])
+    _check_reference(v.size, n_reference)
+    if n_reference == 0:
+        return np.nan
+    rank = max(int(np.ceil(q / 100.0 * n_reference - 1e-9)), 1)  # 1-based; tolerance for q * n in floats
+    return float(v[rank - 1]) if rank <= v.size else np.inf
+
+
+def reference_stats(values: np.ndarray, n_reference: int, prefix: str) -> dict[str, float]:
+    """Median and p95 over all reference epochs (:func:`reference_percentile`) [m].
+
+    Keys ``{prefix}_median_ref`` and ``{prefix}_p95_ref``.
+    """
+    return {
+        f"{prefix}_median_ref": reference_percentile(values, n_reference, 50.0),
+        f"{prefix}_p95_ref": reference_percentile(values, n_reference, 95.0),
+    }
+
+
+def _check_reference(n_solved: int, n_reference: int) -> None:
+    if n_reference < n_solved:
+        raise SimbenchError(
+            "n_reference",
+            f"is {n_reference}, fewer than the {n_solved} solved epochs",
+            "pass the number of epochs with truth the errors were taken from",
+        )

@@ -1,0 +1,280 @@
+"""Statistics tables over seeds: bootstrap confidence intervals and paired comparisons.
+
+A group is one (sweep, scenario, receiver); within it every estimator saw the
+same seeds' data, so comparisons are paired by seed. Variants are told apart
+by the structured ``overrides`` column; ``variant`` is carried along as their label.
+Every table carries the availability (solved / reference epochs) beside its
+errors; the percentiles ``*_ref`` are over all reference epochs
+(:func:`simbench.analysis.metrics.reference_percentile`), so skipping hard epochs is not rewarded.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+from simbench.analysis.claims import BOOTSTRAP_RESAMPLES, CONFIDENCE, CONVERGENCE_S, ratio_of_means
+from simbench.analysis.published import DRIVE_MEDIANS_BY_SWEEP, DRIVE_MEDIANS_M, DRIVE_SCENARIOS, PUBLISHED_FAMILY
+from simbench.analysis.variants import NO_OVERRIDES, is_default
+from simbench.sim.config import ScenarioSource
+
+#: Columns that identify a variant of an estimator: the structured overrides and their label.
+VARIANT = ["overrides", "variant"]
+
+GROUP = ["sweep", "scenario", "receiver"]
+
+#: How a real log's format is named in labels.
+SOURCE_NAMES = {ScenarioSource.rinex: "RINEX", ScenarioSource.librsf: "libRSF"}
+
+
+def data_source(source: str | None) -> ScenarioSource:
+    """The ``source`` column's value as a choice; a missing one (results from before the column) is simulated."""
+    return ScenarioSource(source if isinstance(source, str) and source else ScenarioSource.simulated.value)
+
+
+def data_label(scenario: str, receiver: str, source: str | None) -> str:
+    """What a group's data are, for titles and tables.
+
+    A simulated scenario is named with its receiver preset (``urban, low
+    receiver``); a real log by its source (``hk_tst_2019 (real log, RINEX)``),
+    since the receiver preset of the config says nothing about it.
+    """
+    kind = data_source(source)
+    if kind == ScenarioSource.simulated:
+        return f"{scenario}, {receiver} receiver"
+    return f"{scenario} (real log, {SOURCE_NAMES[kind]})"
+
+
+def _mean_ci(values: np.ndarray) -> tuple[float, float, float]:
+    values = values[np.isfinite(values)]
+    if len(values) == 0:
+        return np.nan, np.nan, np.nan
+    if len(values) < 3 or np.ptp(values) == 0:
+        return float(values.mean()), np.nan, np.nan
+    res = stats.bootstrap(
+        (values,),
+        np.mean,
+        n_resamples=BOOTSTRAP_RESAMPLES,
+        confidence_level=CONFIDENCE,
+        method="percentile",
+        random_state=np.random.default_rng(0),
+    )
+    return float(values.mean()), float(res.confidence_interval.low), float(res.confidence_interval.high)
+
+
+def _mean_ci_ref(values: np.ndarray) -> tuple[float, float, float]:
+    """:func:`_mean_ci` of percentiles over reference epochs: one undefined (inf) seed makes the mean inf."""
+    values = values[~np.isnan(values)]
+    if np.isinf(values).any():
+        return np.inf, np.nan, np.nan
+    return _mean_ci(values)
+
+
+def seed_statistics(summary: pd.DataFrame) -> pd.DataFrame:
+    """Per group, estimator and variant: mean over seeds of each statistic, CI of the median's mean.
+
+    Columns: group keys, estimator, overrides, variant, n_seeds, n_failed, availability;
+    horizontal_median_ref (mean over seeds of the median over reference epochs) with its
+    bootstrap ci_low/ci_high, horizontal_p95_ref, error_3d_median_ref -- inf when a seed's
+    availability is below the percentile; horizontal_median_solved and horizontal_max
+    (over the solved epochs only), time_per_obs_s, update_median_s.
+    """
+    out = []
+    summary = summary.fillna({"overrides": NO_OVERRIDES, "variant": ""})
+    for keys, rows in summary.groupby(GROUP + ["estimator"] + VARIANT, dropna=False):
+        ok = rows[rows["status"] == "ok"]
+        med, lo, hi = _mean_ci_ref(ok["horizontal_median_ref"].to_numpy(float))
+
+        def mean(column: str, ok: pd.DataFrame = ok) -> float:
+            return float(ok[column].mean()) if len(ok) else np.nan
+
+        out.append(
+            {
+                **dict(zip(GROUP + ["estimator"] + VARIANT, keys)),
+                "n_seeds": len(ok),
+                "n_failed": int((rows["status"] != "ok").sum()),
+                "availability": mean("availability"),
+                "horizontal_median_ref": med,
+                "ci_low": lo,
+                "ci_high": hi,
+                "horizontal_p95_ref": _mean_ci_ref(ok["horizontal_p95_ref"].to_numpy(float))[0],
+                "error_3d_median_ref": _mean_ci_ref(ok["error_3d_median_ref"].to_numpy(float))[0],
+                "horizontal_median_solved": mean("horizontal_median"),
+                "horizontal_max": mean("horizontal_max"),
+                "time_per_obs_s": mean("time_per_obs_s"),
+                "update_median_s": mean("update_median_s"),
+            }
+        )
+    return pd.DataFrame(out)
+
+
+def paired_comparisons(summary: pd.DataFrame, baseline: str) -> pd.DataFrame:
+    """Each estimator against ``baseline`` on the same seeds (default variants only).
+
+    Columns: group keys, estimator, n_seeds, ratio (mean per-seed median over the solved
+    epochs / baseline's), its bootstrap CI, wins (fraction of seeds with a lower median), the
+    Wilcoxon signed-rank p-value, and the mean availability of the estimator and the baseline
+    on those seeds (a ratio below 1 bought with a lower availability is no win).
+    """
+    out = []
+    ok = summary[(summary["status"] == "ok") & is_default(summary["overrides"])]
+    for keys, rows in ok.groupby(GROUP, dropna=False):
+        table = rows.pivot_table(index=["seed"], columns="estimator", values="horizontal_median", aggfunc="first")
+        availability = rows.pivot_table(index=["seed"], columns="estimator", values="availability", aggfunc="first")
+        if baseline not in table:
+            continue
+        for name in table.columns.drop(baseline):
+            pair = table[[name, baseline]].dropna()
+            if pair.empty:
+                continue
+            ratio, lo, hi = ratio_of_means(pair, name, baseline)
+            diff = pair[name] - pair[baseline]
+            p = float(stats.wilcoxon(diff).pvalue) if len(pair) >= 6 and diff.abs().sum() > 0 else np.nan
+            out.append(
+                {
+                    **dict(zip(GROUP, keys)),
+                    "estimator": name,
+                    "baseline": baseline,
+                    "n_seeds": len(pair),
+                    "ratio": ratio,
+                    "ci_low": lo,
+                    "ci_high": hi,
+                    "wins": float((diff < 0).mean()),
+                    "wilcoxon_p": p,
+                    "availability": float(availability.loc[pair.index, name].mean()),
+                    "baseline_availability": float(availability.loc[pair.index, baseline].mean()),
+                }
+            )
+    return pd.DataFrame(out)
+
+
+def oracle_gap(summary: pd.DataFrame, oracle: str = "oracle") -> pd.DataFrame:
+    """Each estimator's mean per-seed median (solved epochs) minus the oracle's, per group [m].
+
+    With the mean availability of the estimator and of the oracle on the same seeds.
+    """
+    ok = summary[(summary["status"] == "ok") & is_default(summary["overrides"])]
+    out = []
+    for keys, rows in ok.groupby(GROUP, dropna=False):
+        table = rows.pivot_table(index="seed", columns="estimator", values="horizontal_median", aggfunc="first")
+        availability = rows.pivot_table(index="seed", columns="estimator", values="availability", aggfunc="first")
+        if oracle not in table:
+            continue
+        for name in table.columns.drop(oracle):
+            pair = table[[name, oracle]].dropna()
+            gap = (pair[name] - pair[oracle]).to_numpy()
+            mean, lo, hi = _mean_ci(gap)
+            out.append(
+                {
+                    **dict(zip(GROUP, keys)),
+                    "estimator": name,
+                    "n_seeds": len(pair),
+                    "gap_m": mean,
+                    "ci_low": lo,
+                    "ci_high": hi,
+                    "availability": float(availability.loc[pair.index, name].mean()),
+                    "oracle_availability": float(availability.loc[pair.index, oracle].mean()),
+                }
+            )
+    return pd.DataFrame(out)
+
+
+def convergence_statistics(epochs: pd.DataFrame, t_max: float = CONVERGENCE_S) -> pd.DataFrame:
+    """3-D error statistics over the first ``t_max`` seconds of each run (dissertation Table 4.4.5).
+
+    Per estimator and variant: the mean over seeds of each run's median, mean and maximum 3-D
+    error for ``t < t_max`` [m], with a bootstrap CI of the mean error. Empty when no run is
+    longer than 1.5 ``t_max`` (the window would be most of the run, not its convergence).
+    """
+    if epochs.empty or epochs["t"].max() < 1.5 * t_max:
+        return pd.DataFrame()
+    early = epochs[epochs["t"] < t_max].fillna({"overrides": NO_OVERRIDES, "variant": ""})
+    per_run = early.groupby(["estimator"] + VARIANT + ["seed"], dropna=False)["error_3d"].agg(["median", "mean", "max"])
+    out = []
+    for (name, overrides, variant), runs in per_run.groupby(level=["estimator"] + VARIANT, dropna=False):
+        mean, lo, hi = _mean_ci(runs["mean"].to_numpy(float))
+        out.append(
+            {
+                "estimator": name,
+                "overrides": overrides,
+                "variant": variant,
+                "n_seeds": len(runs),
+                "error_3d_median": float(runs["median"].mean()),
+                "error_3d_mean": mean,
+                "ci_low": lo,
+                "ci_high": hi,
+                "error_3d_max": float(runs["max"].mean()),
+            }
+        )
+    return pd.DataFrame(out)
+
+
+def drive_comparison(summary: pd.DataFrame) -> pd.DataFrame:
+    """Our median horizontal error on the Morgantown drives beside the dissertation's.
+
+    Parameters
+    ----------
+    summary : pandas.DataFrame
+        Result rows; only default variants of ``morgantownN`` scenarios with a
+        published counterpart are used: the sweep's table
+        (:data:`simbench.analysis.published.DRIVE_MEDIANS_BY_SWEEP`, Ch.6 for ``ch6_bce_ad``,
+        else Ch.5/Ch.7's) has the estimator's family
+        (:data:`simbench.analysis.published.PUBLISHED_FAMILY`) for that receiver and drive.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per receiver, drive and estimator: ``sweep``, ``receiver``,
+        ``drive``, ``estimator``, ``published_as``, ``n_seeds``, ``availability``,
+        ``median_ref`` (mean over seeds of the median over reference epochs) [m],
+        ``published`` [m] and ``ratio`` = median_ref / published. Empty when no row qualifies.
+    """
+    columns = [
+        "sweep",
+        "receiver",
+        "drive",
+        "estimator",
+        "published_as",
+        "n_seeds",
+        "availability",
+        "median_ref",
+        "published",
+        "ratio",
+    ]
+    if summary.empty:
+        return pd.DataFrame(columns=columns)
+    rows = summary[
+        summary["scenario"].isin(list(DRIVE_SCENARIOS))
+        & summary["estimator"].isin(list(PUBLISHED_FAMILY))
+        & summary["receiver"].isin(["low", "high"])
+    ]
+    rows = rows[is_default(rows["overrides"].fillna(NO_OVERRIDES))]
+    out = []
+    for (sweep, receiver, scenario, estimator), group in rows.groupby(
+        ["sweep", "receiver", "scenario", "estimator"], dropna=False
+    ):
+        drive = DRIVE_SCENARIOS[scenario]
+        family = PUBLISHED_FAMILY[estimator]
+        published = DRIVE_MEDIANS_BY_SWEEP.get(sweep, DRIVE_MEDIANS_M).get((receiver, drive), {}).get(family)
+        if published is None:  # e.g. BCE-AD outside Ch.6, or Ch.6's high receiver: not published
+            continue
+        ok = group[group["status"] == "ok"]
+        median = _mean_ci_ref(ok["horizontal_median_ref"].to_numpy(float))[0] if len(ok) else np.nan
+        out.append(
+            {
+                "sweep": sweep,
+                "receiver": receiver,
+                "drive": drive,
+                "estimator": estimator,
+                "published_as": family,
+                "n_seeds": len(ok),
+                "availability": float(ok["availability"].mean()) if len(ok) else np.nan,
+                "median_ref": median,
+                "published": published,
+                "ratio": median / published,
+            }
+        )
+    return pd.DataFrame(out, columns=columns).sort_values(
+        ["sweep", "receiver", "drive", "estimator"], ignore_index=True
+    )

@@ -1,0 +1,108 @@
+"""Estimator variants as typed data: the settings of a result that differ from its ``Config`` defaults.
+
+Every result row carries its estimator's overrides as a canonical JSON object
+in the ``overrides`` column (sorted keys, JSON scalars; ``{}`` for the
+defaults), relative to the estimator's ``Config`` dataclass, not to any YAML
+file. Claims, tables and the report read settings from that column with
+:func:`override_value` and pick default rows with :func:`is_default`; the
+``variant`` column (:func:`variant_label`, e.g. ``window=5``) is only a label
+for tables and figures and is never parsed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from enum import Enum
+from typing import Any
+
+import pandas as pd
+
+import estimators
+
+#: The ``overrides`` value of a result with every setting at its default.
+NO_OVERRIDES = "{}"
+
+
+def overrides_of(config: Any) -> dict[str, Any]:
+    """The fields of a typed estimator config that differ from its dataclass defaults.
+
+    Parameters
+    ----------
+    config : dataclass instance
+        An estimator ``Config`` (as :func:`simbench.sim.config.to_typed` returns it).
+
+    Returns
+    -------
+    dict
+        Field name to value, as JSON scalars (an Enum becomes its YAML word, a
+        tuple a list); empty when every field has its default.
+    """
+    defaults = type(config)()
+    return {
+        f.name: _json_value(getattr(config, f.name))
+        for f in dataclasses.fields(config)
+        if getattr(config, f.name) != getattr(defaults, f.name)
+    }
+
+
+def overrides_json(overrides: dict[str, Any]) -> str:
+    """The canonical JSON text of ``overrides`` (sorted keys, no spaces): the ``overrides`` column."""
+    return json.dumps(overrides, sort_keys=True, separators=(",", ":"))
+
+
+def variant_label(overrides: dict[str, Any]) -> str:
+    """Human label of a variant for tables and figures: ``k=v`` pairs by key, ``''`` for the defaults."""
+    return ",".join(f"{key}={value}" for key, value in sorted(overrides.items()))
+
+
+def is_default(overrides: pd.Series) -> pd.Series:
+    """True for rows whose estimator ran with every setting at its default.
+
+    Parameters
+    ----------
+    overrides : Series of str
+        The ``overrides`` column.
+    """
+    return overrides.fillna(NO_OVERRIDES) == NO_OVERRIDES
+
+
+def override_value(overrides: pd.Series, key: str, default: Any) -> pd.Series:
+    """One setting per row, read from the ``overrides`` column: the override where given, else ``default``.
+
+    Parameters
+    ----------
+    overrides : Series of str
+        The ``overrides`` column.
+    key : str
+        Config field name, e.g. ``window``.
+    default : scalar
+        Its value where the row does not override it (see :func:`config_defaults`).
+
+    Returns
+    -------
+    Series
+        Same index as ``overrides``, dtype inferred from the values (int, float, bool or object).
+    """
+    values = [json.loads(text).get(key, default) for text in overrides.fillna(NO_OVERRIDES)]
+    return pd.Series(values, index=overrides.index, name=key).infer_objects()
+
+
+def config_defaults(estimator: str) -> dict[str, Any]:
+    """Every field of the ``Config`` dataclass of ``estimator`` with its default, as JSON scalars.
+
+    Raises
+    ------
+    SimbenchError
+        For an unknown estimator name.
+    """
+    defaults = estimators.get(estimator).Config()
+    return {f.name: _json_value(getattr(defaults, f.name)) for f in dataclasses.fields(defaults)}
+
+
+def _json_value(value: Any) -> Any:
+    if isinstance(value, Enum):
+        return value.value
+    if isinstance(value, tuple):
+        return list(value)
+    return value

@@ -1,0 +1,130 @@
+"""The Python API: :func:`simulate` one scenario, :func:`run` a study from a notebook, with the command
+line's cache and store.
+
+``simbench.run(...)`` composes the same ``conf/`` configuration the command
+line composes for ``python -m simbench ... seed=0,1 -m``, runs each seed as one
+job through :func:`simbench.runs.jobs.run_job` (the scenario from the run's cache,
+finished results from the store) and rebuilds the aggregate, ``claims.csv`` and
+``report/`` with :func:`simbench.report.build.finalize`, as the CLI's
+:class:`~simbench.cli.callbacks.FinalizeRun` does. So a notebook and a sweep into the
+same ``results_dir`` share scenarios and results: whichever runs second finds
+the other's and skips them.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+from omegaconf import OmegaConf
+from tqdm.auto import tqdm
+
+from simbench.errors import SimbenchError
+from simbench.report.build import finalize
+from simbench.runs.compose import compose_config, overrides_from_kwargs
+from simbench.runs.jobs import run_job
+from simbench.runs.scenarios import simulate
+
+__all__ = ["StudyResult", "run", "simulate"]
+
+#: Columns that identify one result (one estimator setting on one scenario) in the store.
+RESULT_KEY = ["scenario_key", "estimator", "overrides"]
+
+
+@dataclass(frozen=True)
+class StudyResult:
+    """What :func:`run` returns.
+
+    Attributes
+    ----------
+    summary : pandas.DataFrame
+        One row per seed x estimator of this study (:data:`~simbench.runs.runner.SUMMARY_COLUMNS`),
+        freshly computed or found in the store.
+    epochs : pandas.DataFrame
+        Their per-epoch errors (:data:`~simbench.runs.runner.EPOCH_COLUMNS`).
+    claims : pandas.DataFrame
+        ``claims.csv`` of ``results_dir`` (every result in it, earlier studies included).
+    report : Path
+        The report directory (``index.html``, ``README.md``, figures) of ``results_dir``.
+    results_dir : Path
+        Where the cache, the store and the aggregate are.
+    """
+
+    summary: pd.DataFrame
+    epochs: pd.DataFrame
+    claims: pd.DataFrame
+    report: Path
+    results_dir: Path
+
+
+def run(
+    scenario: str = "urban",
+    receiver: str = "low",
+    estimators: Sequence[str] | None = None,
+    seeds: int | Iterable[int] = 0,
+    imu: str = "consumer",
+    overrides: Mapping[str, Any] | None = None,
+    results_dir: str | Path | None = None,
+    progress: bool = True,
+) -> StudyResult:
+    """Run the estimators on each seed of a scenario, score them and build the report.
+
+    Parameters
+    ----------
+    scenario, receiver, imu : str
+        Options of the config groups (files in ``conf/scenario/``, ``conf/receiver/``, ``conf/imu/``).
+    estimators : sequence of str, optional
+        Estimator names, e.g. ``["l2", "dcs"]``; None runs the default list of ``conf/config.yaml``.
+    seeds : int or iterable of int
+        Scenario seeds, e.g. ``range(5)``; each seed is one job.
+    overrides : mapping, optional
+        Dotted config keys and values as on the command line, e.g.
+        ``{"scenario.duration_s": 60, "estimator.dcs.prior_scale": 2.0, "sweep_name": "nb"}``.
+    results_dir : str or Path, optional
+        Run directory; the command line's default (``results/run-<time>``) when None.
+        Give the ``results_dir`` of a sweep to reuse its scenarios and results.
+    progress : bool
+        Progress bars over seeds and estimators.
+
+    Returns
+    -------
+    StudyResult
+
+    Raises
+    ------
+    SimbenchError
+        An unknown option or a malformed override; with a single seed also a scenario that cannot
+        be built (with several, like a sweep, that seed's rows record the failure and the others run).
+    """
+    seed_list = [seeds] if isinstance(seeds, int) else [int(s) for s in seeds]
+    if not seed_list:
+        raise SimbenchError("seeds", "is empty", "give at least one seed, e.g. seeds=range(5)")
+    names = [estimators] if isinstance(estimators, str) else estimators
+    base = [
+        f"scenario={scenario}",
+        f"receiver={receiver}",
+        f"imu={imu}",
+        f"progress={str(progress).lower()}",
+        *([f"estimator=[{','.join(names)}]"] if names is not None else []),
+        *overrides_from_kwargs(dict(overrides or {})),
+    ]
+    # resolved once: each composition would give ${now:} another time
+    root = Path(results_dir if results_dir is not None else compose_config(base).results_dir)
+    base.append(f"results_dir={root}")
+    configs = [compose_config([*base, f"seed={seed}"]) for seed in seed_list]  # every config error before any job
+    rows = [
+        run_job(cfg, fail_fast=len(configs) == 1)
+        for cfg in tqdm(configs, desc="seeds", disable=not progress or len(configs) == 1)
+    ]
+    summary = pd.concat(rows, ignore_index=True)
+    run_config = OmegaConf.to_container(configs[0], resolve=True, enum_to_str=True)
+    run_config["seed"] = seed_list
+    report = finalize(root, run_config)
+    everything = pd.read_parquet(root / "epochs.parquet")
+    epochs = everything.merge(summary[RESULT_KEY], on=RESULT_KEY)
+    return StudyResult(
+        summary=summary, epochs=epochs, claims=pd.read_csv(root / "claims.csv"), report=report, results_dir=root
+    )

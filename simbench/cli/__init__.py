@@ -1,0 +1,1 @@
+"""The command line: ``python -m simbench`` (Hydra runs and sweeps) and its subcommands, terminal output."""

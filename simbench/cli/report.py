@@ -1,0 +1,26 @@
+"""``python -m simbench report RUN_DIR``: rebuild aggregate, claims and report of a run at any time."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from simbench.report.build import finalize
+
+
+def main(argv: list[str]) -> int:
+    """Rebuild the report of the run folder ``argv`` names; the exit code (2 for a folder without jobs)."""
+    parser = argparse.ArgumentParser(prog="python -m simbench report", description=__doc__)
+    parser.add_argument("run_dir", type=Path, help="a results directory written by python -m simbench")
+    args = parser.parse_args(argv)
+    # a study collection (+sweep=thesis) keeps each study's jobs/ one level down
+    if not any(p.is_dir() for p in (args.run_dir / "jobs", *args.run_dir.glob("*/jobs"))):
+        print(
+            f"error: run_dir: {args.run_dir} holds no jobs/ folder -- give a directory written by python -m simbench",
+            file=sys.stderr,
+        )
+        return 2
+    report = finalize(args.run_dir, None)
+    print(f"report: {report.resolve() / 'index.html'}")
+    return 0

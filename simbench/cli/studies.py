@@ -1,0 +1,59 @@
+"""Several studies over several worlds (``+sweep=thesis``): each study in its own process, then one report."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from collections.abc import Sequence
+from datetime import datetime, timezone
+from pathlib import Path
+
+import pandas as pd
+
+from simbench.report.build import finalize
+from simbench.runs.studies import STUDY_TIMES, StudiesConfig, plan
+
+
+def run_studies(cfg: StudiesConfig, root: Path, args: Sequence[str]) -> int:
+    """Run every study of :func:`plan` in its own process, then one aggregate over all of them.
+
+    A study that exits with an error does not stop the others (its finished jobs
+    are in the store); the return code is then 1.
+
+    Returns
+    -------
+    int
+        0 when every study exited cleanly, else 1.
+    """
+    runs = plan(cfg, root, args)
+    root.mkdir(parents=True, exist_ok=True)
+    path = root / STUDY_TIMES
+    # appended to: a second invocation into the same results_dir (another world, other seeds) keeps the first's
+    earlier = pd.read_csv(path, keep_default_na=False) if path.is_file() else pd.DataFrame()
+    times = []
+    for i, run in enumerate(runs, 1):
+        print(
+            f"=== study {run.study}" + (f" on {run.world}" if run.world else "") + f" ({i}/{len(runs)})",
+            file=sys.stderr,
+        )
+        started, start = datetime.now(timezone.utc).isoformat(timespec="seconds"), time.perf_counter()
+        code = subprocess.call([sys.executable, "-m", "simbench", *run.args])
+        times.append(
+            {
+                "study": run.study,
+                "world": run.world,
+                "started": started,
+                "wall_s": time.perf_counter() - start,
+                "exit_code": code,
+                "results_dir": str(run.results_dir),
+            }
+        )
+        # written after every study: a killed run still says where its time went
+        pd.concat([earlier, pd.DataFrame(times)], ignore_index=True).to_csv(path, index=False)
+    report = finalize(root, {"studies": cfg.studies, "worlds": cfg.worlds, "args": list(args)})
+    print(f"results: {root.resolve()}  report: {report.resolve() / 'index.html'}", file=sys.stderr)
+    failed = [f"{t['study']}" + (f" on {t['world']}" if t["world"] else "") for t in times if t["exit_code"]]
+    if failed:
+        print(f"error: studies {', '.join(failed)} exited with errors -- see their logs in {root}", file=sys.stderr)
+    return 1 if failed else 0

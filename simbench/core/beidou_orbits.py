@@ -1,0 +1,115 @@
+"""BeiDou (BDS) broadcast ephemerides: the GPS Keplerian algorithm with BDS constants and time.
+
+Differences from GPS (BDS-SIS-ICD-B1I 3.0, section 5.2.4):
+
+* CGCS2000 constants: mu = 3.986004418e14 m^3/s^2, Earth rate 7.2921150e-5 rad/s;
+  the relativistic constant follows as F = -2 sqrt(mu) / c^2;
+* BeiDou time: BDT = GPST - 14 s, BDT week 0 = GPS week 1356; Toe is in
+  seconds of the BDT week and Omega0 refers to the BDT week start;
+* geostationary satellites (C01-C05, C59-C63) are computed in a frame that
+  does not rotate with the Earth (``Omega_k = Omega0 + OmegaDot tk - Omega_e
+  Toe``) and then rotated: ``x = R_Z(Omega_e tk) R_X(-5 deg) x_GK``;
+* the clock refers to B3I: a B1I user applies ``dt_sv - TGD1``.
+
+Everything else (record selection by closest Toe, Kepler solution, harmonic
+corrections) is :class:`simbench.core.orbits.BroadcastEphemeris`; times stay
+continuous GPS seconds, so BeiDou and GPS states come out in one time scale.
+The RINEX reader is :func:`simbench.data.beidou.read_beidou_navigation`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from simbench.core.constants import C_LIGHT, DEG
+from simbench.core.orbits import FIT_HALF_WINDOW_S, BroadcastEphemeris
+
+__all__ = [
+    "BeidouEphemeris",
+    "BDS_MU",
+    "BDS_OMEGA_EARTH",
+    "BDS_F_REL",
+    "GPS_MINUS_BDT_S",
+    "BDT_WEEK_OFFSET",
+    "GEO_PRNS",
+]
+
+BDS_MU: float = 3.986004418e14  #: CGCS2000 gravitational parameter [m^3/s^2]
+BDS_OMEGA_EARTH: float = 7.2921150e-5  #: CGCS2000 Earth rotation rate [rad/s]
+BDS_F_REL: float = -2.0 * math.sqrt(BDS_MU) / C_LIGHT**2  #: relativistic clock constant [s/sqrt(m)]
+GPS_MINUS_BDT_S: float = 14.0  #: GPST - BDT [s]
+BDT_WEEK_OFFSET: int = 1356  #: GPS week of BDT week 0
+#: Geostationary PRNs (BDS-2 C01-C05, BDS-3 C59-C63).
+GEO_PRNS = frozenset([1, 2, 3, 4, 5, 59, 60, 61, 62, 63])
+_GEO_TILT_RAD = -5.0 * DEG
+
+
+class BeidouEphemeris(BroadcastEphemeris):
+    """BeiDou broadcast ephemerides (see the module docstring); ``tgd`` holds TGD1 (B1I).
+
+    Read from a file with :func:`simbench.data.beidou.read_beidou_navigation`.
+    ``records`` as for :class:`~simbench.core.orbits.BroadcastEphemeris`, with
+    ``toe``/``toc`` in continuous GPS seconds.
+    """
+
+    mu = BDS_MU
+    omega_e = BDS_OMEGA_EARTH
+    f_rel = BDS_F_REL
+    week_origin_s = GPS_MINUS_BDT_S
+    system_name = "BeiDou"
+
+    def __init__(
+        self,
+        sats: np.ndarray,
+        records: dict[str, np.ndarray],
+        iono_alpha: np.ndarray | None = None,
+        iono_beta: np.ndarray | None = None,
+        source: str = "",
+        max_age_s: float = FIT_HALF_WINDOW_S,
+    ) -> None:
+        super().__init__(sats, records, iono_alpha, iono_beta, source, max_age_s)
+        prn = np.array([int(s[1:3]) for s in self.sats.tolist()])
+        self._geo_record = np.isin(prn, list(GEO_PRNS))[self._sat_idx]
+        # GEO elements are in a frame that does not rotate with the Earth: no -Omega_e in the node rate.
+        p = self._p
+        p["lamdot"] = np.where(self._geo_record, p["lamdot"] + BDS_OMEGA_EARTH, p["lamdot"])
+        self._param_table = np.stack(list(p.values()), axis=0)
+
+    def _kepler(
+        self,
+        gi: np.ndarray,
+        tk: np.ndarray,
+        tc: np.ndarray,
+        pos: np.ndarray,
+        vel: np.ndarray,
+        clk: np.ndarray,
+        drift: np.ndarray,
+    ) -> None:
+        """Parent algorithm, then the GEO rotation from the inertial-like frame into BDCS."""
+        super()._kepler(gi, tk, tc, pos, vel, clk, drift)
+        geo = self._geo_record[gi]
+        if not geo.any():
+            return
+        t = tk[geo]
+        th = BDS_OMEGA_EARTH * t
+        ct, st = np.cos(th), np.sin(th)
+        cp, sp = math.cos(_GEO_TILT_RAD), math.sin(_GEO_TILT_RAD)
+        x, v = pos[geo], vel[geo]
+
+        # R_X(phi) = [[1,0,0],[0,c,s],[0,-s,c]] then R_Z(th) = [[c,s,0],[-s,c,0],[0,0,1]]
+        def rx(u: np.ndarray) -> np.ndarray:
+            return np.stack([u[:, 0], cp * u[:, 1] + sp * u[:, 2], -sp * u[:, 1] + cp * u[:, 2]], axis=1)
+
+        xr, vr = rx(x), rx(v)
+        pos[geo] = np.stack([ct * xr[:, 0] + st * xr[:, 1], -st * xr[:, 0] + ct * xr[:, 1], xr[:, 2]], axis=1)
+        w = BDS_OMEGA_EARTH
+        vel[geo] = np.stack(
+            [
+                ct * vr[:, 0] + st * vr[:, 1] + w * (-st * xr[:, 0] + ct * xr[:, 1]),
+                -st * vr[:, 0] + ct * vr[:, 1] + w * (-ct * xr[:, 0] - st * xr[:, 1]),
+                vr[:, 2],
+            ],
+            axis=1,
+        )

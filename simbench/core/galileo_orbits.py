@@ -1,0 +1,50 @@
+"""Galileo broadcast ephemerides: the GPS Keplerian algorithm with Galileo constants.
+
+Galileo OS SIS ICD (Issue 1.3, 2016; Issue 2.0, 2021), section 5.1:
+
+* constants (5.1.1, Table 59 in Issue 2.0): mu = 3.986004418e14 m^3/s^2,
+  Omega_e = 7.2921151467e-5 rad/s; the relativistic term uses
+  F = -2 sqrt(mu) / c^2 = -4.442807309e-10 s/sqrt(m) (5.1.4);
+* Galileo System Time (5.1.2): GST is steered to GPS time (the GPS-GST
+  offset GGTO is a few ns; a per-system receiver clock absorbs it) and its
+  week starts with the GPS week, so in RINEX 3 the Galileo week of Toe is the
+  continuous GPS week number and Omega0 refers to the GPS week start;
+* clock (5.1.4-5.1.5): the I/NAV clock (af0..af2) refers to the E1-E5b
+  ionosphere-free combination; a single-frequency E1 user corrects it with
+  the broadcast group delay, ``dt_sv(E1) = dt_sv(E1,E5b) - BGD(E1,E5b)``
+  (ICD eq. 12 of Issue 1.3). F/NAV records carry the E1-E5a clock and
+  BGD(E1,E5a) instead; the reader keeps one of the two per satellite, and
+  ``tgd`` holds the matching BGD.
+
+Everything else (closest-Toe record selection, Kepler solution, harmonic
+corrections, velocities) is :class:`simbench.core.orbits.BroadcastEphemeris`.
+The RINEX reader is :func:`simbench.data.galileo.read_galileo_navigation`.
+"""
+
+from __future__ import annotations
+
+import math
+
+from simbench.core.constants import C_LIGHT
+from simbench.core.orbits import BroadcastEphemeris
+
+__all__ = ["GalileoEphemeris", "GAL_MU", "GAL_OMEGA_EARTH", "GAL_F_REL"]
+
+GAL_MU: float = 3.986004418e14  #: Galileo gravitational parameter (OS SIS ICD 5.1.1) [m^3/s^2]
+GAL_OMEGA_EARTH: float = 7.2921151467e-5  #: Galileo Earth rotation rate (OS SIS ICD 5.1.1) [rad/s]
+GAL_F_REL: float = -2.0 * math.sqrt(GAL_MU) / C_LIGHT**2  #: relativistic clock constant [s/sqrt(m)]
+
+
+class GalileoEphemeris(BroadcastEphemeris):
+    """Galileo broadcast ephemerides (see the module docstring); ``tgd`` holds the E1 BGD.
+
+    ``records`` as for :class:`~simbench.core.orbits.BroadcastEphemeris`, with
+    ``toe``/``toc`` in continuous GPS seconds (GST taken as GPS time) and
+    ``tgd`` the BGD of the record's clock model: BGD(E1,E5b) for I/NAV,
+    BGD(E1,E5a) for F/NAV [s].
+    """
+
+    mu = GAL_MU
+    omega_e = GAL_OMEGA_EARTH
+    f_rel = GAL_F_REL
+    system_name = "Galileo"

@@ -1,0 +1,232 @@
+"""RINEX navigation files: GPS via georinex, and the fixed-column RINEX 3 record reader.
+
+GPS (RINEX 2 or 3, also the GPS records of a mixed RINEX 3 file) is parsed by
+georinex; :func:`read_gps_navigation` turns its (time, satellite) grid into
+the flat per-record arrays the ephemeris evaluator takes. The orbit and clock
+computation itself (IS-GPS-200) lives in :mod:`simbench.core.orbits`.
+
+:func:`read_rinex3_records` is the one reader of RINEX 3 navigation records
+for the other systems (BeiDou, Galileo, GLONASS; :mod:`simbench.data.beidou`,
+:mod:`simbench.data.galileo`, :mod:`simbench.data.glonass`), from a
+single-system or a mixed (``M``) file: georinex 1.16 returns all-NaN records
+for files whose spare fields are blank (as in ``hksc1180.19b``).
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from dataclasses import dataclass
+
+import lazy_loader
+import numpy as np
+
+from simbench.core.constants import SECONDS_PER_WEEK
+from simbench.core.gpstime import datetime64_to_gps
+from simbench.core.orbits import FIT_HALF_WINDOW_S, BroadcastEphemeris
+from simbench.errors import SimbenchError
+
+# xarray and georinex cost ~1 s to import: loaded on first use
+georinex = lazy_loader.load("georinex")
+
+__all__ = ["read_gps_navigation", "read_rinex3_records", "NavRecords", "SYSTEM_NAMES"]
+
+#: RINEX system letter -> name used in messages.
+SYSTEM_NAMES = {"G": "GPS", "R": "GLONASS", "E": "Galileo", "C": "BeiDou"}
+
+#: georinex variable of each record quantity that :class:`BroadcastEphemeris` takes.
+_RECORD_SOURCE = {
+    "af0": "SVclockBias",
+    "af1": "SVclockDrift",
+    "af2": "SVclockDriftRate",
+    "crs": "Crs",
+    "dn": "DeltaN",
+    "m0": "M0",
+    "cuc": "Cuc",
+    "e": "Eccentricity",
+    "cus": "Cus",
+    "sqrta": "sqrtA",
+    "cic": "Cic",
+    "omega0": "Omega0",
+    "cis": "Cis",
+    "i0": "Io",
+    "crc": "Crc",
+    "w": "omega",
+    "omegadot": "OmegaDot",
+    "idot": "IDOT",
+    "tgd": "TGD",
+}
+#: Every georinex variable a complete GPS record needs.
+_NAV_FIELDS = (*_RECORD_SOURCE.values(), "Toe", "GPSWeek", "health")
+
+
+def _nav_error(path: str, problem: str) -> SimbenchError:
+    return SimbenchError(f"nav_file '{path}'", problem, "pass a RINEX 2/3 GPS navigation file (e.g. brdc<doy>0.<yy>n)")
+
+
+def read_gps_navigation(path: str | os.PathLike[str], max_age_s: float = FIT_HALF_WINDOW_S) -> BroadcastEphemeris:
+    """Read GPS ephemerides from a RINEX 2 or 3 navigation file (via georinex).
+
+    Parameters
+    ----------
+    path : str or PathLike
+        RINEX navigation file (``.yyn``, ``.rnx``; gzip allowed). Only GPS
+        records are kept; unhealthy or incomplete records are dropped.
+    max_age_s : float
+        Largest |t - Toe| at which a record may be used [s]; default 7200.
+
+    Returns
+    -------
+    BroadcastEphemeris
+        With the Klobuchar coefficients of the header when it has them.
+
+    Raises
+    ------
+    SimbenchError
+        Missing file, not a navigation file, or no healthy GPS record.
+    """
+    p = os.fspath(path)
+    if not os.path.isfile(p):
+        raise _nav_error(p, "file does not exist")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            info = georinex.rinexinfo(p)
+            kind = info.get("rinextype")
+            if kind != "nav":
+                what = {"obs": "a RINEX observation file", "sp3": "an SP3 orbit file"}.get(
+                    str(kind), "not a RINEX file"
+                )
+                raise _nav_error(p, f"is {what}, not RINEX navigation data")
+            ds = georinex.load(p, use={"G"})  # a mixed RINEX 3 file holds other systems too
+    except SimbenchError:
+        raise
+    except Exception as exc:  # georinex raises many types on malformed text
+        msg = " ".join(str(exc).split()) or type(exc).__name__
+        msg = msg if len(msg) <= 60 else msg[:57] + "..."
+        raise _nav_error(p, f"cannot be parsed as RINEX navigation data (georinex: {msg})") from None
+    if "sv" not in ds.coords or not all(k in ds for k in _NAV_FIELDS):
+        raise _nav_error(p, "contains no GPS ephemerides (e.g. GLONASS/BeiDou-only file)")
+    is_gps = np.char.startswith(ds.sv.values.astype(str), "G")
+    if not is_gps.any():
+        raise _nav_error(p, "contains no GPS ephemerides")
+    ds = ds.isel(sv=np.flatnonzero(is_gps))
+
+    # (time, sv) grid -> flat record list; georinex leaves NaN where a sat has no record.
+    v = {k: ds[k].values.astype(float).ravel() for k in _NAV_FIELDS}
+    n_t, n_s = ds.sizes["time"], ds.sizes["sv"]
+    toc = np.repeat(datetime64_to_gps(ds.time.values), n_s)
+    sv_all = np.tile(ds.sv.values.astype(str), n_t)
+    complete = np.all(np.isfinite(np.stack(list(v.values()))), axis=0)
+    keep = complete & (v["health"] == 0) & (v["sqrtA"] > 1000.0)
+    if not keep.any():
+        raise _nav_error(p, "has no complete healthy GPS ephemeris record")
+    toe = v["GPSWeek"][keep] * SECONDS_PER_WEEK + v["Toe"][keep]
+    toc = toc[keep]
+    # GPSWeek belongs to Toe, but some writers use Toc's week; Toe and Toc are
+    # within hours of each other, so fix a one-week mismatch from Toc.
+    toe += SECONDS_PER_WEEK * np.round((toc - toe) / SECONDS_PER_WEEK)
+    sats, sat_idx = np.unique(sv_all[keep], return_inverse=True)
+    records = {k: v[src][keep] for k, src in _RECORD_SOURCE.items()}
+    records.update(sat=sat_idx, toe=toe, toc=toc)
+    iono = ds.attrs.get("ionospheric_corr_GPS")
+    alpha = beta = None
+    if iono is not None and np.size(iono) == 8 and np.all(np.isfinite(iono)):
+        alpha, beta = np.asarray(iono[:4], float), np.asarray(iono[4:], float)
+    return BroadcastEphemeris(sats, records, alpha, beta, source=os.path.basename(p), max_age_s=max_age_s)
+
+
+@dataclass(frozen=True)
+class NavRecords:
+    """The records of one system from a RINEX 3 navigation file, as flat arrays.
+
+    Attributes
+    ----------
+    sv : np.ndarray of str, shape (R,)
+        Satellite id of each record (``'E11'``).
+    epoch : np.ndarray of datetime64[s], shape (R,)
+        Record epoch (Toc; for GLONASS tb) as written, in the system's own time scale label.
+    values : np.ndarray, shape (R, K)
+        The numbers after the epoch, in file order (3 on the first line, 4 per further line),
+        NaN where blank or beyond the record's end [units of the RINEX field].
+    """
+
+    sv: np.ndarray
+    epoch: np.ndarray
+    values: np.ndarray
+
+
+def _field(text: str) -> float:
+    text = text.strip().replace("D", "E").replace("d", "e")
+    return float(text) if text else np.nan
+
+
+def read_rinex3_records(path: str | os.PathLike[str], system: str, setting: str, fix: str) -> NavRecords:
+    """Read the records of one system from a RINEX 3 navigation file (single-system or mixed).
+
+    A record is a line starting with the satellite id (``'E11 2019 04 28 ...'``)
+    and the indented lines after it, so records of every system and of any
+    RINEX 3.0x length are skipped correctly.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        RINEX 3 navigation file (plain text).
+    system : str
+        System letter to keep (``'C'``, ``'E'``, ``'R'``).
+    setting : str
+        Config setting that named the file, for error messages (``'scenario.nav_gal'``).
+    fix : str
+        What the user should pass instead, for error messages.
+
+    Returns
+    -------
+    NavRecords
+
+    Raises
+    ------
+    SimbenchError
+        Missing file, not RINEX 3 navigation data, a malformed epoch or number, or no record of ``system``.
+    """
+    p = os.fspath(path)
+    field = f"{setting} '{p}'"
+    if not os.path.isfile(p):
+        raise SimbenchError(field, "file does not exist", fix)
+    with open(p, errors="replace") as fh:
+        lines = fh.read().splitlines()
+    if not lines or lines[0][20:21] != "N" or not lines[0][:9].strip().startswith("3"):
+        raise SimbenchError(field, "is not RINEX 3 navigation data", fix)
+    body = next((i + 1 for i, ln in enumerate(lines) if "END OF HEADER" in ln), None)
+    if body is None:
+        raise SimbenchError(field, "has no END OF HEADER line", fix)
+    sv, stamps, rows = [], [], []
+    i, n_lines = body, len(lines)
+    while i < n_lines:  # text parsing: one Python step per line is unavoidable
+        head = lines[i]
+        i += 1
+        if head[:1] != system:
+            continue
+        stop = i
+        while stop < n_lines and lines[stop][:1] == " ":
+            stop += 1
+        try:
+            f = head[4:23].split()
+            stamps.append(
+                f"{int(f[0]):04d}-{int(f[1]):02d}-{int(f[2]):02d}T{int(f[3]):02d}:{int(f[4]):02d}:"
+                f"{int(float(f[5])):02d}"
+            )
+            rec = [_field(head[23 + 19 * k : 42 + 19 * k]) for k in range(3)]
+            for ln in lines[i:stop]:
+                rec += [_field(ln[4 + 19 * k : 23 + 19 * k]) for k in range(4)]
+        except (ValueError, IndexError):
+            raise SimbenchError(
+                field, f"has a malformed {head[:3]} record at line {i}: '{head[:42].strip()}'", fix
+            ) from None
+        sv.append(head[:3].replace(" ", "0"))
+        rows.append(rec)
+        i = stop
+    if not rows:
+        raise SimbenchError(field, f"contains no {SYSTEM_NAMES.get(system, system)} records", fix)
+    width = max(len(r) for r in rows)
+    values = np.array([r + [np.nan] * (width - len(r)) for r in rows], dtype=float)
+    return NavRecords(sv=np.array(sv), epoch=np.array(stamps, dtype="datetime64[s]"), values=values)

@@ -1,0 +1,260 @@
+"""Compose configurations from ``conf/`` outside a Hydra app (notebooks, tests)."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import inspect
+import re
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+import yaml
+from hydra import compose, initialize_config_dir
+from hydra.core.config_store import ConfigStore
+from hydra.core.global_hydra import GlobalHydra
+from hydra.errors import HydraException
+from omegaconf import DictConfig, OmegaConf
+from omegaconf.errors import OmegaConfBaseException
+
+import estimators
+from estimators.ppp_config import GnssModelConfig
+from simbench.errors import SimbenchError
+from simbench.sim.config import ImuConfig, ReceiverConfig, ScenarioConfig
+from simbench.typed import to_typed
+
+#: The repository's top-level ``conf/`` directory.
+CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
+
+
+@functools.cache
+def register_schemas() -> None:
+    """Put the typed schemas and the plug-in estimators into Hydra's ConfigStore (once per process).
+
+    Each preset file in ``conf/<group>/`` starts from its schema (``defaults:
+    [schema, _self_]``), and each ``conf/estimator/<name>.yaml`` from its
+    estimator's ``Config`` dataclass (``defaults: [<name>_schema, _self_]``), so
+    every field exists in the composed config, can be overridden without ``+``
+    and is type-checked by Hydra; the estimator files hold only what differs
+    from the dataclass defaults. A plug-in estimator gets the same node from
+    :func:`plugin_config_node`, and ``estimator/all`` lists every registered
+    estimator, built-in and plug-in, so the default run and the sweeps include
+    the plug-ins without an edit to ``conf/``.
+
+    Raises
+    ------
+    SimbenchError
+        For a broken plug-in, naming its package (:func:`estimators.discover`).
+    """
+    cs = ConfigStore.instance()
+    for group, node in (
+        ("scenario", ScenarioConfig),
+        ("receiver", ReceiverConfig),
+        ("imu", ImuConfig),
+        ("gnss_model", GnssModelConfig),
+    ):
+        cs.store(group=group, name="schema", node=node)
+    for name, cls in estimators.registered().items():
+        cs.store(group="estimator", name=f"{name}_schema", node={name: estimator_schema(cls.Config)})
+    for name, plugin in estimators.plugins().items():
+        cs.store(group="estimator", name=name, node=plugin_config_node(plugin))
+    cs.store(group="estimator", name=estimators.ALL, node={"defaults": list(estimators.registered())})
+
+
+def estimator_schema(config: type) -> DictConfig:
+    """The typed node of an estimator ``Config`` dataclass, its :class:`GnssModelConfig` fields
+    defaulting to the ``gnss_model`` group's choice (``${gnss_model.<field>}``)."""
+    node = OmegaConf.structured(config)
+    for f in dataclasses.fields(GnssModelConfig):
+        if f.name in node:
+            node[f.name] = f"${{gnss_model.{f.name}}}"
+    return node
+
+
+def plugin_config_node(plugin: estimators.Plugin) -> dict[str, Any]:
+    """The ``estimator/<name>`` config of a plug-in estimator.
+
+    Its ``Config`` dataclass defaults, overridden by ``<name>.yaml`` beside the
+    module that defines the class when the package ships one, in the form of
+    ``conf/estimator/<name>.yaml`` (``defaults: [<name>_schema, _self_]`` and
+    ``<name>:`` with the values that differ from the dataclass).
+
+    Raises
+    ------
+    SimbenchError
+        Naming the package, for a shipped YAML of another form or with values
+        that do not type-check against ``Config``.
+    """
+    name = plugin.cls.name
+    node: dict[str, Any] = {"defaults": [f"{name}_schema", "_self_"], name: {}}
+    path = shipped_yaml(plugin.cls)
+    if path is None:
+        return node
+    field = f"estimator plug-in '{name}'"
+    fix = f"fix {path.name} in package '{plugin.package}' (README, Add your estimator)"
+    try:
+        shipped = yaml.safe_load(path.read_text()) or {}
+    except yaml.YAMLError as exc:
+        detail = " ".join(str(exc).split())  # PyYAML's message spans lines
+        raise SimbenchError(field, f"package '{plugin.package}': {path.name} is not YAML: {detail}", fix) from None
+    if (
+        not isinstance(shipped, dict)
+        or set(shipped) - set(node)
+        or shipped.get("defaults", node["defaults"]) != node["defaults"]
+    ):
+        raise SimbenchError(
+            field,
+            f"package '{plugin.package}': {path.name} must hold only 'defaults: [{name}_schema, _self_]' and '{name}:'",
+            fix,
+        )
+    node[name] = shipped.get(name) or {}
+    try:
+        to_typed(node[name], plugin.cls.Config, f"estimator.{name}")
+    except SimbenchError as exc:
+        raise SimbenchError(field, f"package '{plugin.package}': {path.name}: {exc}", fix) from None
+    return node
+
+
+def shipped_yaml(cls: type[estimators.Estimator]) -> Path | None:
+    """``<cls.name>.yaml`` beside the module that defines a plug-in estimator class, if its package ships one."""
+    path = Path(inspect.getfile(cls)).with_name(f"{cls.name}.yaml")
+    return path if path.is_file() else None
+
+
+def estimator_yaml(name: str) -> Path | None:
+    """The YAML file of estimator ``name``: ``conf/estimator/<name>.yaml`` for a built-in,
+    :func:`shipped_yaml` for a plug-in (None when its package ships none)."""
+    if estimators.source(name) == estimators.BUILT_IN:
+        return CONF_DIR / "estimator" / f"{name}.yaml"
+    return shipped_yaml(estimators.get(name))
+
+
+def available(group: str) -> list[str]:
+    """Names of the options of a config group (``scenario``, ``receiver``, ...).
+
+    The files of ``conf/<group>/``; for ``estimator`` also the plug-in estimators
+    and ``all`` (every registered estimator).
+    """
+    names = {p.stem for p in (CONF_DIR / group).glob("*.yaml")}
+    if group == "estimator":
+        names |= {*estimators.plugins(), estimators.ALL}
+    return sorted(names)
+
+
+def config_groups() -> list[str]:
+    """The config groups a user chooses from: the folders of ``conf/`` (not the ConfigStore schemas)."""
+    return sorted(d.name for d in CONF_DIR.iterdir() if d.is_dir() and any(d.glob("*.yaml")))
+
+
+def group_choices(value: str) -> list[str] | None:
+    """Option names in the value of a group override.
+
+    Understands ``a``, a list ``[a,b]``, sweep lists ``a,b`` or ``[a],[a,b]`` and
+    ``choice(a,b)``; None for the other sweep functions (``range``, ``glob``),
+    which Hydra expands itself.
+    """
+    text = value.strip()
+    if text.startswith("choice(") and text.endswith(")"):
+        text = text[len("choice(") : -1]
+    elif "(" in text:
+        return None
+    names = (name.strip().strip("'\"") for name in re.split(r"[\[\],]", text))
+    return [name for name in names if name]
+
+
+def check_group_choices(overrides: Iterable[str]) -> None:
+    """Reject an unknown option of a config group (``estimator=[nosuch]``) in one line.
+
+    Raises
+    ------
+    SimbenchError
+        Naming the group, the unknown option and the known ones.
+    """
+    groups = config_groups()
+    for item in overrides:
+        key, sep, value = item.partition("=")
+        group = key.lstrip("+~")
+        if not sep or group not in groups:
+            continue
+        known = available(group)
+        for name in group_choices(value) or []:
+            if name not in known:
+                raise SimbenchError(group, f"unknown {group} '{name}'", f"choose from {', '.join(known)}")
+
+
+def config_groups_help() -> str:
+    """One line per config group, as typed on the command line, with its options and default.
+
+    ``--help`` shows it (``conf/config.yaml`` hydra.help.template); Hydra's own
+    group list would also show the ConfigStore schemas, which are not choices.
+    """
+    defaults: dict[str, Any] = {}
+    for entry in (yaml.safe_load((CONF_DIR / "config.yaml").read_text()) or {}).get("defaults", []):
+        if isinstance(entry, dict):
+            defaults.update(entry)
+    lines = []
+    for group in config_groups():
+        options = available(group)
+        default = defaults.get(group)
+        if default == estimators.ALL:
+            note = "a list, e.g. [ekf_ppp,l2]; default: all, every registered estimator"
+        elif isinstance(default, list):
+            note = "a list, e.g. [ekf_ppp,l2]; default: " + ",".join(default)
+        elif default is not None:
+            note = f"default: {default}"
+        else:
+            note = "optional"
+        key = group if group in defaults else f"+{group}"
+        lines.append(f"  {key}: {', '.join(options)}  ({note})")
+    return "\n".join(lines)
+
+
+# conf/config.yaml's help template lists the groups with ${simbench_config_groups:}
+OmegaConf.register_new_resolver("simbench_config_groups", config_groups_help, replace=True)
+
+
+def compose_config(overrides: list[str] | None = None) -> DictConfig:
+    """Compose ``conf/config.yaml`` with Hydra command-line style overrides.
+
+    Raises
+    ------
+    SimbenchError
+        For an unknown group option or a malformed override, in one line.
+    """
+    if not CONF_DIR.is_dir():
+        raise SimbenchError(
+            "conf",
+            f"config directory {CONF_DIR} not found",
+            "install simbench from its repository with 'pip install -e .'",
+        )
+    overrides = list(overrides or [])
+    register_schemas()
+    check_group_choices(overrides)
+    if GlobalHydra.instance().is_initialized():
+        GlobalHydra.instance().clear()
+    try:
+        with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+            return compose(config_name="config", overrides=overrides)
+    except (HydraException, OmegaConfBaseException) as exc:
+        key = getattr(exc.__cause__, "full_key", None)
+        if key:  # a bad value of a known key: OmegaConf's first line names the value and what is allowed
+            raise SimbenchError(
+                str(key), str(exc.__cause__).splitlines()[0], f"fix {key} on the command line or in conf/"
+            ) from None
+        text = f"{exc}\n{exc.__cause__}" if exc.__cause__ else str(exc)
+        lines = [ln.strip() for ln in text.splitlines() if ln.strip()][:2]
+        raise SimbenchError(
+            "overrides", ": ".join(lines), "write overrides as key=value with keys and types from conf/"
+        ) from None
+
+
+def overrides_from_kwargs(kwargs: dict[str, Any]) -> list[str]:
+    """Turn ``{"scenario.duration_s": 60, "scenario__rate_hz": 10}`` into Hydra overrides."""
+    out = []
+    for key, value in kwargs.items():
+        value = OmegaConf.to_yaml(value).strip() if isinstance(value, (list, dict)) else value
+        if isinstance(value, bool):
+            value = str(value).lower()
+        out.append(f"{key.replace('__', '.')}={value}")
+    return out

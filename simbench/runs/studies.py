@@ -1,0 +1,158 @@
+"""Several studies over several worlds, one aggregate: ``python -m simbench +sweep=thesis worlds=[...]``.
+
+A *study* is a sweep of ``conf/sweep/``; a *world* is a scenario preset of
+``conf/scenario/`` (``urban``, ``urban_deep``, ``morgantown1``, ...). Each study
+runs on each world into ``results_dir/<world>/<study>`` (the world replaces
+the study's scenario; the study's own scenario settings, e.g. ``ch7_ice``'s
+``scenario.duration_s``, still apply on top). A study listed in
+``own_scenario`` runs once on the scenario of its sweep file, into
+``results_dir/<study>``: Ch.4's Monte-Carlo flights are part of its claim, not
+a drive through a world. A world listed in ``world_studies`` runs only the
+studies listed for it. Then one aggregate, ``claims.csv`` (one verdict per
+claim and world, :func:`simbench.analysis.claims.claims_table`) and report over all of
+them. The wall time of every study x world is appended to ``results_dir/study_times.csv``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+
+import pandas as pd
+from omegaconf import DictConfig
+
+from simbench.errors import SimbenchError
+from simbench.runs.compose import available
+from simbench.typed import to_typed
+
+__all__ = ["STUDY_TIMES", "StudiesConfig", "StudyRun", "plan", "time_budget"]
+
+#: File of ``results_dir`` with one row per study x world: wall time and exit code.
+STUDY_TIMES = "study_times.csv"
+
+
+@dataclass
+class StudiesConfig:
+    """Top-level keys of a sweep file that runs other sweeps (``conf/sweep/thesis.yaml``)."""
+
+    studies: list[str] = field(default_factory=list)  #: sweeps of conf/sweep/, run one after another
+    #: scenario presets every study runs on; empty: each study on the scenario of its sweep file
+    worlds: list[str] = field(default_factory=list)
+    #: studies that run once on the scenario of their sweep file whatever the worlds
+    own_scenario: list[str] = field(default_factory=list)
+    #: extra command-line overrides of one study, e.g. {ch5_bce: ["estimator=[l2,dcs,mm,bce,oracle]"]}
+    study_args: dict[str, list[str]] = field(default_factory=dict)
+    #: the studies of one world when not all of them, e.g. {morgantown1: [ch5_bce, ch7_ice]}
+    world_studies: dict[str, list[str]] = field(default_factory=dict)
+
+    @classmethod
+    def from_config(cls, cfg: DictConfig) -> StudiesConfig:
+        """The studies keys of a composed config (those it sets), typed and checked."""
+        return to_typed({f.name: cfg[f.name] for f in fields(cls) if f.name in cfg}, cls, "config")
+
+    def validate(self) -> None:
+        """One-line :class:`SimbenchError` for an unknown study or world."""
+        sweeps, scenarios = available("sweep"), available("scenario")
+        for key, names, known in (
+            ("studies", self.studies, sweeps),
+            ("worlds", self.worlds, scenarios),
+            ("own_scenario", self.own_scenario, self.studies),
+            ("study_args", list(self.study_args), self.studies),
+            ("world_studies", list(self.world_studies), scenarios),
+            *((f"world_studies.{w}", s, self.studies) for w, s in self.world_studies.items()),
+        ):
+            unknown = [n for n in names if n not in known]
+            if unknown:
+                raise SimbenchError(key, f"unknown {', '.join(unknown)}", f"choose from {', '.join(known)}")
+        if not self.studies:
+            raise SimbenchError("studies", "is empty", "list sweeps of conf/sweep/, e.g. studies=[ch5_bce]")
+
+
+@dataclass(frozen=True)
+class StudyRun:
+    """One study on one world: the sweep, where it writes and the command-line arguments it gets."""
+
+    study: str
+    world: str  #: scenario preset, '' for a study on its own scenario
+    results_dir: Path
+    args: list[str]
+
+
+#: Keys of the studies config itself and of what each study sets: never passed down to a study.
+_OWN_KEYS = ("sweep", "sweep_name", "results_dir", *(f.name for f in fields(StudiesConfig)))
+
+
+def _key(arg: str) -> str:
+    """The config key an override sets, without Hydra's ``+``/``++``/``~`` prefix."""
+    return arg.partition("=")[0].lstrip("+~")
+
+
+def plan(cfg: StudiesConfig, root: Path, args: Sequence[str]) -> list[StudyRun]:
+    """The study runs of ``cfg`` in order: per study, each world (or the study's own scenario).
+
+    Parameters
+    ----------
+    cfg : StudiesConfig
+    root : Path
+        ``results_dir`` of the whole run.
+    args : sequence of str
+        The command line; every override but those of the keys of
+        :class:`StudiesConfig`, ``sweep``, ``sweep_name`` and ``results_dir`` (with
+        or without Hydra's ``+``/``++``/``~``) goes to every study (e.g.
+        ``hydra/launcher=joblib``, ``seed=range(0,5)``).
+
+    Raises
+    ------
+    SimbenchError
+        For a ``scenario=`` override together with ``worlds``.
+    """
+    cfg.validate()
+    passed = [a for a in args if _key(a) not in _OWN_KEYS]
+    if cfg.worlds and any(_key(a) == "scenario" for a in passed):
+        raise SimbenchError(
+            "scenario",
+            "is set on the command line together with worlds",
+            "list the scenario presets in worlds=[...] instead",
+        )
+    runs = []
+    for study in cfg.studies:
+        extra = [*cfg.study_args.get(study, []), *passed]  # the command line last: it has the final word
+        if not cfg.worlds or study in cfg.own_scenario:
+            runs.append(StudyRun(study, "", root / study, [f"+sweep={study}", f"results_dir={root / study}", *extra]))
+            continue
+        for world in cfg.worlds:
+            if study not in cfg.world_studies.get(world, [study]):
+                continue
+            out = root / world / study
+            runs.append(
+                StudyRun(study, world, out, [f"+sweep={study}", f"scenario={world}", f"results_dir={out}", *extra])
+            )
+    return runs
+
+
+def time_budget(summary: pd.DataFrame) -> pd.DataFrame:
+    """Where the estimators' time went: summed wall time per sweep, world and estimator.
+
+    Parameters
+    ----------
+    summary : pandas.DataFrame
+        ``summary.parquet`` rows (:data:`~simbench.runs.runner.SUMMARY_COLUMNS`).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Columns ``sweep``, ``scenario``, ``estimator``, ``jobs``, ``total_s`` (sum over
+        jobs [s]), ``job_mean_s`` [s] and ``share`` (of the whole run's estimator time),
+        largest first.
+    """
+    timed = summary[summary["total_s"].notna()]
+    if timed.empty:
+        return pd.DataFrame(columns=["sweep", "scenario", "estimator", "jobs", "total_s", "job_mean_s", "share"])
+    table = (
+        timed.groupby(["sweep", "scenario", "estimator"])["total_s"]
+        .agg(jobs="count", total_s="sum", job_mean_s="mean")
+        .reset_index()
+        .sort_values("total_s", ascending=False, ignore_index=True)
+    )
+    return table.assign(share=table["total_s"] / table["total_s"].sum())

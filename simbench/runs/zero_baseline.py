@@ -1,0 +1,151 @@
+"""Zero-baseline test (dissertation Table 5.3.2): one sky, one street, several receivers.
+
+The dissertation fed one antenna and RF front end to a geodetic receiver and to
+its software receiver run with the ``high`` and ``low`` tracking presets, and
+reported the mean 3-D difference of each preset's single-point solution from
+the geodetic one. Here the same scenario and seed are generated once per
+receiver preset: every environment stream (orbits, atmosphere, street, NLOS,
+fading) is drawn from the same named seed streams
+(:func:`simbench.sim.processes.stream`), so only what the receiver does with
+the signals differs. Each pair (preset, geodetic) is solved epoch by epoch on
+the satellites both receivers track, as the published test's double
+differences are, with the project's one single-point solver
+(:func:`simbench.gnss.spp.solve_epochs`) on the shared measurement model
+(:func:`estimators.measurement.prepare_ppp`, code only): a satellite only one
+receiver keeps would change the geometry, not measure the receiver.
+
+``python -m simbench zero-baseline morgantown1 morgantown2 morgantown3 --out DIR``
+writes ``DIR/zero_baseline.csv``; the report of a run folder shows it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pandas as pd
+
+from estimators.measurement import prepare_ppp
+from estimators.ppp_config import MeasurementMode, StochasticModelConfig
+from simbench.analysis.metrics import enu_errors
+from simbench.analysis.published import DRIVE_SCENARIOS, ZERO_BASELINE_MEAN_3D_M
+from simbench.contract import Scenario
+from simbench.gnss.spp import solve_epochs
+from simbench.runs.scenarios import simulate
+
+#: File name of the table in a run folder.
+TABLE_NAME = "zero_baseline.csv"
+#: The reference receiver and the presets compared with it.
+REFERENCE_PRESET = "geodetic"
+PRESETS = ("high", "low")
+#: Post-fit RMS above which an epoch's single-point fix is not trusted (left out of the mean) [m].
+MAX_RMS_M = 100.0
+COLUMNS = [
+    "scenario",
+    "seed",
+    "receiver",
+    "n_epochs",
+    "mean_3d_diff_m",
+    "median_3d_diff_m",
+    "mean_3d_error_m",
+    "published_mean_3d_diff_m",
+]
+
+
+def single_point_positions(scenario: Scenario, keep: pd.MultiIndex | None = None) -> pd.DataFrame:
+    """Code-only weighted single-point fix of every epoch with four or more satellites.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Only its receiver view is used.
+    keep : pandas.MultiIndex, optional
+        ``(epoch, sat)`` pairs to use; every observation when None.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``epoch, x, y, z`` [m, ECEF] of the trusted fixes.
+    """
+    noise = StochasticModelConfig()
+    view = scenario.receiver_view()
+    if keep is not None:
+        rows = _pairs(view.observations).isin(keep)
+        view = replace(view, observations=view.observations[rows].reset_index(drop=True))
+    obs = prepare_ppp(
+        view,
+        ionosphere_free=False,
+        code_sigma_m=noise.code_sigma_m,
+        phase_sigma_m=noise.phase_sigma_m,
+        elevation_mask_deg=noise.elevation_mask_deg,
+        measurements=MeasurementMode.code,
+    )
+    k = np.searchsorted(obs.epoch_ids, obs.epoch)
+    sol = solve_epochs(
+        k,
+        obs.sat_pos,
+        obs.code,
+        n_epochs=obs.n_epochs,
+        sigma=obs.sigma_code,
+        system_index=obs.system_index,
+        el=obs.el,
+        doy=obs.doy,
+        max_rms_m=MAX_RMS_M,
+    )
+    ok = sol.trusted
+    return pd.DataFrame({"epoch": obs.epoch_ids[ok], "x": sol.pos[ok, 0], "y": sol.pos[ok, 1], "z": sol.pos[ok, 2]})
+
+
+def _pairs(observations: pd.DataFrame) -> pd.MultiIndex:
+    """The ``(epoch, sat)`` pairs of an observation table, in its row order."""
+    return pd.MultiIndex.from_frame(observations[["epoch", "sat"]])
+
+
+def zero_baseline(scenario: str, seed: int = 0, **overrides: object) -> pd.DataFrame:
+    """Mean 3-D difference of each preset's single-point solution from the geodetic receiver's.
+
+    Parameters
+    ----------
+    scenario : str
+        A preset of ``conf/scenario``.
+    seed : int
+        Environment seed, the same for every receiver.
+    **overrides
+        Dotted config overrides as in :func:`simbench.runs.scenarios.simulate`.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per preset (:data:`PRESETS`) with :data:`COLUMNS`: epochs both
+        receivers fixed, mean and median 3-D difference from the geodetic fix,
+        the preset's mean 3-D error against truth, and the published Table
+        5.3.2 value for the dissertation drive the scenario replays (NaN otherwise) [m].
+    """
+    scenes = {preset: simulate(scenario, preset, seed=seed, **overrides) for preset in (REFERENCE_PRESET, *PRESETS)}
+    reference = scenes[REFERENCE_PRESET]
+    tracked = _pairs(reference.observations)
+    drive = DRIVE_SCENARIOS.get(scenario)
+    rows = []
+    for preset in PRESETS:
+        both = tracked.intersection(_pairs(scenes[preset].observations))
+        fix = single_point_positions(scenes[preset], both).set_index("epoch")
+        ref = single_point_positions(reference, both).set_index("epoch")
+        common = fix.index.intersection(ref.index)
+        diff = np.linalg.norm(
+            fix.loc[common, ["x", "y", "z"]].to_numpy() - ref.loc[common, ["x", "y", "z"]].to_numpy(), axis=1
+        )
+        err = enu_errors(fix.reset_index(), reference.truth)["error_3d"].to_numpy()
+        published = ZERO_BASELINE_MEAN_3D_M.get((preset, drive), np.nan) if drive else np.nan
+        rows.append(
+            {
+                "scenario": scenario,
+                "seed": seed,
+                "receiver": preset,
+                "n_epochs": len(common),
+                "mean_3d_diff_m": float(diff.mean()) if len(diff) else np.nan,
+                "median_3d_diff_m": float(np.median(diff)) if len(diff) else np.nan,
+                "mean_3d_error_m": float(err.mean()) if len(err) else np.nan,
+                "published_mean_3d_diff_m": published,
+            }
+        )
+    return pd.DataFrame(rows, columns=COLUMNS)

@@ -1,0 +1,456 @@
+"""Typed configuration schema.
+
+Hydra composes YAML from ``conf/``; :func:`to_typed` merges the result into
+these dataclasses, so code reads attributes with known types and units, and a
+malformed value fails early with a one-line :class:`~simbench.errors.SimbenchError`.
+Units are in the field names or in the comments. Choice fields are ``str``
+Enums whose member names are the YAML words, so OmegaConf rejects any other
+value at composition, naming the key and the allowed values.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from simbench.errors import SimbenchError
+from simbench.typed import Choice, check_choices
+
+
+class TrajectoryKind(Choice):
+    """How the simulated vehicle moves."""
+
+    urban_drive = "urban_drive"  #: street grid with stops (:class:`UrbanDriveConfig`)
+    flight = "flight"  #: fixed-wing UAV (:class:`FlightConfig`)
+    replay = "replay"  #: a recorded trajectory file (:class:`ReplayConfig`)
+
+
+class ConstellationKind(Choice):
+    """Where the satellite orbits and clocks come from."""
+
+    nominal = "nominal"  #: GPS 24-slot constellation, no files
+    broadcast = "broadcast"  #: a RINEX GPS navigation file (``nav_path``)
+
+
+class FacadeMaterial(Choice):
+    """Building facade material: sets the Fresnel reflection coefficient (ITU-R P.2040 Table 3)."""
+
+    concrete = "concrete"
+    brick = "brick"
+    glass = "glass"
+    metal = "metal"
+
+
+class HeightDistribution(Choice):
+    """How the heights of the street canyon's buildings are drawn (:func:`simbench.sim.trajectory.block_sides`)."""
+
+    uniform = "uniform"  #: uniform over ``building_height_m``
+    rayleigh = "rayleigh"  #: Rayleigh with scale ``building_height_scale_m`` (ITU-R P.1410-5 statistical city)
+
+
+class ScenarioSource(Choice):
+    """Where a scenario's observations come from."""
+
+    simulated = "simulated"  #: the generator (:mod:`simbench.sim`)
+    rinex = "rinex"  #: a real RINEX 3 log (:mod:`simbench.data.rinex`)
+    librsf = "librsf"  #: a real libRSF GNSS text file (:mod:`simbench.data.librsf`)
+
+
+# --------------------------------------------------------------------------- trajectory
+
+
+@dataclass
+class UrbanDriveConfig:
+    """A drive on a rectangular street grid with stops at intersections."""
+
+    block_length_m: float = 120.0  #: distance between intersections
+    n_blocks_east: int = 4  #: grid size (blocks) east-west
+    n_blocks_north: int = 4  #: grid size (blocks) north-south
+    cruise_speed_mps: float = 10.0
+    turn_speed_mps: float = 4.0
+    max_accel_mps2: float = 1.5
+    turn_radius_m: float = 8.0
+    stop_probability: float = 0.3  #: chance to stop at an intersection
+    stop_duration_s: tuple[float, float] = (5.0, 30.0)  #: uniform range of a stop
+    start_static_s: float = 30.0  #: standing still before driving (alignment)
+
+
+@dataclass
+class FlightConfig:
+    """A small fixed-wing UAV: take-off climb, banked loiter turns, figure eights."""
+
+    airspeed_mps: float = 22.0
+    cruise_altitude_m: float = 120.0  #: above the origin
+    climb_rate_mps: float = 3.0
+    turn_radius_m: float = 150.0  #: loiter radius; bank = atan(v^2 / (g R))
+    leg_length_m: float = 600.0
+    start_static_s: float = 30.0
+
+
+@dataclass
+class ReplayConfig:
+    """Replay of a recorded trajectory file (``SOW X Y Z``, ECEF metres)."""
+
+    path: str = ""
+    gps_week: int = 2032
+    max_gap_s: float = 2.0  #: gaps longer than this are not interpolated (no epochs there)
+
+
+@dataclass
+class TrajectoryConfig:
+    kind: TrajectoryKind = TrajectoryKind.urban_drive  #: urban_drive | flight | replay
+    origin_lat_deg: float = 39.6295  #: Morgantown, WV
+    origin_lon_deg: float = -79.9559
+    origin_h_m: float = 290.0
+    urban_drive: UrbanDriveConfig = field(default_factory=UrbanDriveConfig)
+    flight: FlightConfig = field(default_factory=FlightConfig)
+    replay: ReplayConfig = field(default_factory=ReplayConfig)
+
+
+# --------------------------------------------------------------------------- sky
+
+
+@dataclass
+class ConstellationConfig:
+    kind: ConstellationKind = ConstellationKind.nominal  #: nominal (GPS 24-slot, no files) | broadcast (RINEX nav file)
+    nav_path: str = ""  #: RINEX 2/3 GPS navigation file, for kind=broadcast
+    elevation_mask_deg: float = 7.0
+    #: Klobuchar coefficients handed to the receiver with the nominal constellation
+    #: (those of ``wvu_drives/brdc.18n``); broadcast files bring their own.
+    iono_alpha: tuple[float, float, float, float] = (8.382e-09, -1.490e-08, -5.960e-08, 1.192e-07)
+    iono_beta: tuple[float, float, float, float] = (9.421e04, -1.311e05, -1.311e05, 8.520e05)
+
+
+# --------------------------------------------------------------------------- errors
+
+
+@dataclass
+class ReceiverClockConfig:
+    enabled: bool = True
+    bias0_sigma_s: float = 30e-9  #: Table 4.4.1
+    drift0_sigma_sps: float = 1e-7  #: initial frequency offset (100 ppb, TCXO)
+    h0: float = 2e-19  #: white frequency noise (Allan h0) [s]
+    h_2: float = 2e-20  #: random-walk frequency noise (Allan h-2) [1/s]
+
+
+@dataclass
+class TroposphereConfig:
+    enabled: bool = True
+    #: true zenith wet delay = Saastamoinen wet value * scale, scale ~ N(1, sigma)
+    wet_scale_sigma: float = 0.3
+    wet_rw_mps: float = 3e-5  #: random walk of the zenith wet delay [m/sqrt(s)]
+
+
+@dataclass
+class IonosphereConfig:
+    enabled: bool = True
+    #: true delay = Klobuchar * scale (scale ~ N(1, sigma), per scenario) + per-satellite GM
+    scale_sigma: float = 0.3
+    residual_sigma_m: float = 0.5  #: per-satellite L1 zenith-equivalent residual
+    residual_tau_s: float = 1800.0
+
+
+@dataclass
+class OrbitClockErrorConfig:
+    """Error of the orbit/clock product handed to the receiver (truth minus product)."""
+
+    enabled: bool = True
+    orbit_sigma_m: float = 0.05  #: per axis
+    clock_sigma_m: float = 0.05
+    tau_s: float = 3600.0
+
+
+@dataclass
+class MultipathConfig:
+    enabled: bool = True
+    code_sigma_m: float = 0.4  #: Gauss-Markov std (elevation-independent model)
+    tau_s: float = 15.0
+    elevation_dependent: bool = False  #: sigma = a + b exp(-el / c)
+    el_a_m: float = 0.47
+    el_b_m: float = 0.78
+    el_c_deg: float = 20.9
+    phase_sigma_m: float = 0.003  #: carrier multipath (mm-level)
+
+
+@dataclass
+class NlosConfig:
+    """Street canyon: buildings along the road mask LOS; reflections arrive late."""
+
+    enabled: bool = True
+    building_height_m: tuple[float, float] = (10.0, 40.0)  #: uniform per block side
+    #: uniform (over building_height_m) | rayleigh (scale building_height_scale_m)
+    height_distribution: HeightDistribution = HeightDistribution.uniform
+    #: Rayleigh scale of the heights [m]; ITU-R P.1410-5 gives 8 suburban, 15 urban, 20 dense urban, 50 high-rise
+    building_height_scale_m: float = 50.0
+    wall_distance_m: tuple[float, float] = (8.0, 20.0)  #: road centre to facade
+    open_fraction: float = 0.2  #: fraction of block sides with no building
+    #: chance that a facade offers a specular reflection where geometry allows one
+    #: (recesses, windows, gaps and passing traffic break the rest); persistent in time
+    reflection_probability: float = 0.5
+    facade_material: FacadeMaterial = FacadeMaterial.concrete  #: Fresnel coefficients of the facades
+    #: per-bounce loss of a rough, irregular facade on top of the Fresnel coefficient [dB]
+    scattering_loss_db: float = 2.0
+    #: antenna rejection of left-hand circular polarisation at zenith, falling as sin(elevation)
+    #: (a single bounce turns RHCP towards LHCP) [dB]
+    lhcp_rejection_db: float = 10.0
+    #: facade relief (recessed windows, pillars, balconies): std of the reflecting surface's offset [m]
+    facade_relief_sigma_m: float = 0.3
+    #: and its correlation length along the road [m]: moving past it makes reflections fade
+    facade_relief_length_m: float = 2.0
+    #: a masked satellite's reflecting building stands this far beyond the far facade (taller buildings
+    #: behind, across crossing streets), uniform and persistent per satellite [m]; (0, 0): the far facade
+    reflector_beyond_m: tuple[float, float] = (0.0, 0.0)
+    #: replayed routes: length of road along which one building side keeps its height and setback [m]
+    roadside_segment_m: float = 60.0
+
+
+@dataclass
+class AttitudeMaskingConfig:
+    enabled: bool = True
+    #: satellites further than this from the antenna boresight are not tracked
+    max_off_boresight_deg: float = 95.0
+
+
+@dataclass
+class CycleSlipConfig:
+    enabled: bool = True
+    cn0_threshold_dbhz: float = 35.0
+    low_cn0_probability: float = 0.2  #: per epoch below the threshold
+    pll_jitter_threshold_deg: float = 15.0
+    rate_per_s: float = 1e-4  #: random slips on healthy channels (Poisson)
+    flagged_fraction: float = 0.9  #: slips the receiver flags with LLI
+    max_jump_cycles: int = 20
+
+
+@dataclass
+class Cn0Config:
+    received_power_dbw: float = -158.5
+    constant_db: float = 201.0  #: -N0 minus implementation losses [dB]
+    noise_db: float = 1.0  #: white N(0, sigma) per epoch
+    fade_sigma_db: float = 1.0  #: slow Gauss-Markov fading per satellite
+    fade_tau_s: float = 10.0
+
+
+@dataclass
+class ErrorsConfig:
+    receiver_clock: ReceiverClockConfig = field(default_factory=ReceiverClockConfig)
+    troposphere: TroposphereConfig = field(default_factory=TroposphereConfig)
+    ionosphere: IonosphereConfig = field(default_factory=IonosphereConfig)
+    orbit_clock: OrbitClockErrorConfig = field(default_factory=OrbitClockErrorConfig)
+    multipath: MultipathConfig = field(default_factory=MultipathConfig)
+    nlos: NlosConfig = field(default_factory=NlosConfig)
+    attitude_masking: AttitudeMaskingConfig = field(default_factory=AttitudeMaskingConfig)
+    cycle_slips: CycleSlipConfig = field(default_factory=CycleSlipConfig)
+    cn0: Cn0Config = field(default_factory=Cn0Config)
+    tracking_noise: bool = True  #: DLL/PLL thermal jitter
+    #: code error of a sampling rate commensurate with the chip rate (simbench.sim.tracking)
+    sample_grid: bool = True
+
+
+@dataclass
+class OdometryConfig:
+    """Wheel odometry of a car (:mod:`simbench.sim.odometry`): speed along body x and yaw rate.
+
+    Noise defaults are what the smartLoc test vehicle reports in its libRSF
+    ``odom3`` lines (variances 0.0025 m^2/s^2 and 4e-6 rad^2/s^2); the table's
+    variance columns carry these configured values, as a vehicle would report
+    them. The scale factor is the effective wheel radius error (tyre wear,
+    pressure, load: a few tenths of a percent to about 1 %, Groves 2013 sec. 6.3);
+    the yaw-rate bias is that of a consumer MEMS gyro after turn-on, as
+    ``conf/imu/consumer.yaml`` (100 deg/h).
+    """
+
+    enabled: bool = False  #: on for the car scenarios (conf/scenario/urban, open_sky, replay)
+    rate_hz: float = 10.0  #: sample rate; imu.rate_hz must be a multiple of it
+    speed_sigma_mps: float = 0.05  #: white noise per sample
+    scale_factor_sigma: float = 0.005  #: measured = (1 + s) true, s ~ N(0, sigma) per seed [-]
+    yaw_rate_sigma_rps: float = 0.002  #: white noise per sample [rad/s]
+    yaw_rate_bias_sigma_rps: float = 4.8e-4  #: constant bias ~ N(0, sigma) per seed [rad/s] (100 deg/h)
+
+
+# --------------------------------------------------------------------------- scenario
+
+
+@dataclass
+class ScenarioConfig:
+    name: str = "urban"
+    #: simulated (the generator) | rinex | librsf (real logs, read by simbench.data)
+    source: ScenarioSource = ScenarioSource.simulated
+    obs: str = ""  #: rinex: RINEX 3 observation file; librsf: libRSF GNSS text file
+    #: rinex: RINEX GPS navigation file covering the observations, or a mixed RINEX 3
+    #: file (type M) that also serves the systems below without a file of their own
+    nav: str = ""
+    nav_bds: str = ""  #: rinex: RINEX 3 BeiDou navigation file (when ``systems`` has C)
+    nav_glo: str = ""  #: rinex: RINEX 3 GLONASS navigation file (when ``systems`` has R)
+    nav_gal: str = ""  #: rinex: RINEX 3 Galileo navigation file (when ``systems`` has E)
+    #: reference trajectory: 'week,TOW,lat,lon,h' CSV or 'SOW X Y Z' (GPS time); for librsf
+    #: also a point3 file, default the point3 lines of ``obs``
+    truth: str = ""
+    #: rinex: systems to ingest, letters of GREC: G (GPS L1 C/A), R (GLONASS L1 C/A),
+    #: E (Galileo E1), C (BeiDou B1I)
+    systems: str = "G"
+    truth_max_gap_s: float = 2.0  #: reference samples further apart are not interpolated
+    duration_s: float = 600.0
+    rate_hz: float = 1.0  #: GNSS epoch rate
+    gps_week: int = 2032
+    start_sow_s: float = 475_200.0  #: 2018-12-21 12:00 GPST
+    dual_frequency: bool = False  #: also generate L2 code and phase
+    trajectory: TrajectoryConfig = field(default_factory=TrajectoryConfig)
+    constellation: ConstellationConfig = field(default_factory=ConstellationConfig)
+    errors: ErrorsConfig = field(default_factory=ErrorsConfig)
+    odometry: OdometryConfig = field(default_factory=OdometryConfig)
+
+
+@dataclass
+class ReceiverConfig:
+    """Tracking-loop preset (dissertation Table 5.3.1)."""
+
+    name: str = "low"
+    sampling_mhz: float = 4.092
+    front_end_bw_mhz: float = 4.092  #: double-sided
+    correlator_spacing_chips: float = 0.5
+    dll_bw_hz: float = 2.0
+    pll_bw_hz: float = 50.0
+    integration_s: float = 0.001
+    doppler_sigma_hz: float = 0.5  #: at the reference C/N0, scales as 10^((ref - C/N0)/20)
+    doppler_ref_cn0_dbhz: float = 45.0
+    #: C/N0 a satellite needs to be (re)acquired [dB-Hz]
+    acquisition_threshold_dbhz: float = 33.0
+    #: below this C/N0 the lock detector drops the channel [dB-Hz] (GNSS-SDR's default cn0_min is 25)
+    lock_threshold_dbhz: float = 25.0
+    #: time a signal must stay above the acquisition threshold before it is tracked again [s]
+    reacquisition_s: float = 1.0
+
+
+@dataclass
+class ImuConfig:
+    """IMU grade (Groves, Table 4.1 ranges). Noise densities per sqrt(Hz)."""
+
+    grade: str = "consumer"
+    rate_hz: float = 100.0
+    accel_bias_sigma_mps2: float = 0.1  #: turn-on bias, per axis
+    gyro_bias_sigma_dph: float = 100.0  #: turn-on bias [deg/h]
+    accel_noise_mps2_rthz: float = 2e-3  #: velocity random walk density
+    gyro_noise_dph_rthz: float = 60.0  #: angle random walk density [deg/h/sqrt(Hz)] (=1 deg/sqrt(h))
+    accel_bias_instability_mps2: float = 1e-3  #: Gauss-Markov bias drift std
+    gyro_bias_instability_dph: float = 10.0
+    bias_tau_s: float = 300.0
+
+
+@dataclass
+class SimConfig:
+    """What :func:`simbench.simulate` needs: a scenario, a receiver, an IMU and a seed."""
+
+    scenario: ScenarioConfig = field(default_factory=ScenarioConfig)
+    receiver: ReceiverConfig = field(default_factory=ReceiverConfig)
+    imu: ImuConfig = field(default_factory=ImuConfig)
+    seed: int = 0
+
+
+#: RINEX system letter -> (name, the setting of its own navigation file).
+_RINEX_SYSTEMS = {
+    "G": ("GPS", "nav"),
+    "R": ("GLONASS", "nav_glo"),
+    "E": ("Galileo", "nav_gal"),
+    "C": ("BeiDou", "nav_bds"),
+}
+
+
+def _nav_header_system(path: str) -> str:
+    """System letter of a RINEX navigation file's header ('M' mixed, 'G', 'R', ...), '' if unreadable."""
+    try:
+        with open(path, errors="replace") as fh:
+            first = fh.readline()
+    except OSError:
+        return ""
+    if first[:9].strip().startswith("3") and first[20:21] == "N":
+        return first[40:41]
+    return {"N": "G", "G": "R"}.get(first[20:21], "")  # RINEX 2: N is GPS, G is GLONASS
+
+
+def _check_rinex_systems(s: ScenarioConfig) -> None:
+    """Known system letters, and navigation data named for each: its own file or a mixed ``nav``."""
+    letters = "".join(_RINEX_SYSTEMS)
+    unknown = sorted(set(s.systems) - set(letters))
+    if unknown or not s.systems:
+        raise SimbenchError(
+            "scenario.systems",
+            f"'{s.systems}' has " + (f"unknown letters {''.join(unknown)}" if unknown else "no letters"),
+            f"use letters of {letters} (GPS, GLONASS, Galileo, BeiDou), e.g. scenario.systems=GE",
+        )
+    nav_kind = _nav_header_system(s.nav) if s.nav else ""
+    for letter in dict.fromkeys(s.systems):
+        name, key = _RINEX_SYSTEMS[letter]
+        if getattr(s, key) or (letter != "G" and nav_kind in ("M", letter)):
+            continue
+        raise SimbenchError(
+            f"scenario.{key}",
+            f"no {name} navigation file for scenario.systems='{s.systems}'",
+            f"set scenario.{key}=path/to/file" + ("" if letter == "G" else ", or scenario.nav to a mixed RINEX 3 file"),
+        )
+
+
+def validate_sim(cfg: SimConfig) -> SimConfig:
+    """Check what the types cannot: value ranges, and the files a source or kind needs."""
+    check_choices(cfg)
+    s = cfg.scenario
+    if s.duration_s <= 0:
+        raise SimbenchError(
+            "scenario.duration_s",
+            f"must be positive, got {s.duration_s}",
+            "give the scenario length in seconds, e.g. scenario.duration_s=600",
+        )
+    if s.rate_hz <= 0:
+        raise SimbenchError(
+            "scenario.rate_hz",
+            f"must be positive, got {s.rate_hz}",
+            "give the GNSS epoch rate in Hz, e.g. scenario.rate_hz=1",
+        )
+    if not 100.0 <= cfg.imu.rate_hz <= 1000.0:
+        raise SimbenchError(
+            "imu.rate_hz", f"must be within 100..1000 Hz, got {cfg.imu.rate_hz}", "set e.g. imu.rate_hz=100"
+        )
+    needed = {ScenarioSource.rinex: ("obs", "truth"), ScenarioSource.librsf: ("obs",)}.get(s.source, ())
+    for key in needed:
+        if not getattr(s, key):
+            raise SimbenchError(
+                f"scenario.{key}",
+                f"no file given for a {s.source} scenario",
+                f"set it on the command line, e.g. scenario.{key}=path/to/file",
+            )
+    if s.source == ScenarioSource.rinex:
+        _check_rinex_systems(s)
+    if s.trajectory.kind == TrajectoryKind.replay and not s.trajectory.replay.path:
+        raise SimbenchError(
+            "scenario.trajectory.replay.path",
+            "no trajectory file given",
+            "set it to a 'SOW X Y Z' file, e.g. ../shared/data/wvu_drives/drive_1.xyz",
+        )
+    if s.constellation.kind == ConstellationKind.broadcast and not s.constellation.nav_path:
+        raise SimbenchError(
+            "scenario.constellation.nav_path",
+            "no navigation file given",
+            "set it to a RINEX GPS navigation file, e.g. ../shared/data/wvu_drives/brdc.18n",
+        )
+    for name, value in (
+        ("receiver.dll_bw_hz", cfg.receiver.dll_bw_hz),
+        ("receiver.pll_bw_hz", cfg.receiver.pll_bw_hz),
+        ("receiver.front_end_bw_mhz", cfg.receiver.front_end_bw_mhz),
+        ("receiver.correlator_spacing_chips", cfg.receiver.correlator_spacing_chips),
+        ("receiver.integration_s", cfg.receiver.integration_s),
+    ):
+        if value <= 0:
+            raise SimbenchError(name, f"must be positive, got {value}", "see conf/receiver/ for presets")
+    rx = cfg.receiver
+    if rx.acquisition_threshold_dbhz < rx.lock_threshold_dbhz:
+        raise SimbenchError(
+            "receiver.acquisition_threshold_dbhz",
+            f"{rx.acquisition_threshold_dbhz} dB-Hz is below the lock threshold {rx.lock_threshold_dbhz} dB-Hz",
+            "acquiring needs at least the C/N0 that keeps lock",
+        )
+    if rx.reacquisition_s < 0:
+        raise SimbenchError(
+            "receiver.reacquisition_s",
+            f"must not be negative, got {rx.reacquisition_s}",
+            "give the re-acquisition time in seconds, e.g. receiver.reacquisition_s=1",
+        )
+    return cfg
