@@ -16,15 +16,23 @@ Evaluation seeds start at 0 (nothing here was tuned on them).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import time
+from typing import Any
 
 import pandas as pd
 
 import simbench
+from simbench.runs.compose import preset_estimator_config
 from simbench.runs.runner import run_estimators
 
 SCALES = (0.1, 0.3, 1.0, 3.0, 10.0, 100.0)
 STATS = ["horizontal_median", "horizontal_mean", "horizontal_var", "horizontal_max", "time_per_obs_s", "total_s"]
+
+
+def _published(name: str, **changes: Any) -> dict[str, Any]:
+    """Estimator ``name``'s settings under ``gnss_model=dissertation`` (the claims' model) with ``changes``."""
+    return {**dataclasses.asdict(preset_estimator_config(name, "dissertation")), **changes}
 
 
 def _run(receiver: str, seeds: range, configs: dict[str, dict], tag: dict) -> pd.DataFrame:
@@ -58,7 +66,7 @@ def main() -> None:
     tic = time.perf_counter()
     if args.part in ("low", "high"):
         names = ["l2", "dcs", "mm", "bce"] + (["bce_ad", "oracle"] if args.part == "low" else [])
-        df = _run(args.part, seeds, {n: {} for n in names}, {"scale": 1.0})
+        df = _run(args.part, seeds, {n: _published(n) for n in names}, {"scale": 1.0})
         table = df.groupby("estimator")[STATS].median().loc[names]
         print(
             f"\n== urban / {args.part} receiver, seeds {seeds.start}..{seeds.stop - 1}: "
@@ -74,7 +82,7 @@ def main() -> None:
             print(f"max/min horizontal median over estimators: {med.max() / med.min():.3f}")
     else:
         names = ["l2", "dcs", "mm", "bce"]
-        parts = [_run("low", seeds, {n: {"prior_scale": s} for n in names}, {"scale": s}) for s in SCALES]
+        parts = [_run("low", seeds, {n: _published(n, prior_scale=s) for n in names}, {"scale": s}) for s in SCALES]
         df = pd.concat(parts, ignore_index=True)
         table = df.groupby(["estimator", "scale"])["horizontal_median"].median().unstack("scale").loc[names]
         print(

@@ -26,6 +26,7 @@ import pandas as pd
 
 import estimators
 import simbench
+from simbench.runs.compose import preset_estimator_config
 
 TARGET_BATCH_S = 10.0
 TARGET_UPDATE_MS = 10.0
@@ -66,7 +67,8 @@ def main() -> None:
     settings = {"measurements": "code", "motion_model": "constant_velocity"}
     for name in ("l2", "isam2_ppp"):
         cls = estimators.get(name)
-        sol = cls(cls.Config(**settings)).estimate(sc.receiver_view())
+        config = dataclasses.replace(preset_estimator_config(name, "dissertation"), **settings)
+        sol = cls(config).estimate(sc.receiver_view())
         truth = sc.truth.set_index("epoch").loc[sol.epochs["epoch"], ["x", "y", "z"]].to_numpy()
         err = np.linalg.norm(sol.epochs[["x", "y", "z"]].to_numpy() - truth, axis=1)
         isb = sol.diagnostics["inter_system_bias_m"]["E"]

@@ -7,7 +7,7 @@ noise models:
 * ``l2``: the a-priori Gaussian model (elevation-weighted sigmas), solved by
   Levenberg-Marquardt.
 * ``dcs``: the same wrapped in GTSAM's dynamic covariance scaling m-estimator
-  (kernel width ``phi``, whitened units). GTSAM re-weights at every
+  (kernel width ``kernel_width``, phi in the DCS papers, whitened units). GTSAM re-weights at every
   linearisation, so each Gauss-Newton step
   (:func:`~estimators.ppp_graph.gauss_newton_step`) is one iteration of
   iteratively re-weighted least squares; the steps go on until the relative
@@ -16,9 +16,9 @@ noise models:
   Levenberg-Marquardt took (its damping fell to 1e-85 on a drive, and its
   trajectory matched the steps' to 4 digits) at a third less per iteration.
 * ``mm``: max-mixtures with a static two-component model per measurement (a-priori
-  inlier, outlier with the covariance scaled by ``outlier_scale``: 1e6 in the batch
-  code, 10 in the ``urban`` GNSS model whose C/N0 sigmas already widen weak rows;
-  equal weights);
+  inlier, outlier with the covariance scaled by ``outlier_scale``, which the
+  ``gnss_model`` preset sets: 10 in ``urban``, whose C/N0 sigmas already widen weak
+  rows, the batch code's 1e6 in ``dissertation``; equal weights);
   each iteration every code and every phase measurement takes its most likely
   component given the current residual (eq. 3.20), then the graph is re-solved by
   one Gauss-Newton step from the previous solution (exact: the graph is Gaussian
@@ -47,6 +47,7 @@ import pandas as pd
 from estimators import register
 from estimators.base import Estimator, solution_frame
 from estimators.measurement import PppObservations, prepare_ppp
+from estimators.ppp_config import GnssModelConfig
 from estimators.ppp_graph import PppGraph, PppGraphConfig, gauss_newton_step, solve
 from simbench.contract import ReceiverData
 from simbench.errors import SimbenchError, require_at_least, require_positive
@@ -110,7 +111,7 @@ def stop_reason(previous: float, current: float, rel_tol: float, *, on_increase:
 class BatchGraphEstimator(Estimator):
     """Shared plumbing: prepare observations, build the graph, time the run, output the solution."""
 
-    Config = BatchConfig
+    Config: ClassVar[type[BatchConfig]] = BatchConfig
 
     def _prepare(self, data: ReceiverData) -> tuple[PppObservations, PppGraph]:
         cfg = self.config
@@ -185,7 +186,7 @@ class L2Batch(BatchGraphEstimator):
 class DcsConfig(BatchConfig):
     """Batch dynamic covariance scaling."""
 
-    kernel_width: float = 2.5  #: DCS phi [whitened units]
+    kernel_width: float = 2.5  #: DCS kernel width (phi) [whitened units]
 
     def validate(self, where: str) -> None:
         """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
@@ -237,23 +238,17 @@ class DcsBatch(BatchGraphEstimator):
 
 @dataclass
 class MaxMixtureFields:
-    """The static inlier/outlier model of batch and incremental MM; each sets its published scale."""
+    """The static inlier/outlier model of batch and incremental MM."""
 
-    #: outlier covariance = inlier covariance times this; None: ``PUBLISHED_OUTLIER_SCALE``
-    outlier_scale: float | None = None
+    #: outlier covariance = inlier covariance times this (a composed run takes it from its ``gnss_model``
+    #: preset; ``dissertation``: the batch code's 1e6, the incremental code's 10)
+    outlier_scale: float = GnssModelConfig.outlier_scale
     outlier_weight: float = 0.5  #: prior weight of the outlier component (equal weights)
-    PUBLISHED_OUTLIER_SCALE: ClassVar[float]
-
-    def __post_init__(self) -> None:
-        if self.outlier_scale is None:
-            self.outlier_scale = self.PUBLISHED_OUTLIER_SCALE
 
 
 @dataclass
 class MmConfig(BatchConfig, MaxMixtureFields):
     """Batch max-mixtures with a static inlier/outlier model."""
-
-    PUBLISHED_OUTLIER_SCALE: ClassVar[float] = 1e6  #: the batch code's
 
     def validate(self, where: str) -> None:
         """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""

@@ -171,7 +171,7 @@ class _IterativeCovariance(BatchGraphEstimator):
 
     def _noise(
         self, data: ReceiverData, obs: PppObservations, r: np.ndarray, it: int
-    ) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    ) -> tuple[dict[str, Any], dict[str, Any]]:
         raise NotImplementedError
 
     def _run(self, data, obs, g: PppGraph, structure):
@@ -258,7 +258,7 @@ class BceAd(_IterativeCovariance):
         super()._start(data, obs, rng)
         n = self.config.feature_sample
         self._sample_idx = np.sort(rng.choice(obs.n_obs, n, replace=False)) if 0 < n < obs.n_obs else slice(None)
-        self._chosen = None
+        self._chosen: np.ndarray | None = None
         # elevation, azimuth and C/N0 do not change between iterations: standardised once
         self._metadata = _standardised(np.c_[obs.el, obs.az, _cn0(data, obs)])
 
@@ -277,7 +277,7 @@ class BceAd(_IterativeCovariance):
             seed=cfg.seed,
         )
         # a warm start only makes sense in the same feature space
-        same = it > 0 and np.array_equal(chosen, self._chosen)
+        same = it > 0 and self._chosen is not None and np.array_equal(chosen, self._chosen)
         mix = fit_dpgmm(
             z[:, chosen],
             truncation=cfg.truncation,
@@ -320,7 +320,7 @@ def _standardised(x: np.ndarray) -> np.ndarray:
     return (x - x.mean(axis=0)) / np.where(sd > 0, sd, 1.0)
 
 
-def _within(rows: np.ndarray | slice, has: np.ndarray) -> np.ndarray | None:
+def _within(rows: np.ndarray | slice | None, has: np.ndarray) -> np.ndarray | None:
     """``rows`` (indices into all rows) as indices into the rows where ``has``; None for all of them."""
     if not isinstance(rows, np.ndarray) or has.all() or not has.any():
         return rows if isinstance(rows, np.ndarray) else None

@@ -164,6 +164,7 @@ class EkfPpp(Estimator):
         EkfTrack
         """
         cfg: EkfPppConfig = self.config
+        assert obs.system_index is not None  # prepare_ppp always sets it
         n_slots = len(obs.sat_names) if obs.n_arcs else 0
         # slant-ionosphere slots follow the bias slots, one per satellite, reset with the arc
         n_iono = n_slots if cfg.estimate_iono and not cfg.ionosphere_free else 0
@@ -176,7 +177,7 @@ class EkfPpp(Estimator):
         drift = vel0 + 3
         nx = vel0 + (4 if cv else 0)
         doppler = cv and obs.range_rate is not None and bool(np.isfinite(obs.range_rate).any())
-        odometry = cv and cfg.use_odometry and obs.odometry is not None
+        odometry = obs.odometry if cv and cfg.use_odometry else None
         kf = ExtendedKalmanFilter(dim_x=nx, dim_z=1)
 
         # ---- initialisation from a single point solution at the first epoch, or the nearest
@@ -207,6 +208,7 @@ class EkfPpp(Estimator):
         x[_POS], x[_CLK], x[_ZWD] = pos0, clock0, float(zwd0)
         x[isb0:vel0] = system_clock_offsets(fix, row_k, obs.system_index[rows])
         if doppler:
+            assert obs.range_rate is not None and obs.sat_vel is not None  # Doppler rows come with both
             # the drift of a receiver clock can be anything up to km/s: start at the first Doppler fix
             _, drift_fix = doppler_velocities(
                 row_k,
@@ -259,11 +261,11 @@ class EkfPpp(Estimator):
             dt = obs.epoch_t[k] - t_prev
             t_prev = obs.epoch_t[k]
             if dt > 0 and cv:
-                if odometry and np.isfinite(obs.odometry[k, 0]):
+                if odometry is not None and np.isfinite(odometry[k, 0]):
                     # the mean speed since the previous epoch is the speed at mid-interval (for a
                     # steady acceleration): update there, halfway through the exact time update
                     _advance(kf, diag, vel_diag, dt / 2.0, q_acc)
-                    n_odometry += self._odometry_update(kf, obs.odometry[k], vel0)
+                    n_odometry += self._odometry_update(kf, odometry[k], vel0)
                     _advance(kf, diag, vel_diag, dt / 2.0, q_acc)
                 else:
                     _advance(kf, diag, vel_diag, dt, q_acc)
@@ -347,7 +349,7 @@ class EkfPpp(Estimator):
                 n_doppler += self._doppler_update(kf, obs, rows, vel0, drift)
 
             pos_out[k] = kf.x[_POS]
-            if cv:
+            if vel_out is not None:  # constant velocity
                 vel_out[k] = kf.x[vel0:drift]
             update_s[k] = time.perf_counter() - tic
 
@@ -380,6 +382,7 @@ class EkfPpp(Estimator):
         self, kf: ExtendedKalmanFilter, obs: PppObservations, rows: slice, vel0: int, drift: int
     ) -> int:
         """Range-rate update with the epoch's Doppler rows; returns the number of rows used."""
+        assert obs.range_rate is not None and obs.sat_vel is not None  # called with Doppler rows only
         rr = obs.range_rate[rows]
         use = np.isfinite(rr)
         if not use.any():

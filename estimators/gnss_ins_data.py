@@ -85,6 +85,7 @@ def prepare_gnss_ins(data: ReceiverData, cfg: GnssInsConfig) -> GnssInsData:
         max_gap_epochs=1,
         measurements=MeasurementMode.code,
     )  # code and Doppler only: code-only logs run
+    assert obs.range_rate is not None and obs.sat_vel is not None  # prepare_ppp always sets them
     sig_rr = cfg.doppler_sigma_mps * 10.0 ** ((cfg.doppler_ref_cn0_dbhz - obs.cn0) / 20.0)
     # range rates as prepare_ppp forms them (NaN where unusable, e.g. GLONASS FDMA rows)
     ok_rr = np.isfinite(obs.range_rate) & np.isfinite(sig_rr)

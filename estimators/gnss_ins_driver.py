@@ -261,6 +261,7 @@ def _record(solver: WindowSolver, track: _Track, epoch: int, gnss: GnssEpoch | N
         track.doppler_rows += int(np.count_nonzero(gnss.w_rr))
     leaving = solver.nodes[1] if solver.full and len(solver.nodes) > 1 else None
     if leaving is not None and leaving.gnss is not None:
+        assert leaving.s_code is not None and leaving.s_rr is not None  # a node with GNSS has its S
         track.code_rows_with_s += int(np.count_nonzero(leaving.s_code))
         track.doppler_rows_with_s += int(np.count_nonzero(leaving.s_rr))
         _keep_outliers(track.outliers, epoch - (len(solver.nodes) - 2), leaving)
@@ -269,6 +270,7 @@ def _record(solver: WindowSolver, track: _Track, epoch: int, gnss: GnssEpoch | N
 def _keep_outliers(out: list[dict[str, Any]], epoch: int, node: WindowNode) -> None:
     """Append the non-zero S entries of a node leaving the window; keep the largest few."""
     g = node.gnss
+    assert g is not None and node.s_code is not None and node.s_rr is not None  # called for a GNSS node
     for kind, s, w, unit in (("code", node.s_code, g.w_code, "m"), ("doppler", node.s_rr, g.w_rr, "m/s")):
         for j in np.flatnonzero(s):
             out.append(

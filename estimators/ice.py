@@ -58,6 +58,7 @@ from estimators.incremental import (
     IncrementalGraphEstimator,
 )
 from estimators.mixture_tests import MixtureModel
+from estimators.ppp_config import GnssModelConfig
 from estimators.ppp_graph import PppGraph
 from simbench.errors import SimbenchError
 
@@ -78,7 +79,7 @@ class IceConfig(IncrementalConfig):
     max_components: int = 20  #: components of the model at most
     min_cluster_points: int = 2  #: new clusters with fewer points are dropped
     #: the mixture models residuals divided by each row's sigma factor (``sigma_model``), not metres
-    scaled_mixture: bool = False
+    scaled_mixture: bool = GnssModelConfig.scaled_mixture
     prior_code_sigma_m: float = 2.5  #: a-priori model code sigma [m] (not elevation-scaled)
     prior_phase_sigma_m: float = 0.25  #: a-priori model phase sigma [m]
     dpgmm_truncation: int = 10  #: stick-breaking truncation of the DP-GMM fit
@@ -175,6 +176,7 @@ class AdaptiveNoiseModel:
         if self.n_buffered <= self.cfg.cluster_threshold:
             return False
         pts = np.vstack(self.buffer)
+        assert self.cluster is not None  # set in __post_init__
         labels = self.cluster(pts)
         cfg = self.cfg
         outcome = self.model.adapt(

@@ -23,10 +23,10 @@ Estimators:
   0.025 m over sin(el), 7 deg mask); with ``false`` the Ch. 7 single-frequency L1
   incremental L2 comparator.
 * ``isam2_dcs``: the same noise wrapped in GTSAM's DCS m-estimator (kernel width
-  ``phi`` in whitened units); iSAM2 re-weights whenever it relinearises.
+  ``kernel_width`` in whitened units); iSAM2 re-weights whenever it relinearises.
 * ``isam2_mm``: max-mixtures with a static inlier/outlier model per measurement
   (outlier covariance = inlier times ``outlier_scale``, 10 in the incremental code
-  and in the ``urban`` GNSS model, equal weights). The component is chosen once, when the measurement enters the
+  and in both ``gnss_model`` presets, equal weights). The component is chosen once, when the measurement enters the
   graph, from its predicted residual (iSAM2 cannot swap a factor's noise model at
   each relinearisation without removing and re-adding it).
 
@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import asdict, dataclass
-from typing import Any, ClassVar
+from typing import Any, ClassVar, cast
 
 import gtsam
 import numpy as np
@@ -92,7 +92,7 @@ def _huber_weight(u: np.ndarray) -> np.ndarray:
 
 @dataclass
 class IncrementalConfig(PppGraphConfig):
-    """iSAM2 settings on top of the graph model (:class:`PppGraphConfig`, Table 4.4.2 defaults)."""
+    """iSAM2 settings on top of the graph model (:class:`PppGraphConfig`)."""
 
     ambiguity_sigma_m: float = 10.0  #: a priori arc bias sigma [m] (original iSAM2-PPP code; Table 4.4.2: 100)
     #: iSAM2 relinearisation threshold of the positions [m] (original code 0.01; see isam2_params)
@@ -149,7 +149,7 @@ class EpochPrediction:
 class IncrementalGraphEstimator(Estimator):
     """The shared iSAM2 loop; subclasses choose the measurement noise of each epoch."""
 
-    Config = IncrementalConfig
+    Config: ClassVar[type[IncrementalConfig]] = IncrementalConfig
 
     # ------------------------------------------------------------------ hooks
 
@@ -340,10 +340,11 @@ class _Smoother:
             return
         obs = self._g.obs
         t = float(obs.epoch_t[k])
-        stamps = dict.fromkeys(values.keys(), t)
+        # gtsam keys (int) to time; Any: the stub's key type is SupportsInt | SupportsIndex, and dict keys are invariant
+        stamps: dict[Any, float] = dict.fromkeys(values.keys(), t)
         stamps.update(dict.fromkeys((amb_key(int(a)) for a in obs.arc[obs.epoch_slice(k)] if a >= 0), t))
         stamps[ZERO_KEY] = t
-        self._impl.update(graph, values, stamps)
+        cast(gtsam.IncrementalFixedLagSmoother, self._impl).update(graph, values, stamps)
 
     def calculateEstimatePoint3(self, key: int) -> np.ndarray:
         return self._impl.calculateEstimatePoint3(key)
@@ -399,12 +400,14 @@ class Isam2Ppp(IncrementalGraphEstimator):
 class Isam2DcsConfig(IncrementalConfig):
     """Incremental dynamic covariance scaling."""
 
-    phi: float = 2.5  #: DCS kernel width (whitened units)
+    kernel_width: float = 2.5  #: DCS kernel width (phi) [whitened units], as batch DCS's
 
     def validate(self, where: str) -> None:
         """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
         super().validate(where)
-        require_positive(f"{where}.phi", self.phi, "use 2.5")
+        require_positive(
+            f"{where}.kernel_width", self.kernel_width, "give the DCS kernel width in whitened units (default 2.5)"
+        )
 
 
 @register
@@ -415,14 +418,12 @@ class Isam2Dcs(IncrementalGraphEstimator):
     Config = Isam2DcsConfig
 
     def _measurements(self, k, rows, g, pred):
-        return {"robust": gtsam.noiseModel.mEstimator.DCS.Create(self.config.phi)}
+        return {"robust": gtsam.noiseModel.mEstimator.DCS.Create(self.config.kernel_width)}
 
 
 @dataclass
 class Isam2MmConfig(IncrementalConfig, MaxMixtureFields):
     """Incremental max-mixtures with a static two-component model."""
-
-    PUBLISHED_OUTLIER_SCALE: ClassVar[float] = 10.0  #: the incremental code's
 
     def validate(self, where: str) -> None:
         """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""

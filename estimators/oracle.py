@@ -74,11 +74,13 @@ class Oracle(BatchGraphEstimator):
         return obs, PppGraph(obs, self.config)
 
     def _a_priori_sigmas(self, obs):
-        lab = self._labels.set_index(["epoch", "sat"])
+        labels = self._labels
+        assert labels is not None  # _prepare refuses to run without them
+        lab = labels.set_index(["epoch", "sat"])
         rows = lab.reindex(pd.MultiIndex.from_arrays([obs.epoch, obs.sat]))
 
         def rms(col: str) -> float:
-            return float(np.sqrt(np.mean(self._labels[col].to_numpy(float) ** 2)))
+            return float(np.sqrt(np.mean(labels[col].to_numpy(float) ** 2)))
 
         orbit = rms("orbit_clock_error")
         code = np.sqrt(

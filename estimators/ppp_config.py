@@ -6,11 +6,15 @@ carry the same model fields with the same defaults; they live here once,
 with their one validation entry point. The motion and clock-drift model
 (:class:`MotionModelConfig`: random walk or constant velocity with Doppler and
 wheel odometry) is shared the same way.
+
+The fields that :class:`GnssModelConfig` also has take their defaults from it (the
+shipped ``urban`` preset); a composed run takes them from its ``gnss_model`` preset,
+and ``conf/gnss_model/dissertation.yaml`` restores Table 4.4.2's.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 from simbench.contract import Need
@@ -61,9 +65,64 @@ class SigmaModel(Choice):
     elevation_cn0 = "elevation_cn0"  #: the product of the two
 
 
+class MotionModel(Choice):
+    """Process model of the receiver position between epochs (member names are the YAML words)."""
+
+    random_walk = "random_walk"  #: position random walk ``pos_rw_m_rts`` (Table 4.4.2)
+    #: velocity states, white acceleration ``accel_sigma_mps2_rts``, Doppler range-rate factors
+    constant_velocity = "constant_velocity"
+
+
+@dataclass
+class GnssModelConfig:
+    """The model choices every GNSS estimator takes from the ``gnss_model`` config group.
+
+    The defaults are the ``urban`` preset, the shipped default (``conf/config.yaml``):
+    sigmas that follow C/N0 (a weak, reflected or diffracted signal trusted less
+    whatever its elevation), a constant-velocity vehicle with Doppler range rates,
+    arcs also broken where the phase disagrees with the Doppler, every epoch with a
+    satellite, ICE's mixture in units of the C/N0 sigma factor and one max-mixture
+    outlier scale of 10 for batch and incremental MM; chosen on tuning seeds
+    1000-1002 of the simulated urban_deep and urban worlds (docs/notebook.md, "The GNSS model").
+    ``conf/gnss_model/dissertation.yaml`` is Table 4.4.2's model (random walk,
+    ``1/sin(el)`` weights, arcs broken at flags and gaps, epochs with 4 satellites
+    or more, each max-mixture's published outlier scale), which the thesis sweeps pin.
+    The estimators' ``Config`` dataclasses take these fields' defaults from here.
+
+    :func:`simbench.runs.compose.estimator_schema` makes each model field of every
+    estimator config that has it default to its ``per_estimator`` entry, else to
+    ``${gnss_model.<field>}``, so one setting reaches every estimator that has the field
+    and ``estimator.<name>.<field>`` still overrides it for one. A result row records
+    ``name`` (its ``gnss_model`` column), and its ``overrides`` are relative to the
+    estimator's dataclass defaults under this preset (:func:`simbench.runs.compose.preset_estimator_config`).
+    """
+
+    name: str = "urban"  #: the preset's name (its file in ``conf/gnss_model/``)
+    motion_model: MotionModel = MotionModel.constant_velocity
+    sigma_model: SigmaModel = SigmaModel.cn0
+    doppler_slip_m: float = 1.0
+    min_satellites: int = 1
+    #: ICE's adaptive mixture over residuals in units of each row's sigma factor (False: metres)
+    scaled_mixture: bool = True
+    #: max-mixture outlier covariance over the inlier's (MM, iSAM2-MM). C/N0 sigmas already widen a
+    #: weak (often reflected) row to 10-25 m, so an NLOS excess of tens of metres sits 1.5-3 sigma out:
+    #: the batch code's 1e6 (outlier beyond 3.7 sigma) keeps every row and MM equals L2; 10 (beyond
+    #: 1.6 sigma, the incremental code's value) for both
+    outlier_scale: float = 10.0
+    #: values of the fields above for one estimator, where its published code differs from the
+    #: others (estimator name -> field -> value), e.g. ``{mm: {outlier_scale: 1.0e6}}``
+    per_estimator: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+    @staticmethod
+    def model_fields() -> list[str]:
+        """The fields an estimator config may share: all but ``name`` and ``per_estimator``."""
+        return [f.name for f in fields(GnssModelConfig) if f.name not in ("name", "per_estimator")]
+
+
 @dataclass
 class StochasticModelConfig:
-    """Stochastic model and observation selection of PPP; defaults are Table 4.4.2 and Sec. 4.4."""
+    """Stochastic model and observation selection of PPP; defaults are Table 4.4.2 and Sec. 4.4 but for
+    the :class:`GnssModelConfig` fields, whose defaults are its (the shipped ``urban`` preset's)."""
 
     pos_sigma_m: float = 1.0  #: a priori position sigma per axis at the first epoch [m]
     pos_rw_m_rts: float = 5.0  #: position random walk [m/sqrt(s)]
@@ -75,19 +134,19 @@ class StochasticModelConfig:
     ambiguity_sigma_m: float = 100.0  #: a priori phase bias sigma [m]; biases are constant within an arc
     code_sigma_m: float = 2.5  #: zenith code sigma [m], scaled per row by ``sigma_model``
     phase_sigma_m: float = 0.025  #: zenith phase sigma [m], scaled per row by ``sigma_model``
-    #: per-row scaling of the sigmas: elevation (1/sin(el)) | cn0 | elevation_cn0
-    sigma_model: SigmaModel = SigmaModel.elevation
+    #: per-row scaling of the sigmas: elevation (1/sin(el), Table 4.4.2) | cn0 | elevation_cn0
+    sigma_model: SigmaModel = GnssModelConfig.sigma_model
     #: C/N0 at which the ``cn0`` factor is 1 [dB-Hz]
     cn0_ref_dbhz: float = 45.0
     elevation_mask_deg: float = 7.0
     #: epochs with fewer usable satellites are skipped (Table 4.4.2: 4, a snapshot fix); below 4 an
     #: epoch is held by the motion model and its 1-3 rows (what a car in a canyon often has)
-    min_satellites: int = 4
+    min_satellites: int = GnssModelConfig.min_satellites
     max_gap_epochs: int = 1  #: a larger epoch step within a satellite's rows starts a new phase arc
     #: a phase step that disagrees with the Doppler by more than this starts a new arc [m] (an
     #: unflagged cycle slip or a switch of reflected path; :func:`simbench.gnss.arcs.doppler_phase_jumps`);
     #: 0: loss-of-lock flags and gaps only (Table 4.4.2's data came with flagged slips)
-    doppler_slip_m: float = 0.0
+    doppler_slip_m: float = GnssModelConfig.doppler_slip_m
     ionosphere_free: bool = False  #: L1/L2 ionosphere-free combination (needs dual-frequency data)
     #: L1 only (not in Table 4.4.2): a slant ionosphere residual per satellite arc (code +I, phase -I)
     #: so that code-phase divergence after Klobuchar does not drag the position
@@ -170,14 +229,6 @@ class StochasticModelConfig:
         }
 
 
-class MotionModel(Choice):
-    """Process model of the receiver position between epochs (member names are the YAML words)."""
-
-    random_walk = "random_walk"  #: position random walk ``pos_rw_m_rts`` (Table 4.4.2)
-    #: velocity states, white acceleration ``accel_sigma_mps2_rts``, Doppler range-rate factors
-    constant_velocity = "constant_velocity"
-
-
 #: Below this wheel speed the vehicle stands still (zero horizontal velocity) [m/s].
 STANDSTILL_MPS = 0.2
 #: A velocity slower than this gives no usable direction of travel for the odometry [m/s].
@@ -188,14 +239,14 @@ DIRECTION_MIN_SPEED_MPS = 2.0
 class MotionModelConfig(StochasticModelConfig):
     """The shared stochastic model plus the motion and clock-drift model between epochs.
 
-    ``random_walk`` (default) is Table 4.4.2's position random walk. With
-    ``constant_velocity`` each epoch also has a velocity, driven by white
+    ``random_walk`` is Table 4.4.2's position random walk. With
+    ``constant_velocity`` (default, :class:`GnssModelConfig`'s) each epoch also has a velocity, driven by white
     acceleration, and a receiver clock drift (random walk); the rows with a Doppler
     give range-rate measurements of both, and wheel odometry (when the data have
     it and ``use_odometry``) constrains the velocity.
     """
 
-    motion_model: MotionModel = MotionModel.random_walk
+    motion_model: MotionModel = GnssModelConfig.motion_model
     #: white-acceleration density of the constant-velocity model per axis [m/s^2/sqrt(s)] (a car in town)
     accel_sigma_mps2_rts: float = 2.0
     vel_sigma_mps: float = 30.0  #: a priori velocity sigma per axis at the first epoch [m/s]
@@ -220,29 +271,3 @@ class MotionModelConfig(StochasticModelConfig):
             "nhc_sigma_mps",
         ):
             require_positive(f"{where}.{name}", getattr(self, name), "give a positive sigma or density")
-
-
-@dataclass
-class GnssModelConfig:
-    """The model choices every GNSS estimator takes from the ``gnss_model`` config group.
-
-    ``conf/gnss_model/`` holds the profiles (``dissertation``: Table 4.4.2's random
-    walk, ``1/sin(el)`` weights, arcs broken at flags and gaps, epochs with 4
-    satellites or more, pinned by the thesis sweeps; ``urban``: C/N0 weights,
-    constant velocity, arcs also broken where the phase disagrees with the Doppler,
-    every epoch with a satellite, ICE's mixture in units of the C/N0 sigma factor,
-    one max-mixture outlier scale of 10 for batch and incremental MM:
-    the default run's). :func:`simbench.runs.compose.register_schemas` makes each of these
-    fields of every estimator config that has it default to ``${gnss_model.<field>}``,
-    so one setting reaches every estimator that has the field and
-    ``estimator.<name>.<field>`` still overrides it for one.
-    """
-
-    motion_model: MotionModel = MotionModel.random_walk
-    sigma_model: SigmaModel = SigmaModel.elevation
-    doppler_slip_m: float = 0.0
-    min_satellites: int = 4
-    #: ICE's adaptive mixture over residuals in units of each row's sigma factor (False: metres)
-    scaled_mixture: bool = False
-    #: max-mixture outlier covariance over the inlier's (MM, iSAM2-MM); None: each one's published value
-    outlier_scale: float | None = None

@@ -271,6 +271,7 @@ class PppGraph:
         self.spp_pos, self.spp_clock_m = spp.pos, spp.clock_m[:, 0]
         self.with_odometry = bool(self.constant_velocity and cfg.use_odometry and obs.odometry is not None)
         if self.constant_velocity:
+            assert obs.sat_vel is not None and obs.range_rate is not None  # prepare_ppp always sets them
             # one Doppler fix per epoch: the drift's start values and the odometry's direction of travel
             doppler_vel, drift = doppler_velocities(
                 self.row_epoch,
@@ -488,6 +489,7 @@ class PppGraph:
         """
         g = gtsam.NonlinearFactorGraph()
         odo = self.obs.odometry
+        assert odo is not None  # built with_odometry only
         speed, yaw_rate, var_speed, var_yaw = odo[k]
         if not np.isfinite(speed):
             return g
@@ -559,6 +561,7 @@ class PppGraph:
         g = gtsam.NonlinearFactorGraph()
         obs = self.obs
         rows = obs.epoch_slice(k)
+        assert obs.range_rate is not None and obs.sat_vel is not None  # prepare_ppp always sets them
         rr = obs.range_rate[rows]
         use = np.flatnonzero(np.isfinite(rr)) + rows.start
         if use.size == 0:

@@ -63,7 +63,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from functools import lru_cache
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, cast
 
 import gtsam
 import numpy as np
@@ -219,8 +219,8 @@ class _GnssLayout(NamedTuple):
 def _gnss_layout(nodes: list[WindowNode]) -> _GnssLayout:
     """:class:`_GnssLayout` of a window (``idx`` empty without GNSS)."""
     idx = [i for i, n in enumerate(nodes) if n.gnss is not None]
-    gs = [nodes[i].gnss for i in idx]
-    counts = np.array([len(g.code) for g in gs], dtype=int)
+    gs = [g for n in nodes if (g := n.gnss) is not None]
+    counts = np.array([len(g.code) for g in gs], dtype=np.int_)
     stops = np.cumsum(counts)
     bounds = [(i, int(b - c), int(b)) for i, b, c in zip(idx, stops, counts)]
     if not idx:
@@ -326,8 +326,8 @@ def _gnss_blocks(g: GnssTerms, b: np.ndarray, lay: _GnssLayout) -> tuple[np.ndar
         ``|b|^2`` of each node's rows [whitened, dimensionless], nodes in ``lay.idx`` order.
     """
     shape = (len(lay.idx), 2, lay.width)
-    J = np.zeros((np.prod(shape), NS))
-    r = np.zeros(len(J))
+    J: np.ndarray = np.zeros((np.prod(shape), NS))
+    r: np.ndarray = np.zeros(len(J))
     J[lay.padded] = g.J
     r[lay.padded] = b
     J, r = J.reshape(*shape, NS), r.reshape(shape)
@@ -341,7 +341,8 @@ def _s_of(nodes: list[WindowNode]) -> np.ndarray:
     with_g = [n for n in nodes if n.gnss is not None]
     if not with_g:
         return np.zeros(0)
-    return np.concatenate([n.s_code for n in with_g] + [n.s_rr for n in with_g])
+    # a node with GNSS has its S (attach_gnss)
+    return np.concatenate([cast(np.ndarray, n.s_code) for n in with_g] + [cast(np.ndarray, n.s_rr) for n in with_g])
 
 
 #: Row ranges, in a (30, 15) slab per pair, of GTSAM's CombinedImuFactor Jacobians w.r.t. pose_i, vel_i, pose_j,
@@ -372,8 +373,8 @@ def window_factors(nodes: list[WindowNode]) -> _WindowFactors:
     later = nodes[1:]
     # stacked column-major like each factor (a transposed Cholesky factor): the batched products then run the
     # BLAS kernels of per-pair ones and give the same bits
-    W = np.array([n.imu_sqrt_info.T for n in later]).reshape(-1, 15, 15).swapaxes(-1, -2)
-    Wc = np.array([n.clk_sqrt_info.T for n in later]).reshape(-1, 2, 2).swapaxes(-1, -2)
+    W = np.array([cast(np.ndarray, n.imu_sqrt_info).T for n in later]).reshape(-1, 15, 15).swapaxes(-1, -2)
+    Wc = np.array([cast(np.ndarray, n.clk_sqrt_info).T for n in later]).reshape(-1, 2, 2).swapaxes(-1, -2)
     F = np.tile(np.eye(2), (len(later), 1, 1))
     F[:, 0, 1] = [n.dt for n in later]
     slab = np.zeros((len(later), 30, 15))
@@ -422,6 +423,7 @@ def pair_terms(
     err = np.empty((pairs, 15))
     for k in range(pairs):
         a, b = nodes[k], nodes[k + 1]
+        assert b.imu is not None  # every node after the first holds the IMU factor leading into it
         err[k] = b.imu.evaluateError(
             a.pose, a.vel, b.pose, b.vel, biases[k], biases[k + 1], *(factors.outputs[k] if jacobian else ())
         )
@@ -627,6 +629,7 @@ class WindowSolver:
     def rotate_heading(self, angle: float) -> None:
         """Turn every state's attitude and velocity, and the prior mean, about the local vertical."""
         R = rotate_about_vertical(self.nodes[-1].pose.translation(), angle)
+        assert self.prior_mean is not None  # set by start
         for node in [*self.nodes, self.prior_mean]:
             node.pose = gtsam.Pose3(gtsam.Rot3(R @ node.pose.rotation().matrix()), node.pose.translation())
             node.vel = R @ node.vel
@@ -646,6 +649,7 @@ class WindowSolver:
 
     def _prior_terms(self, nodes: list[WindowNode]) -> tuple[np.ndarray, np.ndarray]:
         """Whitened Jacobian (17 x 17) of the prior w.r.t. the first node and b = -error."""
+        assert self.prior_mean is not None  # set by start
         e = self.prior_R @ _local(self.prior_mean, nodes[0]) - self.prior_r
         return self.prior_R, -e
 
@@ -653,6 +657,7 @@ class WindowSolver:
         """Every factor of a window with the given factors, linearised at its states."""
         R, b0 = self._prior_terms(nodes)
         A, b = pair_terms(nodes, factors)
+        assert A is not None  # asked for
         return _Linearisation(R, b0, A, b, window_gnss_terms(nodes, layout=factors.gnss))
 
     def _linearised(self) -> _Linearisation:
@@ -698,9 +703,9 @@ class WindowSolver:
             if n.gnss is None:
                 continue
             if code:
-                tot += self.lam_rho * np.abs(n.s_code).sum()
+                tot += self.lam_rho * np.abs(cast(np.ndarray, n.s_code)).sum()
             if rr:
-                tot += self.lam_d * np.abs(n.s_rr).sum()
+                tot += self.lam_d * np.abs(cast(np.ndarray, n.s_rr)).sum()
         return float(tot)
 
     def cost(self, nodes: list[WindowNode] | None = None) -> float:
@@ -807,6 +812,7 @@ class WindowSolver:
         H0 = self._normal_equations(self.nodes, lin, self._stacked_factors(), gnss_nodes=set(range(last))).dense()
         P = np.linalg.inv(H0)[-NS:, -NS:]
         g = lin.gnss
+        assert g is not None and g.J is not None  # the newest node has GNSS; linearised with the Jacobian
         R = len(g.e) // 2
         _, lo, hi = g.bounds[-1]
         rows = np.r_[lo:hi, R + lo : R + hi]

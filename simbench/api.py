@@ -16,7 +16,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import pandas as pd
 from omegaconf import OmegaConf
@@ -120,7 +120,8 @@ def run(
         for cfg in tqdm(configs, desc="seeds", disable=not progress or len(configs) == 1)
     ]
     summary = pd.concat(rows, ignore_index=True)
-    run_config = OmegaConf.to_container(configs[0], resolve=True, enum_to_str=True)
+    # a DictConfig becomes a dict with the config's (string) keys
+    run_config = cast(dict[str, Any], OmegaConf.to_container(configs[0], resolve=True, enum_to_str=True))
     run_config["seed"] = seed_list
     report = finalize(root, run_config)
     everything = pd.read_parquet(root / "epochs.parquet")

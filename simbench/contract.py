@@ -9,7 +9,7 @@ only to estimators that require :attr:`Need.labels` (the oracle), and skips an
 estimator whose :class:`Need` a scenario does not offer (:func:`available_needs`).
 
 Every column, its unit and its meaning is listed in the ``*_COLUMNS`` dicts
-below; README's data-contract tables restate them (tests/test_readme.py checks every column is there).
+below; docs/contract.md's tables restate them (tests/test_readme.py checks every column is there).
 """
 
 from __future__ import annotations

@@ -1,13 +1,17 @@
-"""The one exception type users see.
+"""The one exception type users see, and the one warning type.
 
 Every check of user input raises :class:`SimbenchError` with a one-line message
 that names the offending field and says how to fix it; the CLI prints the
-message alone instead of a traceback.
+message alone instead of a traceback. Input that is used after a repair (a
+dropped duplicate epoch, a system without rows) is never silent: :func:`warn`
+issues a one-line :class:`SimbenchWarning` naming the field and what was done,
+which the CLI prints as ``warning: ...``.
 """
 
 from __future__ import annotations
 
 import traceback
+import warnings
 
 
 class SimbenchError(ValueError):
@@ -16,6 +20,25 @@ class SimbenchError(ValueError):
     def __init__(self, field: str, problem: str, fix: str) -> None:
         self.field = field
         super().__init__(f"{field}: {problem} -- {fix}")
+
+
+class SimbenchWarning(UserWarning):
+    """Input simbench used after a repair, or a request it could only partly meet; one line."""
+
+
+def warn(field: str, problem: str, consequence: str) -> None:
+    """Issue a one-line :class:`SimbenchWarning`: ``field: problem -- consequence``.
+
+    Parameters
+    ----------
+    field : str
+        The setting or file the warning is about, e.g. ``scenario.obs``.
+    problem : str
+        What was found, e.g. ``2 duplicate epochs``.
+    consequence : str
+        What simbench did about it, e.g. ``kept the first of each``.
+    """
+    warnings.warn(f"{field}: {problem} -- {consequence}", SimbenchWarning, stacklevel=2)
 
 
 def require_positive(field: str, value: float, fix: str) -> None:

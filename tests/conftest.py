@@ -8,14 +8,17 @@ machines that knowingly run without the data; then it is skipped.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import pytest
 from threadpoolctl import threadpool_limits
 
 from simbench.errors import SimbenchError
+from simbench.runs.compose import preset_estimator_config
 
 # One BLAS thread per test process, here and in the CLI runs the tests start: with
 # ``pytest -n 2`` on 2 cores, OpenBLAS's spinning threads made the suite several times slower.
@@ -71,3 +74,11 @@ def one_line_error(fn, *args, **kwargs) -> str:
     msg = str(info.value)
     assert "\n" not in msg and " -- " in msg
     return msg
+
+
+def dissertation(name: str, **changes: Any) -> Any:
+    """Estimator ``name``'s ``Config`` under ``gnss_model=dissertation`` (Table 4.4.2's model) with ``changes``.
+
+    For the tests of the published model: the dataclass defaults are the shipped ``urban`` preset's.
+    """
+    return dataclasses.replace(preset_estimator_config(name, "dissertation"), **changes)

@@ -9,6 +9,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from conftest import dissertation
 
 import simbench
 from estimators.ekf_ppp import EkfPpp, EkfPppConfig, EkfTrack
@@ -22,7 +23,7 @@ CV = {"motion_model": "constant_velocity"}
 def _run(sc: simbench.Scenario, **config) -> tuple[EkfTrack, np.ndarray, np.ndarray]:
     """Filter ``sc``; the track, horizontal position errors [m] and 3-D velocity errors [m/s] (NaN without
     velocity states)."""
-    cfg = EkfPppConfig(**config)
+    cfg = dissertation("ekf_ppp", **config)  # Table 4.4.2 but for ``config``
     obs = prepare_ppp(sc.receiver_view(), **cfg.prepare_kwargs())
     track = EkfPpp(cfg).run(obs)
     truth = sc.truth.set_index("epoch").loc[obs.epoch_ids]

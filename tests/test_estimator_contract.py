@@ -208,7 +208,7 @@ def test_invalid_config_fails_at_construction() -> None:
         ("ekf_ppp", "code_sigma_m", 0.0),
         ("l2", "min_satellites", 0),
         ("mm", "outlier_weight", 1.5),
-        ("isam2_dcs", "phi", -1.0),
+        ("isam2_dcs", "kernel_width", -1.0),
         ("ice", "alpha", 2.0),
         ("bce_ad", "n_features", 9),
         ("isam2_ppp", "lag_s", -1.0),

@@ -28,9 +28,7 @@ from simbench.gnss.navigation import read_gps_navigation
 from simbench.gnss.spp import solve_epochs
 from simbench.runs.compose import compose_config
 from simbench.runs.runner import run_estimators
-from simbench.runs.scenarios import build_scenario
-from simbench.sim.config import SimConfig
-from simbench.typed import to_typed
+from simbench.runs.scenarios import build_scenario, scenario_settings
 
 #: Compared columns of the round trip and their tolerances: code and phase 1 mm, Doppler 1 mHz, C/N0 0.001 dB-Hz
 #: (RINEX F14.3 rounds each to half of that).
@@ -39,7 +37,7 @@ ROUND_TRIP_TOLERANCE = {"code_l1": 1e-3, "phase_l1": 1e-3, "doppler_l1": 1e-3, "
 
 def _scenario(*overrides: str) -> Scenario:
     cfg = compose_config(list(overrides))
-    return build_scenario(to_typed({k: cfg[k] for k in ("scenario", "receiver", "imu", "seed")}, SimConfig, "config"))
+    return build_scenario(scenario_settings(cfg))
 
 
 @pytest.fixture(scope="module")

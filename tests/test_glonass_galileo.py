@@ -27,9 +27,10 @@ from simbench.core.orbits import BroadcastEphemeris
 from simbench.data.galileo import read_galileo_navigation
 from simbench.data.glonass import read_glonass_navigation
 from simbench.data.rinex import load_rinex
+from simbench.data.sources import RinexConfig
 from simbench.errors import SimbenchError
 from simbench.gnss.geometry import sagnac_range
-from simbench.sim.config import SimConfig, validate_sim
+from simbench.runs.scenarios import ScenarioSettings, check_scenario
 
 MU, AE, J2, WE = 3.986004418e14, 6_378_136.0, 1_082_625.75e-9, 7.2921151467e-5
 GPS_MINUS_UTC_2019 = 18.0
@@ -488,27 +489,26 @@ def test_mixed_navigation_and_observations_round_trip(tmp_path: Path) -> None:
 
 
 def test_systems_setting_and_missing_navigation(tmp_path: Path) -> None:
-    cfg = SimConfig()
-    sc = cfg.scenario
-    sc.source, sc.obs, sc.truth = "rinex", "a.obs", "a.csv"
+    sc = RinexConfig(obs="a.obs", truth="a.csv")
+    cfg = ScenarioSettings(scenario=sc)
     sc.nav = str(tmp_path / "gps.rnx")
     (tmp_path / "gps.rnx").write_text(
         "     3.04           N: GNSS NAV DATA    G: GPS              RINEX VERSION / TYPE\n"
     )
     sc.systems = "GX"
-    msg = one_line_error(validate_sim, cfg)
+    msg = one_line_error(check_scenario, cfg)
     assert "scenario.systems" in msg and "X" in msg and "GREC" in msg
     sc.systems = "GE"  # a GPS-only nav file cannot serve Galileo
-    assert "scenario.nav_gal" in one_line_error(validate_sim, cfg)
+    assert "scenario.nav_gal" in one_line_error(check_scenario, cfg)
     sc.nav_gal = "e.rnx"
-    validate_sim(cfg)
+    check_scenario(cfg)
     sc.systems = "GR"
-    assert "scenario.nav_glo" in one_line_error(validate_sim, cfg)
+    assert "scenario.nav_glo" in one_line_error(check_scenario, cfg)
     # a mixed file serves every system
     (tmp_path / "gps.rnx").write_text(
         "     3.04           N: GNSS NAV DATA    M: MIXED            RINEX VERSION / TYPE\n"
     )
     sc.systems = "GREC"
-    validate_sim(cfg)
+    check_scenario(cfg)
     sc.nav = ""
-    assert "scenario.nav" in one_line_error(validate_sim, cfg)
+    assert "scenario.nav" in one_line_error(check_scenario, cfg)

@@ -12,6 +12,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from conftest import dissertation
 
 import estimators
 import simbench
@@ -86,9 +87,9 @@ def test_auto_keeps_code_rows_without_phase(gps: simbench.Scenario) -> None:
 
 
 def _solve_graph(sc: simbench.Scenario, **config):
-    from estimators.ppp_graph import PppGraph, PppGraphConfig, solve, vel_key
+    from estimators.ppp_graph import PppGraph, solve, vel_key
 
-    cfg = PppGraphConfig(**config)
+    cfg = dissertation("l2", **config)  # the graph model of Table 4.4.2 but for ``config``
     obs = prepare_ppp(sc.receiver_view(), **cfg.prepare_kwargs())
     g = PppGraph(obs, cfg)
     graph = g.structure_factors()

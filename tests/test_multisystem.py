@@ -9,18 +9,19 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import dissertation
 
-from estimators.ekf_ppp import EkfPpp, EkfPppConfig
+from estimators.ekf_ppp import EkfPpp
 from estimators.measurement import prepare_ppp
 from simbench.contract import ReceiverData
 from simbench.core.frames import geodetic_from_ecef
 from simbench.core.gpstime import datetime64_to_gps
 from simbench.data.beidou import read_beidou_navigation
 from simbench.data.rinex import load_rinex
+from simbench.data.sources import RinexConfig
 from simbench.errors import SimbenchError
 from simbench.gnss.geometry import sagnac_range
-from simbench.runs.scenarios import build_scenario
-from simbench.sim.config import SimConfig
+from simbench.runs.scenarios import ScenarioSettings, build_scenario
 
 if "test_measurement" not in sys.modules:
     _spec = importlib.util.spec_from_file_location("test_measurement", Path(__file__).with_name("test_measurement.py"))
@@ -52,12 +53,12 @@ def test_inter_system_bias_state() -> None:
     prep = prepare_ppp(mixed, ionosphere_free=True, code_sigma_m=2.5, phase_sigma_m=0.025, elevation_mask_deg=7)
     assert prep.systems == ("G", "C") and prep.n_isb == 1
     assert set(np.unique(prep.system_index)) == {0, 1}
-    sol = EkfPpp(EkfPppConfig(ionosphere_free=True)).estimate(mixed)
+    sol = EkfPpp(dissertation("ekf_ppp", ionosphere_free=True)).estimate(mixed)
     err = np.median(horizontal_error(sol.epochs, truth)[-100:])
     assert err < 0.3
     assert sol.diagnostics["inter_system_bias_m"]["C"] == pytest.approx(40.0, abs=0.5)
     # one system: no extra state, the same convergence
-    one = EkfPpp(EkfPppConfig(ionosphere_free=True)).estimate(data)
+    one = EkfPpp(dissertation("ekf_ppp", ionosphere_free=True)).estimate(data)
     assert one.diagnostics["inter_system_bias_m"] == {}
     assert np.median(horizontal_error(one.epochs, truth)[-100:]) < 0.3
     # ignoring the bias (every satellite called GPS) costs metres
@@ -65,7 +66,9 @@ def test_inter_system_bias_state() -> None:
     ignored = dataclasses.replace(
         ignored, observations=ignored.observations.assign(sat="G" + ignored.observations["sat"].str[1:])
     )
-    bad = np.median(horizontal_error(EkfPpp(EkfPppConfig(ionosphere_free=True)).estimate(ignored).epochs, truth)[-100:])
+    bad = np.median(
+        horizontal_error(EkfPpp(dissertation("ekf_ppp", ionosphere_free=True)).estimate(ignored).epochs, truth)[-100:]
+    )
     assert bad > 1.0 > err
 
 
@@ -123,8 +126,6 @@ def test_hong_kong_gps_plus_beidou() -> None:
 
 
 def test_beidou_needs_its_navigation_file() -> None:
-    cfg = SimConfig()
-    sc = cfg.scenario
-    sc.source, sc.obs, sc.nav, sc.truth, sc.systems = "rinex", "a.obs", "a.19n", "a.csv", "GC"
+    cfg = ScenarioSettings(scenario=RinexConfig(obs="a.obs", nav="a.19n", truth="a.csv", systems="GC"))
     with pytest.raises(SimbenchError, match="scenario.nav_bds"):
         build_scenario(cfg)

@@ -19,14 +19,14 @@ from simbench.contract import MISSING_NEED_REASONS, OBSERVATION_COLUMNS, Need, S
 from simbench.core.constants import C_LIGHT, SECONDS_PER_WEEK
 from simbench.data.reference import match_reference, read_reference
 from simbench.data.rinex import RinexObs, load_rinex, read_rinex_obs, satellite_states
+from simbench.data.sources import RinexConfig
 from simbench.data.sp3 import read_sp3
 from simbench.errors import SimbenchError
 from simbench.gnss.geometry import sagnac_range
 from simbench.gnss.navigation import read_gps_navigation
 from simbench.gnss.spp import solve_epochs
 from simbench.runs.runner import run_estimators
-from simbench.runs.scenarios import build_scenario
-from simbench.sim.config import SimConfig
+from simbench.runs.scenarios import ScenarioSettings, build_scenario
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 HK = DATA / "hk_tst_2019"
@@ -194,9 +194,7 @@ def test_bad_input_gives_one_line_errors(tmp_path: Path) -> None:
 
 
 def test_scenario_dispatch_validates_paths() -> None:
-    cfg = SimConfig()
-    cfg.scenario.source = "rinex"
-    cfg.scenario.obs, cfg.scenario.nav = str(OBS), str(NAV)
+    cfg = ScenarioSettings(scenario=RinexConfig(obs=str(OBS), nav=str(NAV)))
     with pytest.raises(SimbenchError, match="scenario.truth"):
         build_scenario(cfg)
     cfg.scenario.source = "sp3"

@@ -14,8 +14,8 @@ import simbench
 from simbench.cli.score import main
 from simbench.contract import Scenario, read_parquet_metadata
 from simbench.core.constants import SECONDS_PER_WEEK
+from simbench.runs.foreign import score_solution_file
 from simbench.runs.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS
-from simbench.runs.score import score_solution_file
 
 EAST_M = 3.0  #: the solutions below are the truth moved this far east [m]
 CLOCK_S = 0.002  #: and time-tagged this late, like a receiver clock offset [s]

@@ -88,6 +88,7 @@ def _run(source: str, scenario: str, seeds: int = 2) -> tuple[pd.DataFrame, pd.D
                 "seed": seed,
                 "scenario_key": f"k{seed}",
                 "estimator": name,
+                "gnss_model": "urban",
                 "variant": "",
                 "overrides": "{}",
             }

@@ -22,7 +22,7 @@ import pandas as pd
 
 from simbench.analysis.validation import ValidationSample, WorldStatistics, residual_sample, world_statistics
 from simbench.errors import SimbenchError
-from simbench.sim.config import SimConfig
+from simbench.sim.config import SimConfig, validate_sim
 from simbench.sim.generator import generate
 
 __all__ = ["TOLERANCES", "Tolerance", "misfit", "pool_samples", "seeds_statistics", "with_changes", "within_tolerance"]
@@ -123,7 +123,13 @@ def seeds_statistics(config: SimConfig, seeds: Sequence[int], name: str) -> Worl
     seeds : sequence of int
     name : str
         Label of the pooled world.
+
+    Raises
+    ------
+    SimbenchError
+        For a config :func:`~simbench.sim.config.validate_sim` rejects.
     """
+    validate_sim(config)  # once: the seeds change nothing it checks, and the generator trusts it
     samples = [residual_sample(generate(replace(config, seed=int(seed)))) for seed in seeds]
     return world_statistics(pool_samples(samples, name))
 

@@ -17,20 +17,30 @@ from scipy import stats
 from simbench.analysis.claims import BOOTSTRAP_RESAMPLES, CONFIDENCE, CONVERGENCE_S, ratio_of_means
 from simbench.analysis.published import DRIVE_MEDIANS_BY_SWEEP, DRIVE_MEDIANS_M, DRIVE_SCENARIOS, PUBLISHED_FAMILY
 from simbench.analysis.variants import NO_OVERRIDES, is_default
-from simbench.sim.config import ScenarioSource
+from simbench.source import SIMULATED
 
-#: Columns that identify a variant of an estimator: the structured overrides and their label.
-VARIANT = ["overrides", "variant"]
+#: Columns that identify a variant of an estimator: its gnss_model preset, the structured overrides
+#: (relative to that preset, so a sweep over presets has a default row under each) and their label.
+VARIANT = ["gnss_model", "overrides", "variant"]
+#: Each variant column's value where it is missing: results from before the column, or no overrides.
+VARIANT_FILL = {"gnss_model": "", "overrides": NO_OVERRIDES, "variant": ""}
 
 GROUP = ["sweep", "scenario", "receiver"]
 
-#: How a real log's format is named in labels.
-SOURCE_NAMES = {ScenarioSource.rinex: "RINEX", ScenarioSource.librsf: "libRSF"}
+#: How a real log's format is named in labels (another source by its name).
+SOURCE_NAMES = {"rinex": "RINEX", "librsf": "libRSF"}
 
 
-def data_source(source: str | None) -> ScenarioSource:
-    """The ``source`` column's value as a choice; a missing one (results from before the column) is simulated."""
-    return ScenarioSource(source if isinstance(source, str) and source else ScenarioSource.simulated.value)
+def with_variant_columns(frame: pd.DataFrame) -> pd.DataFrame:
+    """``frame`` with every :data:`VARIANT` column, missing values filled (:data:`VARIANT_FILL`)."""
+    # object columns: an all-missing column read back is float, and strings do not fill a float column
+    columns = {c: frame[c].astype(object) if c in frame else VARIANT_FILL[c] for c in VARIANT}
+    return frame.assign(**columns).fillna(VARIANT_FILL)
+
+
+def data_source(source: str | None) -> str:
+    """The ``source`` column's value; a missing one (results from before the column) is simulated."""
+    return source if isinstance(source, str) and source else SIMULATED
 
 
 def data_label(scenario: str, receiver: str, source: str | None) -> str:
@@ -41,9 +51,11 @@ def data_label(scenario: str, receiver: str, source: str | None) -> str:
     since the receiver preset of the config says nothing about it.
     """
     kind = data_source(source)
-    if kind == ScenarioSource.simulated:
+    if kind == SIMULATED:
         return f"{scenario}, {receiver} receiver"
-    return f"{scenario} (real log, {SOURCE_NAMES[kind]})"
+    if kind in SOURCE_NAMES:
+        return f"{scenario} (real log, {SOURCE_NAMES[kind]})"
+    return f"{scenario} (source {kind})"
 
 
 def _mean_ci(values: np.ndarray) -> tuple[float, float, float]:
@@ -81,7 +93,7 @@ def seed_statistics(summary: pd.DataFrame) -> pd.DataFrame:
     (over the solved epochs only), time_per_obs_s, update_median_s.
     """
     out = []
-    summary = summary.fillna({"overrides": NO_OVERRIDES, "variant": ""})
+    summary = with_variant_columns(summary)
     for keys, rows in summary.groupby(GROUP + ["estimator"] + VARIANT, dropna=False):
         ok = rows[rows["status"] == "ok"]
         med, lo, hi = _mean_ci_ref(ok["horizontal_median_ref"].to_numpy(float))
@@ -189,14 +201,15 @@ def convergence_statistics(epochs: pd.DataFrame, t_max: float = CONVERGENCE_S) -
     """
     if epochs.empty or epochs["t"].max() < 1.5 * t_max:
         return pd.DataFrame()
-    early = epochs[epochs["t"] < t_max].fillna({"overrides": NO_OVERRIDES, "variant": ""})
+    early = with_variant_columns(epochs[epochs["t"] < t_max])
     per_run = early.groupby(["estimator"] + VARIANT + ["seed"], dropna=False)["error_3d"].agg(["median", "mean", "max"])
     out = []
-    for (name, overrides, variant), runs in per_run.groupby(level=["estimator"] + VARIANT, dropna=False):
+    for (name, gnss_model, overrides, variant), runs in per_run.groupby(level=["estimator"] + VARIANT, dropna=False):
         mean, lo, hi = _mean_ci(runs["mean"].to_numpy(float))
         out.append(
             {
                 "estimator": name,
+                "gnss_model": gnss_model,
                 "overrides": overrides,
                 "variant": variant,
                 "n_seeds": len(runs),

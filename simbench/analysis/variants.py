@@ -2,8 +2,10 @@
 
 Every result row carries its estimator's overrides as a canonical JSON object
 in the ``overrides`` column (sorted keys, JSON scalars; ``{}`` for the
-defaults), relative to the estimator's ``Config`` dataclass, not to any YAML
-file. Claims, tables and the report read settings from that column with
+defaults), relative to the estimator's ``Config`` dataclass defaults under the
+row's ``gnss_model`` preset (:func:`simbench.runs.compose.preset_estimator_config`),
+not to any estimator YAML file: an unmodified run under either preset has
+none. Claims, tables and the report read settings from that column with
 :func:`override_value` and pick default rows with :func:`is_default`; the
 ``variant`` column (:func:`variant_label`, e.g. ``window=5``) is only a label
 for tables and figures and is never parsed.
@@ -24,13 +26,15 @@ import estimators
 NO_OVERRIDES = "{}"
 
 
-def overrides_of(config: Any) -> dict[str, Any]:
-    """The fields of a typed estimator config that differ from its dataclass defaults.
+def overrides_of(config: Any, defaults: Any = None) -> dict[str, Any]:
+    """The fields of a typed estimator config that differ from its defaults.
 
     Parameters
     ----------
     config : dataclass instance
-        An estimator ``Config`` (as :func:`simbench.sim.config.to_typed` returns it).
+        An estimator ``Config`` (as :func:`simbench.typed.to_typed` returns it).
+    defaults : dataclass instance of the same type, optional
+        What ``config`` is compared with; None: its dataclass defaults.
 
     Returns
     -------
@@ -38,7 +42,8 @@ def overrides_of(config: Any) -> dict[str, Any]:
         Field name to value, as JSON scalars (an Enum becomes its YAML word, a
         tuple a list); empty when every field has its default.
     """
-    defaults = type(config)()
+    if defaults is None:
+        defaults = type(config)()
     return {
         f.name: _json_value(getattr(config, f.name))
         for f in dataclasses.fields(config)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
@@ -25,6 +25,7 @@ class FinalizeRun(Callback):
     def _finalize(run_dir: Path, config: DictConfig) -> None:
         if not (run_dir / "jobs").is_dir():
             return  # nothing ran (e.g. a config error stopped the job)
-        run_config = OmegaConf.masked_copy(config, [k for k in config if k != "hydra"])
-        report = finalize(run_dir, OmegaConf.to_container(run_config, resolve=True))
+        # the keys of the root config are strings, and so are those of the dict it becomes
+        run_config = OmegaConf.masked_copy(config, cast(list[str], [k for k in config if k != "hydra"]))
+        report = finalize(run_dir, cast(dict[str, Any], OmegaConf.to_container(run_config, resolve=True)))
         print(f"results: {run_dir.resolve()}  report: {report.resolve() / 'index.html'}", file=sys.stderr)

@@ -15,7 +15,7 @@ import sys
 from simbench.data.export import ExportFormat, export_scenario
 from simbench.errors import SimbenchError
 from simbench.runs.compose import compose_config
-from simbench.runs.scenarios import build_scenario, sim_config
+from simbench.runs.scenarios import build_scenario, scenario_settings
 
 _USAGE = "python -m simbench export scenario=urban receiver=low seed=0 format=rinex|librsf out=DIR"
 
@@ -37,7 +37,7 @@ def main(argv: list[str]) -> int:
                 "format", f"unknown export format '{fmt}'", f"choose from {', '.join(f.value for f in ExportFormat)}"
             )
         cfg = compose_config(overrides)
-        sim = sim_config(cfg)
+        sim = scenario_settings(cfg)
         scenario = build_scenario(sim)
         stem = f"{sim.scenario.name}_{sim.receiver.name}_{sim.seed}"
         files = export_scenario(scenario, fmt, own["out"], stem, receiver=sim.receiver.name)

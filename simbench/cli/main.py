@@ -24,9 +24,9 @@ from omegaconf import DictConfig, open_dict
 from tabulate import tabulate
 
 import estimators
-from simbench.cli import export, report, score, validate, zero_baseline
+from simbench.cli import export, report, score, tables, validate, zero_baseline
 from simbench.cli.studies import run_studies
-from simbench.cli.terminal import SHOWN
+from simbench.cli.terminal import SHOWN, one_line_warnings
 from simbench.errors import SimbenchError
 from simbench.runs.compose import CONF_DIR, check_group_choices, compose_config, register_schemas
 from simbench.runs.jobs import run_job
@@ -37,6 +37,7 @@ SUBCOMMANDS: dict[str, Callable[[list[str]], int]] = {
     "report": report.main,
     "export": export.main,
     "score": score.main,
+    "tables": tables.main,
     "validate": validate.main,
     "zero-baseline": zero_baseline.main,
 }
@@ -44,6 +45,7 @@ SUBCOMMANDS: dict[str, Callable[[list[str]], int]] = {
 
 @hydra.main(config_path=str(CONF_DIR), config_name="config", version_base="1.3")
 def _app(cfg: DictConfig) -> None:
+    one_line_warnings()  # again: a launcher may run the job in another process
     hc = HydraConfig.get()
     with open_dict(cfg):
         if hc.mode == RunMode.MULTIRUN:
@@ -71,6 +73,7 @@ def main() -> None:
 
     A run is composed once up front so a bad override gets one line, not Hydra's error page.
     """
+    one_line_warnings()
     args = sys.argv[1:]
     if args and args[0] in SUBCOMMANDS:
         sys.exit(SUBCOMMANDS[args[0]](args[1:]))

@@ -1,5 +1,5 @@
 """``python -m simbench score RUN_DIR --scenario-key KEY --name NAME --solution FILE``: another program's
-solution scored as one more estimator of a run (:mod:`simbench.runs.score`), then the run's report rebuilt."""
+solution scored as one more estimator of a run (:mod:`simbench.runs.foreign`), then the run's report rebuilt."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from simbench.cli.terminal import SHOWN
 from simbench.contract import read_parquet_metadata
 from simbench.errors import SimbenchError
 from simbench.report.build import finalize
-from simbench.runs.score import score_solution_file
+from simbench.runs.foreign import score_solution_file
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -295,7 +295,7 @@ def _expand(x: FloatArray, shape: tuple[int, ...]) -> FloatArray:
     return x if x.shape == shape else np.broadcast_to(x, shape).copy()
 
 
-def _marini(sin_el: FloatArray, a: ArrayLike, b: ArrayLike, c: ArrayLike) -> FloatArray:
+def _marini(sin_el: FloatArray, a: FloatArray | float, b: FloatArray | float, c: FloatArray | float) -> FloatArray:
     # Normalised continued fraction (Marini/Herring form): equals 1 at zenith.
     top = 1.0 + a / (1.0 + b / (1.0 + c))
     return top / (sin_el + a / (sin_el + b / (sin_el + c)))

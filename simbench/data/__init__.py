@@ -4,8 +4,9 @@ text, reference trajectories, SP3 orbits, RTKLIB solutions; and the writers of t
 
 :func:`load_rinex` and :func:`load_librsf` return a :class:`~simbench.contract.Scenario`
 with the simulator's observation columns, ``labels=None`` and an empty IMU
-table; :func:`simbench.runs.scenarios.build_scenario` calls them for
-``scenario.source=rinex`` / ``librsf``.
+table; :mod:`simbench.data.sources` makes them the scenario sources
+``scenario.source=rinex`` / ``librsf`` (:mod:`simbench.source`), and
+:mod:`simbench.data.logs` holds the raw-log -> scenario steps they share.
 """
 
 from __future__ import annotations

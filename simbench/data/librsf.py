@@ -57,11 +57,10 @@ from simbench.core.constants import DEG, SECONDS_PER_WEEK
 from simbench.core.frames import dcm_ned_to_ecef, ecef_from_geodetic, geodetic_from_ecef
 from simbench.core.gpstime import day_of_year
 from simbench.core.orbits import NominalConstellation
-from simbench.data.reference import Reference, match_reference, read_reference, truth_table
-from simbench.data.rinex import empty_imu, epoch_grid
+from simbench.data.logs import epoch_grid_of, log_scenario, log_truth, observation_table, rough_fix
+from simbench.data.reference import Reference, read_reference
 from simbench.errors import SimbenchError
 from simbench.gnss.geometry import elevation_azimuth, sagnac_range
-from simbench.gnss.spp import ROUGH_FIX_MAX_RMS_M, solve_epochs
 from simbench.gnss.troposphere import troposphere_terms
 
 __all__ = [
@@ -137,6 +136,9 @@ def _read_table(p: str) -> tuple[pd.DataFrame, np.ndarray]:
             names=list(range(15)),
             engine="c",
             dtype={0: str},
+            # only a missing field is NaN: a written 'nan' must reach the number check with its line
+            keep_default_na=False,
+            na_values=[""],
         )
     except (pd.errors.ParserError, ValueError) as exc:
         msg = str(exc).splitlines()[0]
@@ -167,7 +169,8 @@ def read_librsf(path: str | os.PathLike[str]) -> LibrsfLog:
         Missing file, no pseudorange line, or a malformed line: unknown line
         type, wrong number of values, a value that is not a number, an unknown
         satellite system flag, a satellite ID that is not a positive integer,
-        a negative odometry variance. The message names the first bad line.
+        a pseudorange variance <= 0, a negative odometry variance or a zero
+        speed or yaw-rate variance. The message names the first bad line.
     """
     p = os.fspath(path)
     if not os.path.isfile(p):
@@ -221,6 +224,11 @@ def read_librsf(path: str | os.PathLike[str]) -> LibrsfLog:
         raise _rsf_error(
             p, f"field 8 (satellite ID) is {sat_id[bad_id][0]:g}; expected a positive integer", first_bad(ri, bad_id)
         )
+    bad_var = ~(r[:, 2] > 0.0)
+    if bad_var.any():
+        raise _rsf_error(
+            p, f"field 4 (pseudorange variance) is {r[:, 2][bad_var][0]:g}; variances are > 0", first_bad(ri, bad_var)
+        )
     flags = np.where(with_system, r[:, 7], 1.0)
     bad_flag = ~np.isin(flags, list(SYSTEM_LETTERS))
     if bad_flag.any():
@@ -260,11 +268,16 @@ def read_librsf(path: str | os.PathLike[str]) -> LibrsfLog:
             first_bad(oi, bad),
         )
     o = num[oi][:, :13]
-    negative = (o[:, 7:13] < 0.0).any(axis=1)
-    if negative.any():
-        j = int(np.flatnonzero(o[negative][0, 7:13] < 0.0)[0])
+    # the speed (field 9) and yaw rate (field 14) variances weight the odometry: zero is refused there too
+    bad_odo = (o[:, 7:13] < 0.0) | (np.isin(np.arange(7, 13), (7, 12)) & (o[:, 7:13] <= 0.0))
+    if bad_odo.any():
+        row = np.flatnonzero(bad_odo.any(axis=1))
+        j = int(np.flatnonzero(bad_odo[row[0]])[0])
         raise _rsf_error(
-            p, f"odom3 variance field {j + 9} is {o[negative][0, 7 + j]:g}; variances are >= 0", first_bad(oi, negative)
+            p,
+            f"odom3 variance field {j + 9} is {o[row[0], 7 + j]:g}; variances are >= 0, the speed (9) and "
+            "yaw rate (14) ones > 0",
+            int(line_no[oi[row[0]]]),
         )
     odometry = pd.DataFrame(
         {"t": o[:, 0] - t0, "speed": o[:, 1], "yaw_rate": -o[:, 6], "var_speed": o[:, 7], "var_yaw_rate": o[:, 12]},
@@ -327,66 +340,50 @@ def load_librsf(
     uniq, row_epoch = np.unique(t_key, return_inverse=True)
     t_epoch = uniq * _EPOCH_RESOLUTION_S
     interval = float(np.median(np.diff(t_epoch))) if t_epoch.size > 1 else 1.0
-    grid = epoch_grid(t_epoch, interval)
-    n_grid = int(grid[-1]) + 1
+    grid = epoch_grid_of(t_epoch, interval)
     sat_pos = rg[["sat_x", "sat_y", "sat_z"]].to_numpy(float)
     rho = rg["rho"].to_numpy(float)
     # one receiver clock per system: GLONASS (and any other) pseudoranges carry an inter-system bias
     system_index = np.unique(rg["sat"].str[0].to_numpy(), return_inverse=True)[1]
-    fix = solve_epochs(
-        row_epoch,
-        sat_pos,
-        rho,
-        n_epochs=t_epoch.size,
-        system_index=system_index,
-        max_rms_m=ROUGH_FIX_MAX_RMS_M,
-        fill_untrusted=True,
-    )
-    rx = fix.pos
-    el_rad, az_rad = (a[:, 0] for a in elevation_azimuth(rx[row_epoch], sat_pos[:, None, :]))
+    rough = rough_fix(row_epoch, sat_pos, rho, n_epochs=t_epoch.size, system_index=system_index)
+    fix = rough.fix
     el_file = rg["el"].to_numpy(float)
-    el_deg = np.where(np.isfinite(el_file), el_file, np.degrees(el_rad))
+    el_deg = np.where(np.isfinite(el_file), el_file, np.degrees(rough.el))
 
     # Re-insert the modelled hydrostatic delay that the shared model subtracts (module docstring).
     t0_sow = start_sow_s + log.t0
     doy = day_of_year(gps_week, t0_sow)
-    lat, _, h = geodetic_from_ecef(np.median(rx, axis=0))
+    lat, _, h = geodetic_from_ecef(np.median(fix.pos, axis=0))
     code = rho + troposphere_terms(el_deg * DEG, float(lat), float(h), doy)[0]
 
     n = len(rg)
     nan = np.full(n, np.nan)
-    observations = (
-        pd.DataFrame(
-            {
-                "epoch": grid[row_epoch],
-                "t": t_epoch[row_epoch],
-                "sat": rg["sat"].to_numpy(),
-                "code_l1": code,
-                "phase_l1": nan,
-                "doppler_l1": nan,
-                "cn0_l1": rg["cn0"].to_numpy(float),
-                "lli_l1": np.zeros(n, bool),
-                "code_l2": nan,
-                "phase_l2": nan,
-                "lli_l2": np.zeros(n, bool),
-                "sat_x": sat_pos[:, 0],
-                "sat_y": sat_pos[:, 1],
-                "sat_z": sat_pos[:, 2],
-                "sat_vx": nan,
-                "sat_vy": nan,
-                "sat_vz": nan,
-                "sat_clock": np.zeros(n),
-                "sat_clock_drift": np.zeros(n),
-                "el": el_deg,
-                "az": np.degrees(az_rad),
-            }
-        )
-        .sort_values(["epoch", "sat"], kind="stable")
-        .reset_index(drop=True)
+    observations = observation_table(
+        {
+            "epoch": grid.index[row_epoch],
+            "t": t_epoch[row_epoch],
+            "sat": rg["sat"].to_numpy(),
+            "code_l1": code,
+            "phase_l1": nan,
+            "doppler_l1": nan,
+            "cn0_l1": rg["cn0"].to_numpy(float),
+            "lli_l1": np.zeros(n, bool),
+            "code_l2": nan,
+            "phase_l2": nan,
+            "lli_l2": np.zeros(n, bool),
+            "sat_x": sat_pos[:, 0],
+            "sat_y": sat_pos[:, 1],
+            "sat_z": sat_pos[:, 2],
+            "sat_vx": nan,
+            "sat_vy": nan,
+            "sat_vz": nan,
+            "sat_clock": np.zeros(n),
+            "sat_clock_drift": np.zeros(n),
+            "el": el_deg,
+            "az": np.degrees(rough.az),
+        }
     )
 
-    t_grid = np.arange(n_grid) * interval
-    t_grid[grid] = t_epoch
     t_abs0 = gps_week * SECONDS_PER_WEEK + t0_sow
     if truth_path:
         ref = _external_reference(os.fspath(truth_path), gps_week, gps_week * SECONDS_PER_WEEK + start_sow_s)
@@ -401,9 +398,15 @@ def load_librsf(
         ref = Reference(
             t_gps=t_abs0 + pts["t"].to_numpy(float), xyz=pts[["x", "y", "z"]].to_numpy(float), path=log.path
         )
-    matched = match_reference(ref, t_abs0 + t_grid, truth_max_gap_s)
-    counts = np.bincount(observations["epoch"].to_numpy(), minlength=n_grid)
-    truth = truth_table(t_grid, matched, counts)
+    truth = log_truth(
+        grid,
+        t_abs0,
+        ref,
+        truth_max_gap_s,
+        observations["epoch"].to_numpy(),
+        rough,
+        field="scenario.truth" if truth_path else "scenario.obs",
+    )
 
     nav = NavInfo(
         gps_week=gps_week,
@@ -419,16 +422,14 @@ def load_librsf(
         "source": "librsf",
         "files": {"obs": str(Path(path)), "truth": str(truth_path or "")},
         "systems": "".join(sorted({s[0] for s in observations["sat"].unique().tolist()})),
-        "epochs": n_grid,
+        "epochs": grid.n,
         "epochs_with_truth": len(truth),
         "odometry_rows": len(log.odometry),
         "rough_fix_rms_m": float(np.nanmedian(fix.rms_m[fix.trusted])),
         "corrections": "satellite clock, ionosphere and troposphere removed in the file; the modelled "
         "hydrostatic delay is added back for the shared model; no carrier phase",
     }
-    return Scenario(
-        observations=observations, imu=empty_imu(), truth=truth, labels=None, nav=nav, meta=meta, odometry=log.odometry
-    )
+    return log_scenario(observations, truth, nav, meta, odometry=log.odometry)
 
 
 def _external_reference(p: str, gps_week: int, t_file0_gps: float) -> Reference:

@@ -13,6 +13,7 @@ epochs that have a reference.
 
 from __future__ import annotations
 
+import io
 import os
 from dataclasses import dataclass
 
@@ -23,10 +24,13 @@ from simbench.contract import TRUTH_COLUMNS
 from simbench.core.constants import DEG, SECONDS_PER_WEEK
 from simbench.core.frames import ecef_from_geodetic
 from simbench.core.gpstime import format_gps_time
-from simbench.errors import SimbenchError
+from simbench.errors import SimbenchError, warn
 
-__all__ = ["Reference", "read_reference", "match_reference", "truth_table"]
+__all__ = ["Reference", "read_reference", "check_near_fixes", "match_reference", "truth_table", "MAX_FIX_DISTANCE_M"]
 
+#: Largest median distance of a reference from the log's single-point fixes [m]: metres to
+#: kilometres of error in urban canyons, thousands of kilometres for swapped columns.
+MAX_FIX_DISTANCE_M = 100_000.0
 #: Epochs this close outside the first/last reference sample take that sample [s].
 _END_TOLERANCE_S = 0.05
 
@@ -76,42 +80,114 @@ def read_reference(
     Returns
     -------
     Reference
-        Samples sorted by time, duplicates removed.
+        Samples by time, the first of each time kept.
 
     Raises
     ------
     SimbenchError
-        Missing file, unknown layout, or ``SOW X Y Z`` without ``week_hint``.
+        Missing file, unknown layout, ``SOW X Y Z`` without ``week_hint``,
+        a latitude beyond +-90 or a longitude beyond +-180 degrees, time going
+        backwards; the message names the line.
+
+    Warns
+    -----
+    SimbenchWarning
+        Rows that repeat the time of the row before (the first is kept).
     """
     p = os.fspath(path)
     if not os.path.isfile(p):
         raise _ref_error(field, p, "file does not exist")
     with open(p, errors="replace") as fh:
-        first = next((ln for ln in fh if ln.strip() and not ln.lstrip().startswith("#")), "")
-    comma = "," in first
+        content = [ln.split("#", 1)[0] for ln in fh.read().splitlines()]
+    kept = [i for i, c in enumerate(content) if c.strip()]
+    comma = bool(kept) and "," in content[kept[0]]
     try:
-        df = pd.read_csv(p, sep="," if comma else r"\s+", header=None, comment="#", engine="c" if comma else "python")
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+        df = pd.read_csv(
+            io.StringIO("\n".join(content[i] for i in kept)),
+            sep="," if comma else r"\s+",
+            header=None,
+            engine="c" if comma else "python",
+        )
+    except (pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
         raise _ref_error(field, p, f"cannot be parsed ({str(exc).splitlines()[0][:60]})") from None
     df = df.apply(pd.to_numeric, errors="coerce").dropna(how="any")  # drops a header line
     if df.empty:
         raise _ref_error(field, p, "contains no numeric rows")
     a = df.to_numpy(float)
+    line = np.asarray(kept, np.int64)[df.index.to_numpy()] + 1
     if a.shape[1] == 5:
+        for col, name, limit in ((2, "lat", 90.0), (3, "lon", 180.0)):
+            bad = np.flatnonzero(np.abs(a[:, col]) > limit)
+            if bad.size:
+                raise SimbenchError(
+                    f"{field} '{p}' line {line[bad[0]]}",
+                    f"column {col + 1} ({name}) is {a[bad[0], col]:g}, beyond +-{limit:g} degrees",
+                    "columns must be week,TOW,lat,lon,h (degrees); check for swapped lat and lon",
+                )
         t = a[:, 0] * SECONDS_PER_WEEK + a[:, 1]
         xyz = ecef_from_geodetic(a[:, 2] * DEG, a[:, 3] * DEG, a[:, 4])
     elif a.shape[1] == 4:
-        continuous = bool(np.all(a[:, 0] >= SECONDS_PER_WEEK))  # no second of week is that large
-        if week_hint is None and not continuous:
+        if np.all(a[:, 0] >= SECONDS_PER_WEEK):  # no second of week is that large: continuous GPS seconds
+            t = a[:, 0]
+        elif week_hint is None:
             raise _ref_error(field, p, "has seconds of week but no week is known")
-        t = a[:, 0] if continuous else week_hint * SECONDS_PER_WEEK + a[:, 0]
+        else:
+            t = week_hint * SECONDS_PER_WEEK + a[:, 0]
         xyz = a[:, 1:4]
         if np.any(np.linalg.norm(xyz, axis=1) < 6.0e6):
             raise _ref_error(field, p, "has 4 columns but they are not SOW X Y Z in ECEF metres")
     else:
         raise _ref_error(field, p, f"has {a.shape[1]} columns")
-    t, first_idx = np.unique(t, return_index=True)
-    return Reference(t_gps=t, xyz=np.asarray(xyz)[first_idx], path=p)
+    back = np.flatnonzero(np.diff(t) < 0)
+    if back.size:
+        k = back[0] + 1
+        raise SimbenchError(
+            f"{field} '{p}' line {line[k]}",
+            f"time {format_gps_time(t[k])} GPS is earlier than line {line[k - 1]}'s {format_gps_time(t[k - 1])}",
+            "sort the reference by time",
+        )
+    repeat = np.flatnonzero(np.diff(t) == 0) + 1
+    if repeat.size:
+        warn(
+            f"{field} '{p}'",
+            f"{repeat.size} rows repeat the time of the row before (first at line {line[repeat[0]]})",
+            "kept the first row of each time",
+        )
+    first = np.setdiff1d(np.arange(t.size), repeat)
+    return Reference(t_gps=t[first], xyz=np.asarray(xyz)[first], path=p)
+
+
+def check_near_fixes(ref: Reference, truth_pos: np.ndarray, fix_pos: np.ndarray, field: str = "scenario.truth") -> None:
+    """Refuse a reference that is not where the log's own single-point fixes are.
+
+    A reference of another place, or one with swapped columns, would otherwise
+    give every estimator errors of thousands of kilometres and the verdict
+    ``diverged`` instead of naming the reference file.
+
+    Parameters
+    ----------
+    ref : Reference
+    truth_pos : np.ndarray, shape (n, 3)
+        Reference ECEF position at n epochs (NaN where it has none) [m].
+    fix_pos : np.ndarray, shape (n, 3)
+        Trusted single-point fixes of the same epochs (NaN where none) [m].
+    field : str
+        The setting that named the reference file.
+
+    Raises
+    ------
+    SimbenchError
+        When the median distance exceeds :data:`MAX_FIX_DISTANCE_M`.
+    """
+    d = np.linalg.norm(np.asarray(truth_pos) - np.asarray(fix_pos), axis=1)
+    d = d[np.isfinite(d)]
+    if d.size and np.median(d) > MAX_FIX_DISTANCE_M:
+        raise SimbenchError(
+            f"{field} '{ref.path}'",
+            f"positions are {np.median(d) / 1e3:,.0f} km from the log's single-point fixes (median over "
+            f"{d.size} epochs; more than {MAX_FIX_DISTANCE_M / 1e3:g} km)",
+            "pass the reference of this log; check the column order (week,TOW,lat,lon,h or SOW X Y Z)",
+        )
 
 
 def match_reference(ref: Reference, t_gps: np.ndarray, max_gap_s: float = 2.0) -> np.ndarray:

@@ -42,13 +42,13 @@ microseconds; this reader takes well under a second.
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
-from simbench.contract import IMU_COLUMNS, NavInfo, RinexFiles, Scenario
+from simbench.contract import NavInfo, RinexFiles, Scenario
 from simbench.core.constants import C_LIGHT, F_L1, LAMBDA_L2, SECONDS_PER_WEEK
 from simbench.core.glonass_orbits import GLO_F1_BASE_HZ, GlonassEphemeris, glonass_l1_frequency
 from simbench.core.gpstime import datetime64_to_gps, format_gps_time
@@ -56,11 +56,10 @@ from simbench.core.orbits import BroadcastEphemeris
 from simbench.data.beidou import read_beidou_navigation
 from simbench.data.galileo import read_galileo_navigation
 from simbench.data.glonass import read_glonass_navigation
-from simbench.data.reference import Reference, match_reference, read_reference, truth_table
-from simbench.errors import SimbenchError
-from simbench.gnss.geometry import elevation_azimuth
-from simbench.gnss.navigation import SYSTEM_NAMES, read_gps_navigation
-from simbench.gnss.spp import ROUGH_FIX_MAX_RMS_M, solve_epochs
+from simbench.data.logs import epoch_grid_of, log_scenario, log_truth, observation_table, rough_fix
+from simbench.data.reference import read_reference
+from simbench.errors import SimbenchError, warn
+from simbench.gnss.navigation import SYSTEM_NAMES, read_gps_navigation, read_rinex_lines
 
 __all__ = ["RinexObs", "read_rinex_obs", "load_rinex", "SIGNALS", "L2_SIGNALS", "NAV_SETTINGS"]
 
@@ -77,6 +76,11 @@ SIGNALS: dict[str, tuple[str, float]] = {
 L2_SIGNALS: tuple[str, ...] = ("2W", "2X", "2L", "2S", "2P")
 #: Config setting of each system's own navigation file (``nav`` serves GPS and, mixed, the others).
 NAV_SETTINGS: dict[str, str] = {"G": "nav", "R": "nav_glo", "E": "nav_gal", "C": "nav_bds"}
+_OBS_FIX = "pass a RINEX 3 observation file (.obs, .yyo, .rnx; also gzip or Hatanaka compressed)"
+_CUT_FIX = "re-export the log, or delete the incomplete epoch record at the end"
+_LINE_FIX = "make each epoch header's satellite count match its lines, or re-export the log"
+#: Epoch time tags closer than this are one epoch (RINEX 3 writes 0.1 us) [s].
+_SAME_EPOCH_S = 1e-7
 #: Transit time used when no pseudorange is available for a satellite (keeps arrays finite) [s].
 _TAU_NOMINAL_S = 0.075
 
@@ -128,9 +132,7 @@ class RinexObs:
     lli_l2: np.ndarray | None = None
 
 
-def _obs_error(
-    path: str, problem: str, fix: str = "pass a RINEX 3 observation file (.obs, .yyo, .rnx)"
-) -> SimbenchError:
+def _obs_error(path: str, problem: str, fix: str = _OBS_FIX) -> SimbenchError:
     return SimbenchError(f"scenario.obs '{path}'", problem, fix)
 
 
@@ -145,7 +147,8 @@ def read_rinex_obs(path: str | os.PathLike[str], systems: str = "G") -> RinexObs
     Parameters
     ----------
     path : str or PathLike
-        RINEX 3.0x observation file (plain text), time system GPS.
+        RINEX 3.0x observation file, time system GPS: plain text with any line
+        ending, or gzip / Hatanaka compressed (:func:`~simbench.gnss.navigation.read_rinex_lines`).
     systems : str
         System letters to keep; each needs an entry in :data:`SIGNALS`.
 
@@ -157,7 +160,16 @@ def read_rinex_obs(path: str | os.PathLike[str], systems: str = "G") -> RinexObs
     ------
     SimbenchError
         Missing file, not RINEX 3 observation data, a time system other than
-        GPS, no pseudorange observable for the requested systems, or no data.
+        GPS, no pseudorange observable for the requested systems, or no data;
+        a cut file (an epoch with fewer satellite lines than its header
+        announces, a line ending inside a number), a satellite count that does
+        not match the lines, epochs out of time order. The message names the line.
+
+    Warns
+    -----
+    SimbenchWarning
+        Epoch records that repeat an earlier time tag, or a satellite repeated
+        within one epoch: the first record is kept.
     """
     p = os.fspath(path)
     if not os.path.isfile(p):
@@ -167,9 +179,10 @@ def read_rinex_obs(path: str | os.PathLike[str], systems: str = "G") -> RinexObs
         raise SimbenchError(
             "scenario.systems", f"systems {unknown} are not supported", f"use a subset of '{''.join(SIGNALS)}'"
         )
-    with open(p, errors="replace") as fh:
-        lines = fh.read().splitlines()
-    if not lines or "RINEX VERSION / TYPE" not in lines[0]:
+    lines = read_rinex_lines(p, f"scenario.obs '{p}'", _OBS_FIX)
+    if not lines:
+        raise _obs_error(p, "is empty")
+    if "RINEX VERSION / TYPE" not in lines[0]:
         raise _obs_error(p, "has no RINEX header")
     version, kind = lines[0][:9].strip(), lines[0][20:21]
     if kind != "O" or not version.startswith("3"):
@@ -223,15 +236,22 @@ def read_rinex_obs(path: str | os.PathLike[str], systems: str = "G") -> RinexObs
 
     stamps: list[str] = []
     fracs: list[float] = []
+    e_line: list[int] = []  #: 1-based line number of each epoch header
     r_epoch: list[int] = []
     r_sat: list[str] = []
-    r_val: list[tuple[float, float, float, float, float, float, bool, bool]] = []
+    r_num: list[list[float]] = []  #: code, phase, Doppler, C/N0, L2 code, L2 phase per row
+    r_lli: list[tuple[bool, bool]] = []  #: L1 and L2 loss-of-lock flags per row
     i, n_lines = body, len(lines)
     while i < n_lines:  # text parsing: one Python step per line is unavoidable
         ln = lines[i]
         i += 1
         if not ln.startswith(">"):
-            continue
+            if not ln.strip():
+                continue
+            where = (
+                f"the epoch at line {e_line[-1]} announces fewer satellites" if e_line else "no epoch header before it"
+            )
+            raise _obs_error(p, f"line {i} is outside any epoch record ({where}): '{ln[:20].strip()}'", _LINE_FIX)
         try:
             flag = int(ln[31:32].strip() or 0)
             count = int(ln[32:35])
@@ -245,42 +265,66 @@ def read_rinex_obs(path: str | os.PathLike[str], systems: str = "G") -> RinexObs
             )
             fracs.append(float("0." + frac) if frac else 0.0)
         except (ValueError, IndexError):
-            raise _obs_error(p, f"has a malformed epoch line {i}: '{ln[:35].strip()}'") from None
+            raise _obs_error(p, f"has a malformed epoch line {i}: '{ln[:35].strip()}'", _LINE_FIX) from None
+        e_line.append(i)
         e = len(stamps) - 1
-        for ln in lines[i : i + count]:
+        block = lines[i : i + count]
+        # a record with fewer satellite lines than announced: the file was cut, or lines were lost
+        short = next((k for k, b in enumerate(block) if b.startswith(">")), len(block))
+        if short == len(block) < count:
+            raise _obs_error(
+                p,
+                f"epoch at line {i} announces {count} satellites but the file ends after {short} (cut file)",
+                _CUT_FIX,
+            )
+        if short < count:
+            raise _obs_error(
+                p,
+                f"epoch at line {i} announces {count} satellites but the next epoch header follows "
+                f"after {short} (line {i + short + 1})",
+                _LINE_FIX,
+            )
+        for row, ln in enumerate(block, start=i + 1):
             c = cols.get(ln[:1])
             if c is None:
                 continue
+            # fields are right-aligned F14.3 plus 2 flag columns: a line ending inside a number was cut
+            if 0 < (len(ln) - 3) % 16 < 14:
+                raise _obs_error(p, f"line {row} ends inside an observation field (cut line)", _CUT_FIX)
             try:
-                vals = [_float(ln[3 + 16 * k : 17 + 16 * k]) if k >= 0 else np.nan for k in c]
+                r_num.append([_float(ln[3 + 16 * k : 17 + 16 * k]) if k >= 0 else np.nan for k in c])
             except ValueError:
-                raise _obs_error(
-                    p, f"has a malformed observation line after epoch {stamps[-1]}: '{ln[:40].strip()}'"
-                ) from None
-            lli_digits = [ln[17 + 16 * k : 18 + 16 * k].strip() if k >= 0 else "" for k in (c[1], c[5])]
+                raise _obs_error(p, f"line {row} has a malformed observation: '{ln[:40].strip()}'", _LINE_FIX) from None
+            l1, l2 = (ln[17 + 16 * j : 18 + 16 * j].strip() if j >= 0 else "" for j in (c[1], c[5]))
             r_epoch.append(e)
             r_sat.append(ln[:3].replace(" ", "0"))
-            r_val.append((*vals, *(bool(int(d) & 1) if d.isdigit() else False for d in lli_digits)))
+            r_lli.append((bool(int(l1) & 1) if l1.isdigit() else False, bool(int(l2) & 1) if l2.isdigit() else False))
         i += count
     if not r_epoch:
         raise _obs_error(p, f"contains no observations of systems '{systems}'")
-    vals = np.array([v[:6] for v in r_val], dtype=float)
-    flags = np.array([v[6:] for v in r_val], dtype=bool)
+    t_int = datetime64_to_gps(np.array(stamps, dtype="datetime64[s]")).astype(np.int64)
+    t_frac = np.array(fracs)
+    row_epoch = np.array(r_epoch, dtype=np.int64)
+    sat = np.array(r_sat)
+    epochs, rows = _first_records(p, t_int, t_frac, np.array(e_line), row_epoch, sat)
+    renumber = np.full(t_int.size, -1, np.int64)
+    renumber[epochs] = np.arange(epochs.size)
+    t_int, t_frac, row_epoch, sat = t_int[epochs], t_frac[epochs], renumber[row_epoch[rows]], sat[rows]
+    vals = np.array(r_num, dtype=float)[rows]
+    flags = np.array(r_lli, dtype=bool)[rows]
     code = vals[:, 0]
     if not np.isfinite(code).any():
         raise _obs_error(
             p, "has no pseudorange values (all code fields are blank)", "pass a file with code observations"
         )
-    t_int = datetime64_to_gps(np.array(stamps, dtype="datetime64[s]")).astype(np.int64)
-    t_frac = np.array(fracs)
     if not np.isfinite(interval) or interval <= 0:
         d = np.diff(t_int) + np.diff(t_frac)
         interval = float(np.median(d)) if d.size else 1.0
     return RinexObs(
         epoch_t_int=t_int,
         epoch_t_frac=t_frac,
-        row_epoch=np.array(r_epoch, dtype=np.int64),
-        sat=np.array(r_sat),
+        row_epoch=row_epoch,
+        sat=sat,
         code=code,
         phase_cycles=vals[:, 1],
         doppler_hz=vals[:, 2],
@@ -295,9 +339,65 @@ def read_rinex_obs(path: str | os.PathLike[str], systems: str = "G") -> RinexObs
     )
 
 
+def _first_records(
+    path: str, t_int: np.ndarray, t_frac: np.ndarray, line: np.ndarray, row_epoch: np.ndarray, sat: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """The epochs and rows to keep: the first record of each time tag and of each satellite in it.
+
+    Parameters
+    ----------
+    path : str
+    t_int, t_frac : np.ndarray, shape (n,)
+        Epoch time tags, whole and fractional GPS seconds [s].
+    line : np.ndarray of int, shape (n,)
+        1-based line number of each epoch header.
+    row_epoch, sat : np.ndarray, shape (N,)
+        Epoch and satellite of each row.
+
+    Returns
+    -------
+    epochs : np.ndarray of int
+        Kept epochs, increasing.
+    rows : np.ndarray of int
+        Kept rows, increasing.
+
+    Raises
+    ------
+    SimbenchError
+        When the kept epochs are not in time order.
+    """
+    field = f"scenario.obs '{path}'"
+    key = t_int * 10_000_000 + np.round(t_frac / _SAME_EPOCH_S).astype(np.int64)
+    epochs = np.sort(np.unique(key, return_index=True)[1])
+    if epochs.size < key.size:
+        repeat = np.setdiff1d(np.arange(key.size), epochs)
+        warn(
+            field,
+            f"{repeat.size} epoch records repeat the time tag of an earlier one (first at line {line[repeat[0]]})",
+            "kept the first record of each time tag",
+        )
+    back = np.flatnonzero(np.diff(key[epochs]) < 0)
+    if back.size:
+        j, k = epochs[back[0]], epochs[back[0] + 1]
+        raise _obs_error(
+            path,
+            f"epoch at line {line[k]} is earlier than the epoch at line {line[j]}",
+            "sort the epoch records by time (or re-export the log)",
+        )
+    sat_code = np.unique(sat, return_inverse=True)[1]
+    kept_epoch = np.isin(row_epoch, epochs)
+    pair = row_epoch * (int(sat_code.max(initial=0)) + 1) + sat_code
+    rows = np.flatnonzero(kept_epoch)
+    rows = np.sort(rows[np.unique(pair[rows], return_index=True)[1]])
+    twice = int(kept_epoch.sum()) - rows.size
+    if twice:
+        warn(field, f"{twice} satellite lines repeat a satellite of the same epoch", "kept the first line of each")
+    return epochs, rows
+
+
 Ephemeris = BroadcastEphemeris | GlonassEphemeris
-_READERS = {
-    "G": read_gps_navigation,
+#: Navigation reader of each system but GPS, called with ``(path, setting=...)``.
+_READERS: dict[str, Callable[..., Ephemeris]] = {
     "R": read_glonass_navigation,
     "E": read_galileo_navigation,
     "C": read_beidou_navigation,
@@ -362,28 +462,6 @@ def satellite_states(obs: RinexObs, ephs: dict[str, Ephemeris]) -> dict[str, np.
     return out
 
 
-def epoch_grid(t_rel: np.ndarray, interval_s: float) -> np.ndarray:
-    """Epoch index on the nominal grid: gaps in the log leave gaps in the index.
-
-    Parameters
-    ----------
-    t_rel : np.ndarray, shape (n,)
-        Epoch times since the first epoch [s], increasing.
-    interval_s : float
-        Nominal interval [s].
-    """
-    idx = np.round(t_rel / interval_s).astype(np.int64)
-    if np.any(np.diff(idx) <= 0):
-        # irregular tags (e.g. a receiver that slews its clock): fall back to ranks
-        idx = np.arange(t_rel.size, dtype=np.int64)
-    return idx
-
-
-def empty_imu() -> pd.DataFrame:
-    """The IMU table of a log without inertial data (zero rows, IMU columns)."""
-    return pd.DataFrame({c: np.zeros(0) for c in IMU_COLUMNS})
-
-
 def load_rinex(
     obs_path: str | os.PathLike[str],
     nav_path: str | os.PathLike[str],
@@ -441,25 +519,14 @@ def load_rinex(
     n_dropped = int((~keep).sum())
 
     t_rel_epoch = (obs.epoch_t_int - obs.epoch_t_int[0]) + (obs.epoch_t_frac - obs.epoch_t_frac[0])
-    grid = epoch_grid(t_rel_epoch, obs.interval_s)
-    n_grid = int(grid[-1]) + 1
+    grid = epoch_grid_of(t_rel_epoch, obs.interval_s)
     re = obs.row_epoch[keep]
     sat_pos = np.stack([st[k][keep] for k in "xyz"], axis=1)
     corrected = obs.code[keep] + st["clock"][keep]
     letters = np.array([s[:1] for s in obs.sat[keep].tolist()])
     system_index = np.searchsorted(np.array(sorted(set(systems))), letters)
     x0 = obs.approx_position if obs.approx_position is not None and np.any(obs.approx_position) else None
-    rx = solve_epochs(
-        re,
-        sat_pos,
-        corrected,
-        n_epochs=obs.epoch_t_int.size,
-        system_index=system_index,
-        x0=x0,
-        max_rms_m=ROUGH_FIX_MAX_RMS_M,
-        fill_untrusted=True,
-    ).pos
-    el, az = elevation_azimuth(rx[re], sat_pos[:, None, :])
+    rough = rough_fix(re, sat_pos, corrected, n_epochs=obs.epoch_t_int.size, system_index=system_index, x0=x0)
     no_l2 = np.full(obs.sat.size, np.nan)
     code_l2 = obs.code_l2 if obs.code_l2 is not None else no_l2
     phase_l2 = obs.phase_l2_cycles if obs.phase_l2_cycles is not None else no_l2
@@ -469,47 +536,37 @@ def load_rinex(
     if isinstance(glo, GlonassEphemeris):  # FDMA: each satellite's own L1 carrier
         is_r = letters == "R"
         channel = dict(zip(glo.sats.tolist(), glo.freq_number.tolist()))
-        freq[is_r] = glonass_l1_frequency([channel[s] for s in obs.sat[keep][is_r].tolist()])
-    observations = (
-        pd.DataFrame(
-            {
-                "epoch": grid[re],
-                "t": t_rel_epoch[re],
-                "sat": obs.sat[keep],
-                "code_l1": obs.code[keep],
-                "phase_l1": obs.phase_cycles[keep] * (C_LIGHT / freq),
-                "doppler_l1": obs.doppler_hz[keep],
-                "cn0_l1": obs.cn0_dbhz[keep],
-                "lli_l1": obs.lli[keep],
-                "code_l2": code_l2[keep],
-                "phase_l2": phase_l2[keep] * LAMBDA_L2,
-                "lli_l2": lli_l2[keep],
-                "sat_x": sat_pos[:, 0],
-                "sat_y": sat_pos[:, 1],
-                "sat_z": sat_pos[:, 2],
-                "sat_vx": st["vx"][keep],
-                "sat_vy": st["vy"][keep],
-                "sat_vz": st["vz"][keep],
-                "sat_clock": st["clock"][keep],
-                "sat_clock_drift": st["drift"][keep],
-                "el": np.degrees(el[:, 0]),
-                "az": np.degrees(az[:, 0]),
-            }
-        )
-        .sort_values(["epoch", "sat"], kind="stable")
-        .reset_index(drop=True)
+        freq[is_r] = glonass_l1_frequency(np.array([channel[s] for s in obs.sat[keep][is_r].tolist()]))
+    observations = observation_table(
+        {
+            "epoch": grid.index[re],
+            "t": t_rel_epoch[re],
+            "sat": obs.sat[keep],
+            "code_l1": obs.code[keep],
+            "phase_l1": obs.phase_cycles[keep] * (C_LIGHT / freq),
+            "doppler_l1": obs.doppler_hz[keep],
+            "cn0_l1": obs.cn0_dbhz[keep],
+            "lli_l1": obs.lli[keep],
+            "code_l2": code_l2[keep],
+            "phase_l2": phase_l2[keep] * LAMBDA_L2,
+            "lli_l2": lli_l2[keep],
+            "sat_x": sat_pos[:, 0],
+            "sat_y": sat_pos[:, 1],
+            "sat_z": sat_pos[:, 2],
+            "sat_vx": st["vx"][keep],
+            "sat_vy": st["vy"][keep],
+            "sat_vz": st["vz"][keep],
+            "sat_clock": st["clock"][keep],
+            "sat_clock_drift": st["drift"][keep],
+            "el": np.degrees(rough.el),
+            "az": np.degrees(rough.az),
+        }
     )
 
     t0_gps = float(obs.epoch_t_int[0]) + obs.epoch_t_frac[0]
-    t_grid = np.arange(n_grid) * obs.interval_s
-    t_grid[grid] = t_rel_epoch  # actual tags where the log has an epoch
-    ref: Reference | None = None
-    matched = None
-    if truth_path:
-        ref = read_reference(truth_path, week_hint=int(obs.epoch_t_int[0] // SECONDS_PER_WEEK))
-        matched = match_reference(ref, t0_gps + t_grid, truth_max_gap_s)
-    counts = np.bincount(observations["epoch"].to_numpy(), minlength=n_grid)
-    truth = truth_table(t_grid, matched, counts)
+    week_hint = int(obs.epoch_t_int[0] // SECONDS_PER_WEEK)
+    ref = read_reference(truth_path, week_hint=week_hint) if truth_path else None
+    truth = log_truth(grid, t0_gps, ref, truth_max_gap_s, observations["epoch"].to_numpy(), rough)
 
     week = int(obs.epoch_t_int[0] // SECONDS_PER_WEEK)
     # GPS Klobuchar for every system (the BDS coefficients are not in NavInfo's model)
@@ -539,7 +596,7 @@ def load_rinex(
         "signals": {s: SIGNALS[s][0] for s in systems},
         "rows_without_ephemeris_or_code": n_dropped,
         "epochs_with_truth": len(truth),
-        "epochs": n_grid,
+        "epochs": grid.n,
         "corrections": "raw observables; Klobuchar (NavInfo) and Saastamoinen applied by the estimator model",
     }
     # absolute paths: tools run in their own working directory, and a cached scenario outlives the cwd
@@ -548,6 +605,4 @@ def load_rinex(
         nav=tuple(dict.fromkeys(os.path.abspath(paths[s]) for s in systems if paths.get(s))),
         systems=systems,
     )
-    return Scenario(
-        observations=observations, imu=empty_imu(), truth=truth, labels=None, nav=nav, meta=meta, rinex=rinex
-    )
+    return log_scenario(observations, truth, nav, meta, rinex=rinex)

@@ -88,7 +88,8 @@ def as_xyz(name: str, a: np.ndarray | None, n: int | None) -> np.ndarray:
         arr = arr[None, :]
     if arr.ndim != 2 or arr.shape[1] != 3 or (n is not None and arr.shape[0] not in (1, n)):
         want = "(n, 3)" if n is None else f"({n}, 3)"
-        raise SimbenchError(name, f"has shape {np.shape(a)}, expected {want}", "pass one ECEF xyz row per epoch")
+        # arr is still np.asarray(a) here: the (3,) -> (1, 3) promotion always passes this test
+        raise SimbenchError(name, f"has shape {arr.shape}, expected {want}", "pass one ECEF xyz row per epoch")
     if not np.all(np.isfinite(arr)):
         raise SimbenchError(name, "contains NaN or infinite values", "remove non-finite epochs")
     return arr

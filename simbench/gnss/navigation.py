@@ -14,10 +14,12 @@ for files whose spare fields are blank (as in ``hksc1180.19b``).
 
 from __future__ import annotations
 
+import io
 import os
 import warnings
 from dataclasses import dataclass
 
+import hatanaka
 import lazy_loader
 import numpy as np
 
@@ -29,8 +31,10 @@ from simbench.errors import SimbenchError
 # xarray and georinex cost ~1 s to import: loaded on first use
 georinex = lazy_loader.load("georinex")
 
-__all__ = ["read_gps_navigation", "read_rinex3_records", "NavRecords", "SYSTEM_NAMES"]
+__all__ = ["read_gps_navigation", "read_rinex3_records", "read_rinex_lines", "NavRecords", "SYSTEM_NAMES"]
 
+#: Leading bytes of gzip, Unix compress, bzip2 and zip files.
+_PACKED = (b"\x1f\x8b", b"\x1f\x9d", b"BZh", b"PK\x03\x04")
 #: RINEX system letter -> name used in messages.
 SYSTEM_NAMES = {"G": "GPS", "R": "GLONASS", "E": "Galileo", "C": "BeiDou"}
 
@@ -60,8 +64,11 @@ _RECORD_SOURCE = {
 _NAV_FIELDS = (*_RECORD_SOURCE.values(), "Toe", "GPSWeek", "health")
 
 
+_NAV_FIX = "pass a RINEX 2/3 GPS navigation file (e.g. brdc<doy>0.<yy>n)"
+
+
 def _nav_error(path: str, problem: str) -> SimbenchError:
-    return SimbenchError(f"nav_file '{path}'", problem, "pass a RINEX 2/3 GPS navigation file (e.g. brdc<doy>0.<yy>n)")
+    return SimbenchError(f"nav_file '{path}'", problem, _NAV_FIX)
 
 
 def read_gps_navigation(path: str | os.PathLike[str], max_age_s: float = FIT_HALF_WINDOW_S) -> BroadcastEphemeris:
@@ -70,7 +77,8 @@ def read_gps_navigation(path: str | os.PathLike[str], max_age_s: float = FIT_HAL
     Parameters
     ----------
     path : str or PathLike
-        RINEX navigation file (``.yyn``, ``.rnx``; gzip allowed). Only GPS
+        RINEX navigation file (``.yyn``, ``.rnx``; compressed and any line
+        ending allowed, :func:`read_rinex_lines`). Only GPS
         records are kept; unhealthy or incomplete records are dropped.
     max_age_s : float
         Largest |t - Toe| at which a record may be used [s]; default 7200.
@@ -88,17 +96,20 @@ def read_gps_navigation(path: str | os.PathLike[str], max_age_s: float = FIT_HAL
     p = os.fspath(path)
     if not os.path.isfile(p):
         raise _nav_error(p, "file does not exist")
+    # georinex reads the unpacked, line-ending-normalized text: it misreads CR CR LF files
+    text = io.StringIO("\n".join(read_rinex_lines(p, f"nav_file '{p}'", _NAV_FIX)) + "\n")
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            info = georinex.rinexinfo(p)
+            info = georinex.rinexinfo(text)
+            text.seek(0)
             kind = info.get("rinextype")
             if kind != "nav":
                 what = {"obs": "a RINEX observation file", "sp3": "an SP3 orbit file"}.get(
                     str(kind), "not a RINEX file"
                 )
                 raise _nav_error(p, f"is {what}, not RINEX navigation data")
-            ds = georinex.load(p, use={"G"})  # a mixed RINEX 3 file holds other systems too
+            ds = georinex.load(text, use={"G"})  # a mixed RINEX 3 file holds other systems too
     except SimbenchError:
         raise
     except Exception as exc:  # georinex raises many types on malformed text
@@ -161,6 +172,52 @@ def _field(text: str) -> float:
     return float(text) if text else np.nan
 
 
+def read_rinex_lines(path: str, field: str, fix: str) -> list[str]:
+    """The text lines of a RINEX file, unpacked and without line endings.
+
+    gzip, zip, bzip2 and Unix compress files and Hatanaka-compressed (Compact
+    RINEX, ``.crx``, ``.yyd``) files are unpacked, told by their first bytes,
+    not their name. LF, CR LF, CR alone and CR CR LF (a CR LF file converted once more)
+    all give the same lines: RINEX columns are fixed, so a stray CR would
+    shift nothing but would add an empty line that ends an epoch record early.
+
+    Parameters
+    ----------
+    path : str
+        An existing file.
+    field : str
+        The setting and file, for error messages (``"scenario.obs 'x.obs'"``).
+    fix : str
+        What the user should pass instead, for error messages.
+
+    Returns
+    -------
+    list of str
+        Line ``k`` of the file (1-based) is element ``k - 1``; a file that ends
+        in a line break has no empty last element.
+
+    Raises
+    ------
+    SimbenchError
+        A compressed file that cannot be unpacked (cut or damaged).
+    """
+    with open(path, "rb") as fh:
+        raw = fh.read()
+    if raw.startswith(_PACKED) or b"CRINEX VERS" in raw[:80]:
+        try:
+            raw = hatanaka.decompress(raw)
+        except (hatanaka.HatanakaException, ValueError, OSError, EOFError) as exc:
+            msg = " ".join(str(exc).split())[:60] or type(exc).__name__
+            raise SimbenchError(
+                field, f"cannot be unpacked ({msg}); the compressed file is damaged or cut", fix
+            ) from None
+    text = raw.decode("utf-8", errors="replace")
+    lines = [ln.rstrip("\r") for ln in text.split("\n" if "\n" in text else "\r")]
+    if lines and not lines[-1]:
+        lines.pop()
+    return lines
+
+
 def read_rinex3_records(path: str | os.PathLike[str], system: str, setting: str, fix: str) -> NavRecords:
     """Read the records of one system from a RINEX 3 navigation file (single-system or mixed).
 
@@ -171,7 +228,7 @@ def read_rinex3_records(path: str | os.PathLike[str], system: str, setting: str,
     Parameters
     ----------
     path : str or PathLike
-        RINEX 3 navigation file (plain text).
+        RINEX 3 navigation file (plain text or compressed, :func:`read_rinex_lines`).
     system : str
         System letter to keep (``'C'``, ``'E'``, ``'R'``).
     setting : str
@@ -192,8 +249,7 @@ def read_rinex3_records(path: str | os.PathLike[str], system: str, setting: str,
     field = f"{setting} '{p}'"
     if not os.path.isfile(p):
         raise SimbenchError(field, "file does not exist", fix)
-    with open(p, errors="replace") as fh:
-        lines = fh.read().splitlines()
+    lines = read_rinex_lines(p, field, fix)
     if not lines or lines[0][20:21] != "N" or not lines[0][:9].strip().startswith("3"):
         raise SimbenchError(field, "is not RINEX 3 navigation data", fix)
     body = next((i + 1 for i, ln in enumerate(lines) if "END OF HEADER" in ln), None)

@@ -149,7 +149,7 @@ def solve_epochs(
     rows = np.flatnonzero(ok)
     rows = rows[np.argsort(epoch[rows], kind="stable")]
     e, s, c, wr, sy = epoch[rows], sat_pos[rows], code[rows], w[rows], sys_idx[rows]
-    el_r = el_rows[rows] if with_tropo else None
+    el_r = None if el_rows is None else el_rows[rows]
     present, starts, n_rows_present = np.unique(e, return_index=True, return_counts=True)
     n_rows = np.zeros(nk, np.int64)
     n_rows[present] = n_rows_present
@@ -170,7 +170,7 @@ def solve_epochs(
     for _ in range(iterations):
         rx = pos[e]
         rho, grad = sagnac_range_gradient(s, rx)
-        hydro = _hydrostatic(pos, e, el_r, doy) if with_tropo else hydro
+        hydro = _hydrostatic(pos, e, el_r, doy) if el_r is not None and doy is not None else hydro
         res = c - rho - clock[e, sy] - hydro
         A[:, :3] = grad
         N = np.add.reduceat((A[:, :, None] * A[:, None, :]) * wr[:, None, None], starts, axis=0)
@@ -185,7 +185,7 @@ def solve_epochs(
         if not np.any(step[present] >= tol_m):
             break
     rms = np.full(nk, np.nan)
-    hydro = _hydrostatic(pos, e, el_r, doy) if with_tropo else hydro
+    hydro = _hydrostatic(pos, e, el_r, doy) if el_r is not None and doy is not None else hydro
     res = c - sagnac_range_gradient(s, pos[e])[0] - clock[e, sy] - hydro
     rms[present] = np.sqrt(np.add.reduceat(res * res, starts) / n_rows_present)
     height = _lat_height(pos)[1]
@@ -217,7 +217,7 @@ def solve_epochs(
         nearest = np.where(np.abs(before - k) < np.abs(after - k), before, after)
         pos[bad] = pos[nearest[bad]]
         # the clocks that fit the borrowed position: mean residual per epoch and system
-        hydro = _hydrostatic(pos, e, el_r, doy) if with_tropo else np.zeros(len(rows))
+        hydro = _hydrostatic(pos, e, el_r, doy) if el_r is not None and doy is not None else np.zeros(len(rows))
         res = c - sagnac_range_gradient(s, pos[e])[0] - hydro
         flat = e * n_sys + sy
         total = np.bincount(flat, res, nk * n_sys).reshape(nk, n_sys)

@@ -55,7 +55,7 @@ from simbench.runs.runner import SUMMARY_COLUMNS
 from simbench.runs.store import aggregate, diagnostics
 from simbench.runs.studies import STUDY_TIMES, time_budget
 from simbench.runs.zero_baseline import TABLE_NAME as ZERO_BASELINE_TABLE
-from simbench.sim.config import ScenarioSource
+from simbench.source import SIMULATED
 
 #: The comparison baseline when present (the a priori L2 estimator), else the first estimator.
 BASELINES = ("l2", "isam2_ppp", "ekf_ppp")
@@ -163,7 +163,7 @@ def build_report(
         source = in_group["source"].iloc[0]
         name = data_label(scenario, receiver, source) + (f" (sweep {sweep})" if sweep else "")
         # file names too say what the data are: the source of a real log, the receiver of a simulation
-        kind = receiver if data_source(source) == ScenarioSource.simulated else data_source(source).value
+        kind = receiver if data_source(source) == SIMULATED else data_source(source)
         tag = re.sub(r"[^A-Za-z0-9_-]+", "_", "_".join(str(k) for k in (sweep, scenario, kind) if k))
         page.h2(name)
         default = group[is_default(group["overrides"])]

@@ -11,6 +11,7 @@ from __future__ import annotations
 import textwrap
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
+from typing import Any, Literal, cast
 
 import matplotlib
 
@@ -18,6 +19,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
+from matplotlib.colors import ListedColormap
 from matplotlib.ticker import MaxNLocator
 
 from simbench.analysis.metrics import reference_ecdf, reference_percentile
@@ -33,9 +35,10 @@ LEGEND_INSIDE_MAX = 6
 REFERENCE_NOTE = "over all reference epochs: a curve ends at its availability, unsolved epochs counting as missed"
 
 
-def estimator_styles(names: Iterable[str]) -> dict[str, dict[str, object]]:
+def estimator_styles(names: Iterable[str]) -> dict[str, dict[str, Any]]:
     """A distinct ``color`` and ``linestyle`` per estimator name, by sorted name (same set, same styles)."""
-    colors = plt.get_cmap("tab10").colors
+    tab10 = cast(ListedColormap, plt.get_cmap("tab10"))
+    colors = cast(Sequence[tuple[float, float, float]], tab10.colors)  # a tuple of ten RGB triples
     return {
         name: {"color": colors[i % len(colors)], "linestyle": LINESTYLES[(i // len(colors)) % len(LINESTYLES)]}
         for i, name in enumerate(sorted(set(names)))
@@ -130,7 +133,7 @@ def error_timeseries_figure(epochs: pd.DataFrame, path: str | Path, title: str) 
     return _save(fig, path)
 
 
-def _legend(ax: plt.Axes, entries: int, inside: str) -> None:
+def _legend(ax: plt.Axes, entries: int, inside: Literal["lower right", "upper right"]) -> None:
     """Legend at ``inside`` for a few entries, beside the axes (two columns past 20) for many."""
     if entries <= LEGEND_INSIDE_MAX:
         ax.legend(loc=inside, fontsize=8, frameon=True)

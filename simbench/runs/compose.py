@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import inspect
 import re
 from collections.abc import Iterable
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import yaml
 from hydra import compose, initialize_config_dir
@@ -20,6 +19,7 @@ from omegaconf.errors import OmegaConfBaseException
 
 import estimators
 from estimators.ppp_config import GnssModelConfig
+from simbench import source as sources
 from simbench.errors import SimbenchError
 from simbench.sim.config import ImuConfig, ReceiverConfig, ScenarioConfig
 from simbench.typed import to_typed
@@ -40,36 +40,89 @@ def register_schemas() -> None:
     from the dataclass defaults. A plug-in estimator gets the same node from
     :func:`plugin_config_node`, and ``estimator/all`` lists every registered
     estimator, built-in and plug-in, so the default run and the sweeps include
-    the plug-ins without an edit to ``conf/``.
+    the plug-ins without an edit to ``conf/``. Each scenario source (:mod:`simbench.source`)
+    gets its typed node ``scenario/<name>_schema`` from its ``Config`` (the simulator's presets
+    use ``scenario/schema``, ``rinex.yaml`` uses ``rinex_schema``), and a source without a
+    ``conf/scenario/<name>.yaml`` a preset of its ``Config`` defaults, so ``scenario=<name>`` runs it.
 
     Raises
     ------
     SimbenchError
-        For a broken plug-in, naming its package (:func:`estimators.discover`).
+        For a broken plug-in, naming its package (:func:`estimators.discover`, :func:`simbench.source.discover`).
     """
     cs = ConfigStore.instance()
     for group, node in (
-        ("scenario", ScenarioConfig),
+        ("scenario", ScenarioConfig),  # the simulator's presets in conf/scenario/ (= simulated_schema)
         ("receiver", ReceiverConfig),
         ("imu", ImuConfig),
         ("gnss_model", GnssModelConfig),
     ):
         cs.store(group=group, name="schema", node=node)
+    for name, source in sources.registered().items():
+        cs.store(group="scenario", name=f"{name}_schema", node=source.Config)
+        if not (CONF_DIR / "scenario" / f"{name}.yaml").is_file():  # a plug-in's preset: its Config defaults
+            cs.store(group="scenario", name=name, node={"defaults": [f"{name}_schema", "_self_"]})
     for name, cls in estimators.registered().items():
-        cs.store(group="estimator", name=f"{name}_schema", node={name: estimator_schema(cls.Config)})
+        cs.store(group="estimator", name=f"{name}_schema", node={name: estimator_schema(name, cls.Config)})
     for name, plugin in estimators.plugins().items():
         cs.store(group="estimator", name=name, node=plugin_config_node(plugin))
     cs.store(group="estimator", name=estimators.ALL, node={"defaults": list(estimators.registered())})
 
 
-def estimator_schema(config: type) -> DictConfig:
-    """The typed node of an estimator ``Config`` dataclass, its :class:`GnssModelConfig` fields
-    defaulting to the ``gnss_model`` group's choice (``${gnss_model.<field>}``)."""
+def estimator_schema(name: str, config: type) -> DictConfig:
+    """The typed node of estimator ``name``'s ``Config`` dataclass, its :class:`GnssModelConfig`
+    fields defaulting to the ``gnss_model`` group's choice: the preset's ``per_estimator.<name>``
+    value where it has one, else its ``<field>``.
+
+    This is the one place where a ``gnss_model`` preset reaches the estimators: a composed
+    run gets its values through it, and :func:`preset_estimator_config` (the baseline of a
+    result's ``overrides``) too.
+    """
     node = OmegaConf.structured(config)
-    for f in dataclasses.fields(GnssModelConfig):
-        if f.name in node:
-            node[f.name] = f"${{gnss_model.{f.name}}}"
+    for field in GnssModelConfig.model_fields():
+        if field in node:
+            node[field] = f"${{oc.select:gnss_model.per_estimator.{name}.{field},${{gnss_model.{field}}}}}"
     return node
+
+
+@functools.cache
+def gnss_model_preset(preset: str) -> GnssModelConfig:
+    """The ``gnss_model`` preset ``conf/gnss_model/<preset>.yaml`` as shipped (no command-line overrides).
+
+    Raises
+    ------
+    SimbenchError
+        When ``conf/gnss_model/`` has no such preset.
+    """
+    path = CONF_DIR / "gnss_model" / f"{preset}.yaml"
+    if not path.is_file():
+        raise SimbenchError(
+            "gnss_model.name", f"no preset '{preset}'", f"choose from {', '.join(available('gnss_model'))}"
+        )
+    # OmegaConf's YAML reading, as Hydra's: PyYAML alone reads 1.0e6 as a string
+    node = OmegaConf.load(path)
+    if not isinstance(node, DictConfig):
+        raise SimbenchError("gnss_model", f"{path} is not a mapping", "write the preset as field: value lines")
+    node.pop("defaults", None)
+    return to_typed(node, GnssModelConfig, "gnss_model")
+
+
+def preset_estimator_config(name: str, preset: str) -> Any:
+    """Estimator ``name``'s ``Config`` dataclass defaults under ``gnss_model`` preset ``preset``.
+
+    The baseline of a result's ``overrides`` (:func:`simbench.analysis.variants.overrides_of`):
+    an unmodified run under either preset has none.
+
+    Raises
+    ------
+    SimbenchError
+        For an unknown estimator or preset.
+    """
+    config = estimators.get(name).Config
+    model = OmegaConf.structured(gnss_model_preset(preset))
+    root = OmegaConf.create({"gnss_model": model, "estimator": {name: estimator_schema(name, config)}})
+    node = cast(dict[str, Any], OmegaConf.to_container(root.estimator[name], resolve=True))
+    return to_typed(node, config, f"estimator.{name}")
 
 
 def plugin_config_node(plugin: estimators.Plugin) -> dict[str, Any]:
@@ -134,11 +187,13 @@ def available(group: str) -> list[str]:
     """Names of the options of a config group (``scenario``, ``receiver``, ...).
 
     The files of ``conf/<group>/``; for ``estimator`` also the plug-in estimators
-    and ``all`` (every registered estimator).
+    and ``all`` (every registered estimator); for ``scenario`` also every source by name.
     """
     names = {p.stem for p in (CONF_DIR / group).glob("*.yaml")}
     if group == "estimator":
         names |= {*estimators.plugins(), estimators.ALL}
+    if group == "scenario":
+        names |= set(sources.registered())
     return sorted(names)
 
 
@@ -220,7 +275,7 @@ def compose_config(overrides: list[str] | None = None) -> DictConfig:
     Raises
     ------
     SimbenchError
-        For an unknown group option or a malformed override, in one line.
+        For an unknown group option, source (``scenario.source``) or a malformed override, in one line.
     """
     if not CONF_DIR.is_dir():
         raise SimbenchError(
@@ -235,7 +290,7 @@ def compose_config(overrides: list[str] | None = None) -> DictConfig:
         GlobalHydra.instance().clear()
     try:
         with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
-            return compose(config_name="config", overrides=overrides)
+            cfg = compose(config_name="config", overrides=overrides)
     except (HydraException, OmegaConfBaseException) as exc:
         key = getattr(exc.__cause__, "full_key", None)
         if key:  # a bad value of a known key: OmegaConf's first line names the value and what is allowed
@@ -247,6 +302,8 @@ def compose_config(overrides: list[str] | None = None) -> DictConfig:
         raise SimbenchError(
             "overrides", ": ".join(lines), "write overrides as key=value with keys and types from conf/"
         ) from None
+    sources.get(str(cfg.scenario.source))  # an unknown source fails here, in one line
+    return cfg
 
 
 def overrides_from_kwargs(kwargs: dict[str, Any]) -> list[str]:

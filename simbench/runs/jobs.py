@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import pandas as pd
 from omegaconf import DictConfig, OmegaConf
@@ -21,11 +21,11 @@ from threadpoolctl import threadpool_limits
 import estimators
 from simbench.analysis.variants import overrides_json, overrides_of, variant_label
 from simbench.errors import SimbenchError, one_line
+from simbench.runs.compose import preset_estimator_config
 from simbench.runs.provenance import provenance
 from simbench.runs.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS, run_estimators
-from simbench.runs.scenarios import build_scenario, sim_config
-from simbench.runs.store import cached_scenario, config_key, is_finished, result_stem, write_result
-from simbench.sim.config import validate_sim
+from simbench.runs.scenarios import check_scenario, scenario_key, scenario_settings
+from simbench.runs.store import cached_scenario, is_finished, result_stem, write_result
 from simbench.typed import to_typed
 
 
@@ -66,19 +66,21 @@ def run_job(cfg: DictConfig, *, fail_fast: bool = True) -> pd.DataFrame:
 
 
 def _run_job(cfg: DictConfig, opts: RunOptions, *, fail_fast: bool) -> pd.DataFrame:
-    sim = sim_config(cfg)
+    sim = scenario_settings(cfg)
     root = Path(opts.results_dir)
-    scenario_key = config_key(dataclasses.asdict(sim))
-    estimator_cfgs: dict[str, Any] = OmegaConf.to_container(cfg.estimator, resolve=True, enum_to_str=True) or {}
-    stems = {name: result_stem(root, scenario_key, name, c) for name, c in estimator_cfgs.items()}
+    key = scenario_key(sim)
+    estimator_cfgs = cast(dict[str, Any], OmegaConf.to_container(cfg.estimator, resolve=True, enum_to_str=True) or {})
+    stems = {name: result_stem(root, key, name, c) for name, c in estimator_cfgs.items()}
     pending = {name: c for name, c in estimator_cfgs.items() if not is_finished(stems[name])}
-    if fail_fast:
-        validate_sim(sim)
-    meta = provenance(OmegaConf.to_container(cfg, resolve=True, enum_to_str=True))
-    tags = {"sweep": opts.sweep_name, "scenario_key": scenario_key}
+    meta = provenance(cast(dict[str, Any], OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)))
+    # the overrides of a row are relative to its gnss_model preset (as shipped), so the preset joins the row
+    gnss_model = str(cfg.gnss_model.name)
+    tags = {"sweep": opts.sweep_name, "scenario_key": key, "gnss_model": gnss_model}
     if pending:
         try:
-            scenario = cached_scenario(root, scenario_key, lambda: build_scenario(sim))
+            # the job's one check of its data config (the source's, e.g. validate_sim); loading trusts it
+            source = check_scenario(sim)
+            scenario = cached_scenario(root, key, lambda: source.load(sim))
         except Exception as exc:
             if fail_fast:  # a single run ends with one line instead of a failed row per estimator
                 if isinstance(exc, SimbenchError):
@@ -89,13 +91,13 @@ def _run_job(cfg: DictConfig, opts: RunOptions, *, fail_fast: bool) -> pd.DataFr
             # in a sweep it fails this job's estimators, not the sweep
             scenario, failure = None, one_line(exc)
         for name, est_cfg in pending.items():
-            overrides = estimator_overrides(name, est_cfg)
+            overrides = estimator_overrides(name, est_cfg, gnss_model)
             if scenario is None:
                 summary = pd.DataFrame(
                     [
                         {
                             "scenario": sim.scenario.name,
-                            "source": sim.scenario.source.value,
+                            "source": sim.scenario.source,
                             "receiver": sim.receiver.name,
                             "seed": sim.seed,
                             "estimator": name,
@@ -120,14 +122,20 @@ def _run_job(cfg: DictConfig, opts: RunOptions, *, fail_fast: bool) -> pd.DataFr
     return pd.concat(rows, ignore_index=True) if rows else pd.DataFrame(columns=list(SUMMARY_COLUMNS))
 
 
-def estimator_overrides(name: str, est_cfg: dict[str, Any]) -> dict[str, Any]:
-    """The settings of one estimator's composed config that differ from its ``Config`` dataclass defaults.
+def estimator_overrides(name: str, est_cfg: dict[str, Any], gnss_model: str) -> dict[str, Any]:
+    """The settings of one estimator's composed config that differ from its ``Config`` dataclass
+    defaults under ``gnss_model`` preset ``gnss_model`` (:func:`preset_estimator_config`).
 
     A config that does not type-check has none: the runner records it as a
     failed row with the one-line reason, and a failed row is in no statistic.
+
+    Raises
+    ------
+    SimbenchError
+        When ``conf/gnss_model/`` has no preset ``gnss_model``.
     """
     try:
-        typed = to_typed(est_cfg or {}, estimators.get(name).Config, f"estimator.{name}")
+        typed: object = to_typed(est_cfg or {}, estimators.get(name).Config, f"estimator.{name}")
     except SimbenchError:
         return {}
-    return overrides_of(typed)
+    return overrides_of(typed, preset_estimator_config(name, gnss_model))

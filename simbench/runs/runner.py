@@ -23,7 +23,7 @@ import estimators
 from simbench.analysis.metrics import enu_errors, reference_stats, summary_stats
 from simbench.contract import Need, Scenario, available_needs, unmet_needs_reason
 from simbench.errors import one_line
-from simbench.sim.config import ScenarioSource
+from simbench.source import SIMULATED
 from simbench.typed import to_typed
 
 #: A 3-D error beyond this marks a run as diverged (no receiver is that wrong while working) [m].
@@ -33,14 +33,17 @@ DIVERGENCE_M = 10_000.0
 SUMMARY_COLUMNS: dict[str, str] = {
     "sweep": "str, sweep name ('' for a single run)",
     "scenario": "str, scenario name",
-    "source": "str, where the data come from: simulated, rinex or librsf (a real log; scenario.source)",
+    "source": "str, where the data come from: simulated, rinex or librsf (a real log), or a plug-in source's "
+    "name (scenario.source; simbench.source)",
     "receiver": "str, receiver preset (describes the data only when source is simulated)",
     "seed": "int, scenario seed",
     "scenario_key": "str, hash of the resolved scenario config (same key = byte-identical data)",
     "estimator": "str, estimator name",
+    "gnss_model": "str, the gnss_model preset the estimator ran under (conf/gnss_model/, e.g. urban or "
+    "dissertation; empty for a foreign solution)",
     "variant": "str, display label of the overrides, k=v,... ('' for the defaults); never parsed",
     "overrides": "str, JSON object of the estimator settings that differ from its Config dataclass defaults "
-    "(sorted keys; '{}' for the defaults); read with simbench.analysis.variants",
+    "under the gnss_model preset (sorted keys; '{}' for the defaults); read with simbench.analysis.variants",
     "uses_labels": "bool, the estimator read error labels (oracle)",
     "status": "str, ok | diverged | failed | skipped (the scenario lacks data the estimator needs: "
     "carrier phase, IMU, labels, L2, RINEX files; or a program it runs is not installed)",
@@ -79,11 +82,12 @@ SUMMARY_COLUMNS: dict[str, str] = {
 EPOCH_COLUMNS: dict[str, str] = {
     "sweep": "str",
     "scenario": "str",
-    "source": "str, simulated, rinex or librsf (as in summary.parquet)",
+    "source": "str, the scenario's source (as in summary.parquet)",
     "receiver": "str",
     "seed": "int",
     "scenario_key": "str",
     "estimator": "str",
+    "gnss_model": "str, as in summary.parquet",
     "variant": "str",
     "overrides": "str, JSON (as in summary.parquet)",
     "epoch": "int, epoch index",
@@ -217,8 +221,8 @@ def score_solution(scenario: Scenario, solution: pd.DataFrame, total_s: float) -
 
 
 def scenario_source(scenario: Scenario) -> str:
-    """Where ``scenario``'s data come from (a :class:`~simbench.sim.config.ScenarioSource` value).
+    """Where ``scenario``'s data come from: the name of its source (:mod:`simbench.source`).
 
     The readers of real logs record it in ``meta['source']``; the generator does not.
     """
-    return ScenarioSource(scenario.meta.get("source", ScenarioSource.simulated.value)).value
+    return str(scenario.meta.get("source") or SIMULATED)

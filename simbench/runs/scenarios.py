@@ -1,75 +1,128 @@
 """Where a scenario comes from: the one function the CLI and sweeps call.
 
-Simulated kinds go to the generator; real-data sources (RINEX, libRSF) plug in
-here as further branches, so the CLI and the sweep cache need not know them.
+``scenario.source`` names a registered source (:mod:`simbench.source`): the
+simulator, a RINEX or libRSF log, or a plug-in's. :func:`build_scenario` looks it
+up by name, so the CLI and the sweep cache need not know any of them.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from typing import Any
 
+from omegaconf import DictConfig, OmegaConf
+
+from simbench import source as sources
 from simbench.contract import Scenario
-from simbench.data.librsf import load_librsf
-from simbench.data.rinex import load_rinex
+from simbench.errors import SimbenchError
 from simbench.runs.compose import compose_config, overrides_from_kwargs
-from simbench.sim.config import ScenarioSource, SimConfig, validate_sim
-from simbench.sim.generator import generate
+from simbench.runs.store import config_key
+from simbench.sim.config import ImuConfig, ReceiverConfig, ScenarioConfig, SimConfig
+from simbench.sim.source import sim_config_of
+from simbench.source import SIMULATED, DataConfig, Source, SourceConfig
 from simbench.typed import to_typed
 
 #: The keys of a composed ``conf/config.yaml`` that describe the data (the rest picks estimators and output).
 SIM_KEYS = ("scenario", "receiver", "imu", "seed")
 
+#: The real-log keys that the simulator's scenario node had before each source got its own ``Config``, at
+#: their defaults: a simulated scenario's key hashes them too, so its key, and the cache a resumed sweep
+#: finds, stay what they were (:func:`scenario_key`).
+FORMER_SCENARIO_KEYS: dict[str, Any] = {
+    "obs": "",
+    "nav": "",
+    "nav_bds": "",
+    "nav_glo": "",
+    "nav_gal": "",
+    "truth": "",
+    "systems": "G",
+    "truth_max_gap_s": 2.0,
+}
 
-def sim_config(cfg: Mapping[str, Any]) -> SimConfig:
-    """The typed :class:`SimConfig` part of a composed ``conf/config.yaml``.
+
+@dataclass
+class ScenarioSettings:
+    """The typed data part of a composed config: the ``scenario`` node typed by its source's
+    ``Config``, and the receiver, IMU and seed a simulating source uses."""
+
+    scenario: SourceConfig = field(default_factory=ScenarioConfig)
+    receiver: ReceiverConfig = field(default_factory=ReceiverConfig)
+    imu: ImuConfig = field(default_factory=ImuConfig)
+    seed: int = 0
+
+
+def scenario_settings(cfg: Mapping[str, Any]) -> ScenarioSettings:
+    """The typed :class:`ScenarioSettings` of a composed ``conf/config.yaml``.
 
     Raises
     ------
     SimbenchError
-        For a value that does not type-check, naming the key.
+        For an unknown ``scenario.source``, or a value that does not type-check, naming the key.
     """
-    return to_typed({k: cfg[k] for k in SIM_KEYS}, SimConfig, "config")
+    node = cfg["scenario"]
+    name = str(node.get("source", SIMULATED))
+    config = sources.get(name).Config
+    preset = OmegaConf.get_type(node) if isinstance(node, DictConfig) else None
+    if isinstance(preset, type) and dataclasses.is_dataclass(preset) and not issubclass(config, preset):
+        raise SimbenchError(
+            "scenario.source",
+            f"source '{name}' cannot read a scenario preset of {preset.__name__}",
+            f"pick the source with its own preset, e.g. scenario={name}",
+        )
+    scenario = to_typed(node, config, "scenario")
+    rest = to_typed({k: cfg[k] for k in SIM_KEYS if k != "scenario"}, SimConfig, "config")
+    return ScenarioSettings(scenario=scenario, receiver=rest.receiver, imu=rest.imu, seed=rest.seed)
 
 
-def scenario_from_overrides(overrides: Sequence[str]) -> tuple[SimConfig, Scenario]:
+def sim_config(cfg: Mapping[str, Any]) -> SimConfig:
+    """The typed :class:`SimConfig` of a composed ``conf/config.yaml`` with a simulated scenario.
+
+    Raises
+    ------
+    SimbenchError
+        For a value that does not type-check, naming the key, or a scenario of another source.
+    """
+    return sim_config_of(scenario_settings(cfg))
+
+
+def scenario_key(cfg: ScenarioSettings) -> str:
+    """The cache key of the scenario ``cfg`` describes (:func:`simbench.runs.store.config_key`)."""
+    data = dataclasses.asdict(cfg)
+    if isinstance(cfg.scenario, ScenarioConfig):
+        data["scenario"] = {**FORMER_SCENARIO_KEYS, **data["scenario"]}
+    return config_key(data)
+
+
+def scenario_from_overrides(overrides: Sequence[str]) -> tuple[ScenarioSettings, Scenario]:
     """Compose ``conf/config.yaml`` with command-line style overrides (``scenario=rinex``,
     ``receiver=high``, ``seed=3``) and build that scenario; return the typed config and the scenario."""
 
-    sim = sim_config(compose_config(list(overrides)))
-    return sim, build_scenario(sim)
+    settings = scenario_settings(compose_config(list(overrides)))
+    return settings, build_scenario(settings)
 
 
-def build_scenario(cfg: SimConfig) -> Scenario:
+def check_scenario(cfg: DataConfig) -> Source:
+    """The source ``cfg.scenario.source`` names, once it has checked ``cfg`` (:meth:`Source.check`).
+
+    Raises
+    ------
+    SimbenchError
+        For an unknown source or a config it cannot load, in one line.
+    """
+    found = sources.get(cfg.scenario.source)()
+    found.check(cfg)
+    return found
+
+
+def build_scenario(cfg: DataConfig) -> Scenario:
     """Generate (or load) the scenario a typed config describes.
 
-    ``scenario.source`` picks the branch: ``simulated`` runs the generator;
-    ``rinex`` and ``librsf`` ingest a real log (:mod:`simbench.data`) with
-    ``labels=None`` and an empty IMU table.
+    ``cfg`` is a :class:`ScenarioSettings` or, for the simulator, a :class:`SimConfig`;
+    ``scenario.source`` picks the source (:func:`simbench.source.get`).
     """
-    sc = validate_sim(cfg).scenario
-    if sc.source == ScenarioSource.rinex:
-        return load_rinex(
-            sc.obs,
-            sc.nav,
-            sc.truth,
-            systems=sc.systems,
-            nav_bds_path=sc.nav_bds,
-            nav_glo_path=sc.nav_glo,
-            nav_gal_path=sc.nav_gal,
-            name=sc.name,
-            truth_max_gap_s=sc.truth_max_gap_s,
-        )
-    if sc.source == ScenarioSource.librsf:
-        return load_librsf(
-            sc.obs,
-            sc.truth or None,
-            gps_week=sc.gps_week,
-            start_sow_s=sc.start_sow_s,
-            name=sc.name,
-            truth_max_gap_s=sc.truth_max_gap_s,
-        )
-    return generate(cfg)
+    return check_scenario(cfg).load(cfg)
 
 
 def simulate(
@@ -105,4 +158,4 @@ def simulate(
             *overrides_from_kwargs(overrides),
         ]
     )
-    return generate(sim_config(cfg))
+    return build_scenario(sim_config(cfg))  # the simulator's check, then the generator

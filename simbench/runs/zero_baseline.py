@@ -21,6 +21,7 @@ writes ``DIR/zero_baseline.csv``; the report of a run folder shows it.
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -28,7 +29,7 @@ import pandas as pd
 from estimators.measurement import prepare_ppp
 from estimators.ppp_config import MeasurementMode, StochasticModelConfig
 from simbench.analysis.metrics import enu_errors
-from simbench.analysis.published import DRIVE_SCENARIOS, ZERO_BASELINE_MEAN_3D_M
+from simbench.analysis.published import DRIVE_SCENARIOS, ZERO_BASELINE_MEAN_3D_M, Receiver
 from simbench.contract import Scenario
 from simbench.gnss.spp import solve_epochs
 from simbench.runs.scenarios import simulate
@@ -37,7 +38,7 @@ from simbench.runs.scenarios import simulate
 TABLE_NAME = "zero_baseline.csv"
 #: The reference receiver and the presets compared with it.
 REFERENCE_PRESET = "geodetic"
-PRESETS = ("high", "low")
+PRESETS: tuple[Receiver, ...] = ("high", "low")
 #: Post-fit RMS above which an epoch's single-point fix is not trusted (left out of the mean) [m].
 MAX_RMS_M = 100.0
 COLUMNS = [
@@ -101,7 +102,7 @@ def _pairs(observations: pd.DataFrame) -> pd.MultiIndex:
     return pd.MultiIndex.from_frame(observations[["epoch", "sat"]])
 
 
-def zero_baseline(scenario: str, seed: int = 0, **overrides: object) -> pd.DataFrame:
+def zero_baseline(scenario: str, seed: int = 0, **overrides: Any) -> pd.DataFrame:
     """Mean 3-D difference of each preset's single-point solution from the geodetic receiver's.
 
     Parameters

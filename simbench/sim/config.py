@@ -12,7 +12,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from simbench.errors import SimbenchError
+from simbench.errors import SimbenchError, require_at_least, require_positive
+from simbench.source import SIMULATED, SourceConfig
 from simbench.typed import Choice, check_choices
 
 
@@ -45,14 +46,6 @@ class HeightDistribution(Choice):
 
     uniform = "uniform"  #: uniform over ``building_height_m``
     rayleigh = "rayleigh"  #: Rayleigh with scale ``building_height_scale_m`` (ITU-R P.1410-5 statistical city)
-
-
-class ScenarioSource(Choice):
-    """Where a scenario's observations come from."""
-
-    simulated = "simulated"  #: the generator (:mod:`simbench.sim`)
-    rinex = "rinex"  #: a real RINEX 3 log (:mod:`simbench.data.rinex`)
-    librsf = "librsf"  #: a real libRSF GNSS text file (:mod:`simbench.data.librsf`)
 
 
 # --------------------------------------------------------------------------- trajectory
@@ -231,6 +224,16 @@ class Cn0Config:
 
 
 @dataclass
+class ScintillationConfig:
+    """C/N0 fades per satellite (:mod:`simbench.sim.error_sources.scintillation`); off by default."""
+
+    enabled: bool = False
+    rate_per_s: float = 0.002  #: fade onsets per satellite per second (Poisson)
+    depth_db: float = 10.0  #: C/N0 drop during a fade [dB]
+    duration_s: float = 20.0  #: length of a fade [s]
+
+
+@dataclass
 class ErrorsConfig:
     receiver_clock: ReceiverClockConfig = field(default_factory=ReceiverClockConfig)
     troposphere: TroposphereConfig = field(default_factory=TroposphereConfig)
@@ -241,6 +244,7 @@ class ErrorsConfig:
     attitude_masking: AttitudeMaskingConfig = field(default_factory=AttitudeMaskingConfig)
     cycle_slips: CycleSlipConfig = field(default_factory=CycleSlipConfig)
     cn0: Cn0Config = field(default_factory=Cn0Config)
+    scintillation: ScintillationConfig = field(default_factory=ScintillationConfig)
     tracking_noise: bool = True  #: DLL/PLL thermal jitter
     #: code error of a sampling rate commensurate with the chip rate (simbench.sim.tracking)
     sample_grid: bool = True
@@ -271,24 +275,11 @@ class OdometryConfig:
 
 
 @dataclass
-class ScenarioConfig:
+class ScenarioConfig(SourceConfig):
+    """The simulator's scenario (source ``simulated``); real logs have their own (:mod:`simbench.data.sources`)."""
+
     name: str = "urban"
-    #: simulated (the generator) | rinex | librsf (real logs, read by simbench.data)
-    source: ScenarioSource = ScenarioSource.simulated
-    obs: str = ""  #: rinex: RINEX 3 observation file; librsf: libRSF GNSS text file
-    #: rinex: RINEX GPS navigation file covering the observations, or a mixed RINEX 3
-    #: file (type M) that also serves the systems below without a file of their own
-    nav: str = ""
-    nav_bds: str = ""  #: rinex: RINEX 3 BeiDou navigation file (when ``systems`` has C)
-    nav_glo: str = ""  #: rinex: RINEX 3 GLONASS navigation file (when ``systems`` has R)
-    nav_gal: str = ""  #: rinex: RINEX 3 Galileo navigation file (when ``systems`` has E)
-    #: reference trajectory: 'week,TOW,lat,lon,h' CSV or 'SOW X Y Z' (GPS time); for librsf
-    #: also a point3 file, default the point3 lines of ``obs``
-    truth: str = ""
-    #: rinex: systems to ingest, letters of GREC: G (GPS L1 C/A), R (GLONASS L1 C/A),
-    #: E (Galileo E1), C (BeiDou B1I)
-    systems: str = "G"
-    truth_max_gap_s: float = 2.0  #: reference samples further apart are not interpolated
+    source: str = SIMULATED  #: the simulator (:mod:`simbench.sim.source`)
     duration_s: float = 600.0
     rate_hz: float = 1.0  #: GNSS epoch rate
     gps_week: int = 2032
@@ -302,17 +293,24 @@ class ScenarioConfig:
 
 @dataclass
 class ReceiverConfig:
-    """Tracking-loop preset (dissertation Table 5.3.1)."""
+    """Tracking-loop preset (dissertation Table 5.3.1); the defaults are the ``low`` preset.
+
+    ``low`` (``conf/receiver/low.yaml``, the shipped default) is GNSS-SDR on IQ data
+    down-sampled to 4.092 MHz; with complex sampling the double-sided front-end
+    bandwidth equals the sample rate. Its tracking states are assumed, those of a
+    GNSS-SDR-like 1 ms software receiver. The other presets in ``conf/receiver/`` set
+    every field they change.
+    """
 
     name: str = "low"
-    sampling_mhz: float = 4.092
-    front_end_bw_mhz: float = 4.092  #: double-sided
-    correlator_spacing_chips: float = 0.5
-    dll_bw_hz: float = 2.0
-    pll_bw_hz: float = 50.0
-    integration_s: float = 0.001
-    doppler_sigma_hz: float = 0.5  #: at the reference C/N0, scales as 10^((ref - C/N0)/20)
-    doppler_ref_cn0_dbhz: float = 45.0
+    sampling_mhz: float = 4.092  #: sample rate [MHz]
+    front_end_bw_mhz: float = 4.092  #: double-sided [MHz]
+    correlator_spacing_chips: float = 0.5  #: early-late spacing [chip]
+    dll_bw_hz: float = 2.0  #: DLL one-sided noise bandwidth [Hz]
+    pll_bw_hz: float = 50.0  #: PLL one-sided noise bandwidth [Hz]
+    integration_s: float = 0.001  #: coherent integration time [s]
+    doppler_sigma_hz: float = 0.5  #: [Hz] at the reference C/N0, scales as 10^((ref - C/N0)/20)
+    doppler_ref_cn0_dbhz: float = 45.0  #: [dB-Hz]
     #: C/N0 a satellite needs to be (re)acquired [dB-Hz]
     acquisition_threshold_dbhz: float = 33.0
     #: below this C/N0 the lock detector drops the channel [dB-Hz] (GNSS-SDR's default cn0_min is 25)
@@ -320,20 +318,88 @@ class ReceiverConfig:
     #: time a signal must stay above the acquisition threshold before it is tracked again [s]
     reacquisition_s: float = 1.0
 
+    def validate(self, where: str = "receiver") -> None:
+        """Raise a one-line :class:`SimbenchError` for the first value the tracking models cannot use.
+
+        The generator and its error sources trust a validated receiver; the
+        :mod:`simbench.sim.tracking` functions check the raw numbers they are given.
+
+        Parameters
+        ----------
+        where : str
+            Config node name, prefixed to the field in the message.
+        """
+        for name in (
+            "sampling_mhz",
+            "front_end_bw_mhz",
+            "correlator_spacing_chips",
+            "dll_bw_hz",
+            "pll_bw_hz",
+            "integration_s",
+        ):
+            require_positive(f"{where}.{name}", getattr(self, name), "see conf/receiver/ for presets")
+        if not self.correlator_spacing_chips < 2.0:
+            raise SimbenchError(
+                f"{where}.correlator_spacing_chips",
+                f"must be below 2 chips, got {self.correlator_spacing_chips}",
+                "use an early-late spacing such as 0.1-1 chip",
+            )
+        require_at_least(f"{where}.doppler_sigma_hz", self.doppler_sigma_hz, 0, "give a Doppler sigma in Hz")
+        if not self.acquisition_threshold_dbhz >= self.lock_threshold_dbhz:
+            raise SimbenchError(
+                f"{where}.acquisition_threshold_dbhz",
+                f"{self.acquisition_threshold_dbhz} dB-Hz is below the lock threshold {self.lock_threshold_dbhz} dB-Hz",
+                "acquiring needs at least the C/N0 that keeps lock",
+            )
+        require_at_least(
+            f"{where}.reacquisition_s",
+            self.reacquisition_s,
+            0,
+            f"give the re-acquisition time in seconds, e.g. {where}.reacquisition_s=1",
+        )
+
 
 @dataclass
 class ImuConfig:
-    """IMU grade (Groves, Table 4.1 ranges). Noise densities per sqrt(Hz)."""
+    """IMU grade (Groves, Table 4.1 ranges). Noise densities per sqrt(Hz).
+
+    The defaults are the ``consumer`` preset (``conf/imu/consumer.yaml``, the shipped
+    default): consumer MEMS, Groves Table 4.1: gyro bias > 100 deg/h, ARW > 1 deg/sqrt(h),
+    accel bias > 0.1 m/s^2. The other presets in ``conf/imu/`` set every field they change.
+    """
 
     grade: str = "consumer"
-    rate_hz: float = 100.0
-    accel_bias_sigma_mps2: float = 0.1  #: turn-on bias, per axis
+    rate_hz: float = 100.0  #: sample rate [Hz]
+    accel_bias_sigma_mps2: float = 0.1  #: turn-on bias, per axis [m/s^2]
     gyro_bias_sigma_dph: float = 100.0  #: turn-on bias [deg/h]
-    accel_noise_mps2_rthz: float = 2e-3  #: velocity random walk density
+    accel_noise_mps2_rthz: float = 3e-3  #: velocity random walk density [m/s^2/sqrt(Hz)]
     gyro_noise_dph_rthz: float = 60.0  #: angle random walk density [deg/h/sqrt(Hz)] (=1 deg/sqrt(h))
-    accel_bias_instability_mps2: float = 1e-3  #: Gauss-Markov bias drift std
-    gyro_bias_instability_dph: float = 10.0
-    bias_tau_s: float = 300.0
+    accel_bias_instability_mps2: float = 1e-3  #: Gauss-Markov bias drift std [m/s^2]
+    gyro_bias_instability_dph: float = 10.0  #: Gauss-Markov bias drift std [deg/h]
+    bias_tau_s: float = 300.0  #: Gauss-Markov correlation time of the bias drift [s]
+
+    def validate(self, where: str = "imu") -> None:
+        """Raise a one-line :class:`SimbenchError` for the first value the IMU model cannot use.
+
+        Parameters
+        ----------
+        where : str
+            Config node name, prefixed to the field in the message.
+        """
+        if not 100.0 <= self.rate_hz <= 1000.0:
+            raise SimbenchError(
+                f"{where}.rate_hz", f"must be within 100..1000 Hz, got {self.rate_hz}", f"set e.g. {where}.rate_hz=100"
+            )
+        for name in (
+            "accel_bias_sigma_mps2",
+            "gyro_bias_sigma_dph",
+            "accel_noise_mps2_rthz",
+            "gyro_noise_dph_rthz",
+            "accel_bias_instability_mps2",
+            "gyro_bias_instability_dph",
+        ):
+            require_at_least(f"{where}.{name}", getattr(self, name), 0, "see conf/imu/ for presets")
+        require_positive(f"{where}.bias_tau_s", self.bias_tau_s, "give the bias correlation time in seconds")
 
 
 @dataclass
@@ -346,51 +412,8 @@ class SimConfig:
     seed: int = 0
 
 
-#: RINEX system letter -> (name, the setting of its own navigation file).
-_RINEX_SYSTEMS = {
-    "G": ("GPS", "nav"),
-    "R": ("GLONASS", "nav_glo"),
-    "E": ("Galileo", "nav_gal"),
-    "C": ("BeiDou", "nav_bds"),
-}
-
-
-def _nav_header_system(path: str) -> str:
-    """System letter of a RINEX navigation file's header ('M' mixed, 'G', 'R', ...), '' if unreadable."""
-    try:
-        with open(path, errors="replace") as fh:
-            first = fh.readline()
-    except OSError:
-        return ""
-    if first[:9].strip().startswith("3") and first[20:21] == "N":
-        return first[40:41]
-    return {"N": "G", "G": "R"}.get(first[20:21], "")  # RINEX 2: N is GPS, G is GLONASS
-
-
-def _check_rinex_systems(s: ScenarioConfig) -> None:
-    """Known system letters, and navigation data named for each: its own file or a mixed ``nav``."""
-    letters = "".join(_RINEX_SYSTEMS)
-    unknown = sorted(set(s.systems) - set(letters))
-    if unknown or not s.systems:
-        raise SimbenchError(
-            "scenario.systems",
-            f"'{s.systems}' has " + (f"unknown letters {''.join(unknown)}" if unknown else "no letters"),
-            f"use letters of {letters} (GPS, GLONASS, Galileo, BeiDou), e.g. scenario.systems=GE",
-        )
-    nav_kind = _nav_header_system(s.nav) if s.nav else ""
-    for letter in dict.fromkeys(s.systems):
-        name, key = _RINEX_SYSTEMS[letter]
-        if getattr(s, key) or (letter != "G" and nav_kind in ("M", letter)):
-            continue
-        raise SimbenchError(
-            f"scenario.{key}",
-            f"no {name} navigation file for scenario.systems='{s.systems}'",
-            f"set scenario.{key}=path/to/file" + ("" if letter == "G" else ", or scenario.nav to a mixed RINEX 3 file"),
-        )
-
-
 def validate_sim(cfg: SimConfig) -> SimConfig:
-    """Check what the types cannot: value ranges, and the files a source or kind needs."""
+    """Check what the types cannot: value ranges, and the files a trajectory or constellation kind needs."""
     check_choices(cfg)
     s = cfg.scenario
     if s.duration_s <= 0:
@@ -405,20 +428,7 @@ def validate_sim(cfg: SimConfig) -> SimConfig:
             f"must be positive, got {s.rate_hz}",
             "give the GNSS epoch rate in Hz, e.g. scenario.rate_hz=1",
         )
-    if not 100.0 <= cfg.imu.rate_hz <= 1000.0:
-        raise SimbenchError(
-            "imu.rate_hz", f"must be within 100..1000 Hz, got {cfg.imu.rate_hz}", "set e.g. imu.rate_hz=100"
-        )
-    needed = {ScenarioSource.rinex: ("obs", "truth"), ScenarioSource.librsf: ("obs",)}.get(s.source, ())
-    for key in needed:
-        if not getattr(s, key):
-            raise SimbenchError(
-                f"scenario.{key}",
-                f"no file given for a {s.source} scenario",
-                f"set it on the command line, e.g. scenario.{key}=path/to/file",
-            )
-    if s.source == ScenarioSource.rinex:
-        _check_rinex_systems(s)
+    cfg.imu.validate("imu")
     if s.trajectory.kind == TrajectoryKind.replay and not s.trajectory.replay.path:
         raise SimbenchError(
             "scenario.trajectory.replay.path",
@@ -431,26 +441,5 @@ def validate_sim(cfg: SimConfig) -> SimConfig:
             "no navigation file given",
             "set it to a RINEX GPS navigation file, e.g. ../shared/data/wvu_drives/brdc.18n",
         )
-    for name, value in (
-        ("receiver.dll_bw_hz", cfg.receiver.dll_bw_hz),
-        ("receiver.pll_bw_hz", cfg.receiver.pll_bw_hz),
-        ("receiver.front_end_bw_mhz", cfg.receiver.front_end_bw_mhz),
-        ("receiver.correlator_spacing_chips", cfg.receiver.correlator_spacing_chips),
-        ("receiver.integration_s", cfg.receiver.integration_s),
-    ):
-        if value <= 0:
-            raise SimbenchError(name, f"must be positive, got {value}", "see conf/receiver/ for presets")
-    rx = cfg.receiver
-    if rx.acquisition_threshold_dbhz < rx.lock_threshold_dbhz:
-        raise SimbenchError(
-            "receiver.acquisition_threshold_dbhz",
-            f"{rx.acquisition_threshold_dbhz} dB-Hz is below the lock threshold {rx.lock_threshold_dbhz} dB-Hz",
-            "acquiring needs at least the C/N0 that keeps lock",
-        )
-    if rx.reacquisition_s < 0:
-        raise SimbenchError(
-            "receiver.reacquisition_s",
-            f"must not be negative, got {rx.reacquisition_s}",
-            "give the re-acquisition time in seconds, e.g. receiver.reacquisition_s=1",
-        )
+    cfg.receiver.validate("receiver")
     return cfg

@@ -134,7 +134,7 @@ class Trajectory:
     att: np.ndarray
     omega_eb_b: np.ndarray
     street: StreetGeometry | None = None
-    valid: np.ndarray | None = None
+    valid: np.ndarray = None  # type: ignore[assignment]  # all True unless given: __post_init__ fills it
 
     def __post_init__(self) -> None:
         if self.valid is None:

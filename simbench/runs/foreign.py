@@ -1,4 +1,4 @@
-"""Score a solution from another program as one more estimator of a run.
+"""Score a solution from another program (RTKLIB, a phone pipeline, MATLAB) as one more estimator of a run.
 
 ::
 
@@ -178,6 +178,7 @@ def score_solution_file(run_dir: str | Path, scenario_key: str, name: str, solut
         **_row_key(sweep_dir, scenario_key, scenario),
         "scenario_key": scenario_key,
         "estimator": name,
+        "gnss_model": "",  # a foreign solution ran under no preset of ours
         "variant": variant_label({}),
         "overrides": overrides_json({}),
     }

@@ -1,0 +1,37 @@
+"""C/N0 fading and noise per satellite (``scenario.errors.cn0``), each from its own stream."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from simbench.sim.error_source import Contribution, SimState
+from simbench.sim.processes import gauss_markov
+
+
+class Cn0Fade:
+    """Slow fading: a Gauss-Markov process per satellite, std ``fade_sigma_db`` [dB], time constant ``fade_tau_s``."""
+
+    name = "cn0_fade"
+    labels: Mapping[str, type] = {}
+
+    def enabled(self, state: SimState) -> bool:
+        return True
+
+    def apply(self, state: SimState, rng: np.random.Generator) -> Contribution:
+        c0, (n, m) = state.errors.cn0, state.shape
+        return Contribution(cn0_dbhz=gauss_markov(n, m, c0.fade_sigma_db, c0.fade_tau_s, state.dt_s, rng))
+
+
+class Cn0Noise:
+    """White C/N0 estimation noise, N(0, ``noise_db``^2) per epoch [dB]."""
+
+    name = "cn0_noise"
+    labels: Mapping[str, type] = {}
+
+    def enabled(self, state: SimState) -> bool:
+        return True
+
+    def apply(self, state: SimState, rng: np.random.Generator) -> Contribution:
+        return Contribution(cn0_dbhz=state.errors.cn0.noise_db * rng.standard_normal(state.shape))

@@ -1,0 +1,159 @@
+"""Scenario sources as plug-ins: entry-point discovery, one-line errors, and the example source end to end.
+
+The built-ins (simulated, rinex, librsf) come through simbench's own entry points; the
+example package (``examples/simbench-example-estimator``, source ``static_receiver``;
+``.ci/run`` installs it) is the real plug-in. Broken packages are simulated with entry
+points handed to :func:`simbench.source.discover` or patched in for the CLI.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import subprocess
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+import pandas as pd
+import pytest
+from conftest import one_line_error
+
+import simbench.cli.main as cli
+from simbench import source as sources
+from simbench.contract import Scenario
+from simbench.runs.compose import available, compose_config, register_schemas
+from simbench.runs.scenarios import build_scenario, scenario_settings
+
+ROOT = Path(__file__).resolve().parent.parent
+EXAMPLE = "static_receiver"
+EXAMPLE_PACKAGE = "simbench-example-estimator"
+
+
+@dataclasses.dataclass
+class FakeEntryPoint:
+    """What :func:`simbench.source.discover` reads of an ``importlib.metadata.EntryPoint``."""
+
+    name: str
+    target: Any  #: what ``load()`` returns, or the exception it raises
+    package: str = "fake-sources"
+
+    @property
+    def value(self) -> str:
+        return f"fake_sources:{getattr(self.target, '__name__', 'Broken')}"
+
+    @property
+    def dist(self) -> SimpleNamespace:
+        return SimpleNamespace(name=self.package)
+
+    def load(self) -> Any:
+        if isinstance(self.target, Exception):
+            raise self.target
+        return self.target
+
+
+def fake_source(name: str, source: str | None = None) -> type[sources.Source]:
+    """A Source subclass called ``name`` whose ``Config`` declares ``source`` (default ``name``)."""
+    config = dataclasses.make_dataclass(
+        f"{name}_config", [("source", str, source if source is not None else name)], bases=(sources.SourceConfig,)
+    )
+    body = {"name": name, "Config": config, "load": lambda self, cfg: None}
+    return type(f"Fake_{name}", (sources.Source,), body)
+
+
+@pytest.fixture
+def fresh_discovery():
+    """Discovery and the ConfigStore registration run again in the test, and again after it."""
+    sources.plugins.cache_clear()
+    register_schemas.cache_clear()
+    yield
+    sources.plugins.cache_clear()
+    register_schemas.cache_clear()
+
+
+def test_built_ins_and_the_example_are_registered_by_entry_point() -> None:
+    found = sources.plugins()
+    assert EXAMPLE in found, (
+        "the example plug-in is not installed: pip install -e examples/simbench-example-estimator (.ci/run does)"
+    )
+    assert found[EXAMPLE].package == EXAMPLE_PACKAGE
+    assert {name: found[name].package for name in ("simulated", "rinex", "librsf")} == dict.fromkeys(
+        ("simulated", "rinex", "librsf"), "simbench"
+    )
+    assert {"simulated", "rinex", "librsf", EXAMPLE} <= set(available("scenario"))
+
+
+def test_the_example_source_builds_from_its_config_defaults() -> None:
+    settings = scenario_settings(compose_config([f"scenario={EXAMPLE}", "scenario.duration_s=10", "seed=1"]))
+    assert type(settings.scenario).__name__ == "StaticReceiverConfig" and settings.scenario.duration_s == 10.0
+    scenario = build_scenario(settings)
+    assert isinstance(scenario, Scenario) and scenario.meta["source"] == EXAMPLE
+    assert scenario.n_epochs == 10 and len(scenario.truth) == 10
+    assert scenario.observations.groupby("epoch").size().min() >= 4
+
+
+def test_the_example_source_runs_through_the_cli(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "simbench",
+            f"scenario={EXAMPLE}",
+            "scenario.duration_s=20",
+            "estimator=[huber_spp]",
+            f"results_dir={out}",
+            "progress=false",
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    summary = pd.read_parquet(out / "summary.parquet")
+    assert list(summary["source"]) == [EXAMPLE] and (summary["status"] == "ok").all()
+    # 1 m white code noise on six or more satellites: metre-level single-point fixes
+    assert (summary["horizontal_median"] < 3.0).all()
+
+
+def test_an_unknown_source_is_one_line_listing_the_known_ones() -> None:
+    message = one_line_error(sources.get, "sp3")
+    assert message.startswith("scenario.source: unknown source 'sp3' -- choose from ")
+    assert all(name in message for name in ("librsf", "rinex", "simulated", EXAMPLE))
+    assert one_line_error(compose_config, ["scenario.source=sp3"]) == message
+    # a source whose Config cannot read the preset's keys: pick the source with its own preset
+    message = one_line_error(scenario_settings, compose_config(["scenario=urban", "scenario.source=rinex"]))
+    assert message.startswith("scenario.source: source 'rinex' cannot read") and "scenario=rinex" in message
+
+
+@pytest.mark.parametrize(
+    "entries, fragments",
+    [
+        ([FakeEntryPoint("gone", ImportError("No module named 'fake_sources'"))], ["cannot load", "ImportError"]),
+        ([FakeEntryPoint("func", len)], ["not a Source subclass"]),
+        ([FakeEntryPoint("mislabelled", fake_source("mislabelled", "simulated"))], ["source: str = 'mislabelled'"]),
+        ([FakeEntryPoint("alias", fake_source("other", "alias"))], ["Fake_other.name is 'other'"]),
+        (
+            [FakeEntryPoint("twin", fake_source("twin"), "first-pkg"), FakeEntryPoint("twin", fake_source("twin"))],
+            ["name 'twin' of package 'first-pkg'"],
+        ),
+    ],
+)
+def test_a_broken_source_plugin_is_one_line_naming_its_package(
+    entries: list[FakeEntryPoint], fragments: list[str]
+) -> None:
+    message = one_line_error(sources.discover, entries)
+    assert message.startswith(f"source plug-in '{entries[-1].name}': package 'fake-sources'")
+    assert all(fragment in message for fragment in fragments)
+
+
+def test_cli_stops_on_a_broken_source_plugin_in_one_line(fresh_discovery, monkeypatch, capsys) -> None:
+    broken = [FakeEntryPoint("gone", ImportError("No module named 'fake_sources'"))]
+    monkeypatch.setattr(sources, "entry_points", lambda group: broken)
+    monkeypatch.setattr(sys, "argv", ["simbench", "scenario=urban"])
+    with pytest.raises(SystemExit) as info:
+        cli.main()
+    assert info.value.code == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: source plug-in 'gone': package 'fake-sources'")
