@@ -60,6 +60,19 @@ class Solution:
             raise ValueError(f"solution lacks columns {sorted(missing)}")
 
 
+def validate_config(config: Any, where: str) -> None:
+    """Call ``config.validate(where)`` when the config dataclass has one (a plug-in's may not).
+
+    Raises
+    ------
+    SimbenchError
+        From ``validate``, in one line naming the field under ``where`` (e.g. ``estimator.dcs``).
+    """
+    validate = getattr(config, "validate", None)
+    if validate is not None:
+        validate(where)
+
+
 class Estimator(ABC):
     """Base class: subclasses set ``name`` and ``Config`` and implement :meth:`_estimate`."""
 
@@ -81,9 +94,7 @@ class Estimator(ABC):
 
     def __init__(self, config: Any | None = None) -> None:
         self.config = config if config is not None else self.Config()
-        validate = getattr(self.config, "validate", None)
-        if validate is not None:  # an invalid config fails here, before any data work
-            validate(f"estimator.{self.name}")
+        validate_config(self.config, f"estimator.{self.name}")  # before any data work
         self._labels: pd.DataFrame | None = None
 
     @classmethod

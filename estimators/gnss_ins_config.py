@@ -11,7 +11,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from simbench.errors import SimbenchError, require_positive
+from simbench.errors import SimbenchError, require_elevation_mask, require_positive
+from simbench.sim.config import check_imu_sigmas
 
 __all__ = ["GnssInsConfig", "LssConfig"]
 
@@ -88,6 +89,10 @@ class GnssInsConfig:
                 getattr(self, name),
                 "give a positive value; the defaults are in estimators/gnss_ins_config.py",
             )
+        check_imu_sigmas(self, where)  # positive above, and below what any IMU has
+        require_elevation_mask(
+            f"{where}.elevation_mask_deg", self.elevation_mask_deg, "give an elevation mask in degrees, e.g. 7"
+        )
 
 
 @dataclass

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field, fields
 from typing import Any
 
 from simbench.contract import Need
-from simbench.errors import SimbenchError, require_at_least, require_positive
+from simbench.errors import require_at_least, require_elevation_mask, require_positive
 from simbench.typed import Choice, check_choices
 
 __all__ = [
@@ -183,12 +183,9 @@ class StochasticModelConfig:
             require_positive(f"{where}.{name}", getattr(self, name), "give a standard deviation in metres")
         for name in ("pos_rw_m_rts", "zwd_rw_m_rts", "clock_noise_m_rts", "iono_rw_m_rts", "isb_rw_m_rts"):
             require_at_least(f"{where}.{name}", getattr(self, name), 0, "give a noise density in m/sqrt(s)")
-        if not 0.0 <= self.elevation_mask_deg < 90.0:
-            raise SimbenchError(
-                f"{where}.elevation_mask_deg",
-                f"must be within [0, 90) deg, got {self.elevation_mask_deg}",
-                "give an elevation mask in degrees, e.g. 7",
-            )
+        require_elevation_mask(
+            f"{where}.elevation_mask_deg", self.elevation_mask_deg, "give an elevation mask in degrees, e.g. 7"
+        )
         require_at_least(
             f"{where}.doppler_slip_m",
             self.doppler_slip_m,

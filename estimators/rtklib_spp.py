@@ -51,7 +51,7 @@ from simbench.contract import Need, ReceiverData
 from simbench.data.export import write_receiver_rinex
 from simbench.data.rtklib_pos import parse_rtklib_pos
 from simbench.data.solution_times import match_receiver_epochs
-from simbench.errors import SimbenchError, require_positive
+from simbench.errors import SimbenchError, require_elevation_mask, require_positive
 from simbench.typed import Choice, check_choices
 
 __all__ = [
@@ -107,12 +107,9 @@ class RtklibSppConfig:
             Config node name, e.g. ``estimator.rtklib_spp``.
         """
         check_choices(self, where)
-        if not 0.0 <= self.elevation_mask_deg < 90.0:
-            raise SimbenchError(
-                f"{where}.elevation_mask_deg",
-                f"must be within [0, 90) deg, got {self.elevation_mask_deg}",
-                "give an elevation mask in degrees, e.g. 10",
-            )
+        require_elevation_mask(
+            f"{where}.elevation_mask_deg", self.elevation_mask_deg, "give an elevation mask in degrees, e.g. 10"
+        )
         require_positive(f"{where}.timeout_s", self.timeout_s, "give a wall-time limit in seconds, e.g. 300")
 
 

@@ -24,6 +24,7 @@ from tqdm.auto import tqdm
 
 from simbench.errors import SimbenchError
 from simbench.report.build import finalize
+from simbench.runs.checks import check_run
 from simbench.runs.compose import compose_config, overrides_from_kwargs
 from simbench.runs.jobs import run_job
 from simbench.runs.scenarios import simulate
@@ -96,7 +97,8 @@ def run(
     Raises
     ------
     SimbenchError
-        An unknown option or a malformed override; with a single seed also a scenario that cannot
+        An unknown option, a malformed override or a value :func:`simbench.runs.checks.check_run`
+        refuses (before any job); with a single seed also a scenario that cannot
         be built (with several, like a sweep, that seed's rows record the failure and the others run).
     """
     seed_list = [seeds] if isinstance(seeds, int) else [int(s) for s in seeds]
@@ -114,7 +116,9 @@ def run(
     # resolved once: each composition would give ${now:} another time
     root = Path(results_dir if results_dir is not None else compose_config(base).results_dir)
     base.append(f"results_dir={root}")
-    configs = [compose_config([*base, f"seed={seed}"]) for seed in seed_list]  # every config error before any job
+    configs = [compose_config([*base, f"seed={seed}"]) for seed in seed_list]
+    for cfg in configs:  # every config error before any job
+        check_run(cfg)
     rows = [
         run_job(cfg, fail_fast=len(configs) == 1)
         for cfg in tqdm(configs, desc="seeds", disable=not progress or len(configs) == 1)

@@ -14,7 +14,10 @@ below; docs/contract.md's tables restate them (tests/test_readme.py checks every
 
 from __future__ import annotations
 
+import hashlib
 import json
+import os
+import uuid
 from dataclasses import dataclass, field
 from enum import Enum
 from pathlib import Path
@@ -251,7 +254,7 @@ class Scenario:
         """Write the five tables as Parquet files into ``directory`` (atomic per file).
 
         The nav info and ``meta`` go into each file's key-value metadata under
-        ``simbench.scenario``.
+        ``simbench.scenario``; :data:`MANIFEST` names the sha256 of each table.
         """
         out = Path(directory)
         out.mkdir(parents=True, exist_ok=True)
@@ -264,6 +267,9 @@ class Scenario:
             table = getattr(self, name)
             if table is not None:
                 write_parquet(table, out / f"{name}.parquet", {"simbench.scenario": meta})
+        # written last, so a folder with a manifest is complete; readers check its tables against it
+        tables = {p.name: file_sha256(p) for p in sorted(out.glob("*.parquet"))}
+        write_bytes(out / MANIFEST, json.dumps(tables).encode())
         return out
 
     @classmethod
@@ -365,18 +371,70 @@ def unmet_needs_reason(needs: frozenset[Need], offered: frozenset[Need]) -> str:
 def write_parquet(df: pd.DataFrame, path: str | Path, metadata: dict[str, Any] | None = None) -> Path:
     """Write ``df`` to Parquet atomically, with JSON ``metadata`` in the file's key-value metadata.
 
-    The file is written under a temporary name next to ``path`` and renamed, so
-    readers never see a half-written file.
+    The file is written under a temporary name of its own next to ``path`` and
+    renamed, so readers never see a half-written file and concurrent writers of
+    one path never share a temporary file (the last rename wins). Every data page
+    carries a CRC checksum, which readers may verify (``page_checksum_verification``),
+    and the key-value metadata its sha256 (:data:`METADATA_SHA256`, :func:`metadata_sha256`).
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     table = pa.Table.from_pandas(df, preserve_index=False)
     extra = {k.encode(): json.dumps(v, default=json_default).encode() for k, v in (metadata or {}).items()}
-    table = table.replace_schema_metadata({**(table.schema.metadata or {}), **extra})
-    tmp = path.with_name(f".{path.name}.tmp")
-    pq.write_table(table, tmp)
-    tmp.replace(path)
+    kv = {**(table.schema.metadata or {}), **extra}
+    table = table.replace_schema_metadata({**kv, METADATA_SHA256.encode(): json.dumps(metadata_sha256(kv)).encode()})
+    tmp = temporary_name(path)
+    try:
+        pq.write_table(table, tmp, write_page_checksum=True)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
     return path
+
+
+def temporary_name(path: Path) -> Path:
+    """A name beside ``path`` that no other writer uses (hidden; ends in ``.tmp``).
+
+    Not :func:`tempfile.mkstemp`: its files are private (mode 0600), and the renamed file must
+    get the permissions any other file of the run gets.
+    """
+    return path.with_name(f".{path.name}.{uuid.uuid4().hex}.tmp")
+
+
+#: The file of a saved scenario (:meth:`Scenario.save`) naming the sha256 of each of its tables.
+MANIFEST = "manifest.json"
+
+
+def file_sha256(path: Path) -> str:
+    """sha256 of a file's bytes."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def write_bytes(path: Path, data: bytes) -> None:
+    """Atomic write: a temporary file of its own in the same folder, renamed over ``path``."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = temporary_name(path)
+    try:
+        tmp.write_bytes(data)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+#: Key-value metadata entry of a file :func:`write_parquet` wrote: the sha256 of the other entries.
+METADATA_SHA256 = "simbench.metadata_sha256"
+
+
+def metadata_sha256(kv: dict[bytes, bytes]) -> str:
+    """sha256 of a Parquet file's key-value metadata, in key order, without :data:`METADATA_SHA256`."""
+    digest = hashlib.sha256()
+    for key in sorted(k for k in kv if k != METADATA_SHA256.encode()):
+        digest.update(len(key).to_bytes(8, "little") + key + len(kv[key]).to_bytes(8, "little") + kv[key])
+    return digest.hexdigest()
 
 
 def read_parquet_metadata(path: str | Path) -> dict[str, Any]:

@@ -53,6 +53,12 @@ def require_at_least(field: str, value: float, low: float, fix: str) -> None:
         raise SimbenchError(field, f"must be at least {low}, got {value}", fix)
 
 
+def require_elevation_mask(field: str, value: float, fix: str) -> None:
+    """Raise a one-line :class:`SimbenchError` naming ``field`` unless ``0 <= value < 90`` degrees (NaN fails)."""
+    if not 0.0 <= value < 90.0:
+        raise SimbenchError(field, f"must be within [0, 90) deg, got {value}", fix)
+
+
 def one_line(exc: BaseException) -> str:
     """``exc`` as one line: a :class:`SimbenchError` as it is, anything else as type, message and where it rose."""
     if isinstance(exc, SimbenchError):

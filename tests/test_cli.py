@@ -106,7 +106,8 @@ def test_cli_sweep_records_a_scenario_failure_and_goes_on(tmp_path: Path) -> Non
         f"results_dir={out}",
         "progress=false",
     )
-    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.returncode == 1, proc.stderr[-2000:]  # every job ran, then the count of failed rows
+    assert f"4 of 4 rows failed: see {out.resolve() / 'summary.parquet'}" in proc.stderr
     summary = pd.read_parquet(out / "summary.parquet")
     assert len(summary) == 4 and (summary["status"] == "failed").all()
     assert sorted(summary["seed"].unique()) == [0, 1]

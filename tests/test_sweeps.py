@@ -75,7 +75,8 @@ def test_failing_job_leaves_a_status_row_and_the_report_builds(tmp_path: Path) -
     proc = _simbench(
         "-m", "estimator.ekf_ppp.elevation_mask_deg=10,89", "gnss_model=dissertation", f"results_dir={out}", *SHORT
     )
-    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert proc.returncode == 1, proc.stderr[-2000:]  # a failed row: exit 1, after every job ran
+    assert "1 of 2 rows failed: see " in proc.stderr
     summary = pd.read_parquet(out / "summary.parquet").set_index("status")
     assert set(summary.index) == {"ok", "failed"}
     assert "mask" in summary.loc["failed", "message"]

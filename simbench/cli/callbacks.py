@@ -1,4 +1,4 @@
-"""Hydra callbacks: build the run's aggregate, claims and report when jobs end."""
+"""Hydra callbacks: build the run's aggregate, claims and report when jobs end, and set the exit code."""
 
 from __future__ import annotations
 
@@ -6,14 +6,24 @@ import sys
 from pathlib import Path
 from typing import Any, cast
 
+import pandas as pd
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
 from simbench.report.build import finalize
 
+#: Exit code of a run or sweep with a ``failed`` row (0: every row ``ok``, ``skipped`` or ``diverged``;
+#: 2: a config refused before any job, :func:`simbench.cli.main.main`).
+EXIT_FAILED_ROWS = 1
+
 
 class FinalizeRun(Callback):
-    """Aggregate job files, evaluate claims and build the report after a run or multirun."""
+    """Aggregate job files, evaluate claims and build the report after a run or multirun.
+
+    Every job has finished by then; when a row of the aggregated ``summary.parquet``
+    failed (an exception, not a divergence), it prints how many on one line and ends
+    the process with :data:`EXIT_FAILED_ROWS`, so a script or CI sees it.
+    """
 
     def on_run_end(self, config: DictConfig, **kwargs: Any) -> None:
         self._finalize(Path(config.results_dir), config)
@@ -29,3 +39,10 @@ class FinalizeRun(Callback):
         run_config = OmegaConf.masked_copy(config, cast(list[str], [k for k in config if k != "hydra"]))
         report = finalize(run_dir, cast(dict[str, Any], OmegaConf.to_container(run_config, resolve=True)))
         print(f"results: {run_dir.resolve()}  report: {report.resolve() / 'index.html'}", file=sys.stderr)
+        summary_path = run_dir.resolve() / "summary.parquet"
+        status = pd.read_parquet(summary_path, columns=["status"])["status"]
+        failed = int((status == "failed").sum())
+        if failed:
+            print(f"{failed} of {len(status)} rows failed: see {summary_path}", file=sys.stderr)
+            # SystemExit passes Hydra's callback guard, which turns exceptions into warnings
+            raise SystemExit(EXIT_FAILED_ROWS)

@@ -20,7 +20,7 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.errors import HydraException
 from hydra.types import RunMode
-from omegaconf import DictConfig, open_dict
+from omegaconf import DictConfig, OmegaConf, open_dict
 from tabulate import tabulate
 
 import estimators
@@ -28,6 +28,7 @@ from simbench.cli import export, report, score, tables, validate, zero_baseline
 from simbench.cli.studies import run_studies
 from simbench.cli.terminal import SHOWN, one_line_warnings
 from simbench.errors import SimbenchError
+from simbench.runs.checks import check_run
 from simbench.runs.compose import CONF_DIR, check_group_choices, compose_config, register_schemas
 from simbench.runs.jobs import run_job
 from simbench.runs.studies import StudiesConfig
@@ -71,7 +72,13 @@ def _app(cfg: DictConfig) -> None:
 def main() -> None:
     """Entry point: a subcommand (:data:`SUBCOMMANDS`), or a Hydra run or sweep.
 
-    A run is composed once up front so a bad override gets one line, not Hydra's error page.
+    A run is composed and checked (:func:`simbench.runs.checks.check_run`) up front, a
+    command-line sweep once per swept value (:func:`job_overrides`), so a bad override
+    gets one line, not Hydra's error page or a ``failed`` row hours later.
+
+    Exit codes: 0 when every row is ``ok``, ``skipped`` or ``diverged``; 1 when a row
+    ``failed`` (:class:`simbench.cli.callbacks.FinalizeRun`, after every job has run);
+    2 when a config is refused (a :class:`SimbenchError`), before any job.
     """
     one_line_warnings()
     args = sys.argv[1:]
@@ -85,9 +92,10 @@ def main() -> None:
         # group options are checked for sweeps and flags too: Hydra would only say "Could not load"
         check_group_choices(a for a in args if not a.startswith("-"))
         shaping = config_overrides(args)
-        cfg = compose_config(shaping) if shaping is not None else None
+        cfg = compose_config(shaping, with_hydra=True) if shaping is not None else None
         if cfg is not None and "studies" in cfg:  # a sweep of sweeps (thesis): studies x worlds
             sys.exit(run_studies(StudiesConfig.from_config(cfg), Path(cfg.results_dir), args))
+        check_jobs(args, (shaping, cfg) if shaping is not None and cfg is not None else None)
     except SimbenchError as exc:
         print(f"error: {exc}", file=sys.stderr)
         sys.exit(2)
@@ -111,6 +119,90 @@ def config_overrides(args: list[str]) -> list[str] | None:
     except HydraException:
         return None
     return [a for a, o in zip(args, parsed) if not o.is_sweep_override() and not o.key_or_group.startswith("hydra.")]
+
+
+def check_jobs(args: list[str], composed: tuple[list[str], DictConfig] | None = None) -> None:
+    """Compose and check (:func:`simbench.runs.checks.check_run`) every job config of a run or sweep.
+
+    The override lists are :func:`job_overrides`'s, with the sweeper params of a sweep file
+    (``+sweep=ch5_sensitivity``: ``prior_scale: 0.1,...,100``) added where the command line
+    does not set the key, as Hydra's sweeper adds them.
+
+    Parameters
+    ----------
+    args : list of str
+        The command line.
+    composed : (list of str, DictConfig), optional
+        Overrides and the config the caller composed from them ``with_hydra``: reused when they
+        are the first job's.
+
+    Raises
+    ------
+    SimbenchError
+        For the first config refused, in one line.
+    """
+    jobs = job_overrides(args)
+    if not jobs:
+        return
+    first = composed[1] if composed is not None and composed[0] == jobs[0] else compose_config(jobs[0], with_hydra=True)
+    given = {item.partition("=")[0].lstrip("+~") for item in jobs[0]}
+    params = OmegaConf.select(first, "hydra.sweeper.params", default=None) or {}
+    from_file = [f"{key}={value}" for key, value in params.items() if key not in given]
+    if from_file:
+        jobs = job_overrides([*args, *from_file]) or jobs
+    else:
+        check_run(first)
+        jobs = jobs[1:]
+    for overrides in jobs:
+        check_run(compose_config(overrides))
+
+
+#: The flags of a run or sweep whose configs :func:`job_overrides` can check; with any other
+#: (``--help``, ``--cfg job``, ...) Hydra handles the command line itself.
+RUN_FLAGS = ("-m", "--multirun")
+
+
+def job_overrides(args: list[str]) -> list[list[str]] | None:
+    """The override lists to compose and check before a run or a command-line sweep starts.
+
+    The first holds every argument but ``hydra.*`` settings, each sweep at its first value
+    (without sweeps it is :func:`config_overrides`'s list); then one list per further value
+    of each sweep (``a,b``, ``choice(...)``, ``range(...)``), the other sweeps at their
+    first, so a bad value anywhere in ``-m estimator.dcs.prior_scale=1,-1`` stops the sweep
+    before its first job. A seed sweep gives its first value only (no check depends on the
+    seed); ``glob(...)`` sweeps are left to Hydra, and a sweep file's params to :func:`check_jobs`.
+
+    None when there is another flag (``--help``) or an argument Hydra's parser rejects:
+    Hydra then handles the command line itself.
+    """
+    if any(a.startswith("-") and a not in RUN_FLAGS for a in args):
+        return None
+    given = [a for a in args if a not in RUN_FLAGS]
+    try:
+        parsed = OverridesParser.create().parse_overrides(given)
+    except HydraException:
+        return None
+    fixed: list[str] = []
+    swept: list[tuple[str, list[str]]] = []
+    for arg, override in zip(given, parsed):
+        if override.key_or_group.startswith("hydra."):
+            continue
+        if not override.is_sweep_override():
+            fixed.append(arg)
+            continue
+        try:
+            values = list(override.sweep_string_iterator())
+        except HydraException:  # glob(): its options are known only to Hydra's config loader
+            continue
+        if override.key_or_group == "seed":  # one composition will do
+            values = values[:1]
+        if values:
+            swept.append((override.get_key_element(), values))
+    first = [f"{key}={values[0]}" for key, values in swept]
+    jobs = [[*fixed, *first]]
+    for i, (key, values) in enumerate(swept):
+        jobs += [[*fixed, *first[:i], f"{key}={value}", *first[i + 1 :]] for value in values[1:]]
+    return jobs
 
 
 def estimator_table() -> pd.DataFrame:

@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from simbench.report.build import finalize
+from simbench.runs.store import run_folders
 
 
 def main(argv: list[str]) -> int:
@@ -14,8 +15,8 @@ def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(prog="python -m simbench report", description=__doc__)
     parser.add_argument("run_dir", type=Path, help="a results directory written by python -m simbench")
     args = parser.parse_args(argv)
-    # a study collection (+sweep=thesis) keeps each study's jobs/ one level down
-    if not any(p.is_dir() for p in (args.run_dir / "jobs", *args.run_dir.glob("*/jobs"))):
+    # a study collection (+sweep=thesis) keeps each study's jobs/ in the folders its study_times.csv names
+    if not any((folder / "jobs").is_dir() for folder in run_folders(args.run_dir)):
         print(
             f"error: run_dir: {args.run_dir} holds no jobs/ folder -- give a directory written by python -m simbench",
             file=sys.stderr,

@@ -39,7 +39,7 @@ from simbench.analysis.tables import (
 )
 from simbench.analysis.validation import MIN_ROWS_PER_CLOCK, comparison_table, residual_sample
 from simbench.analysis.variants import NO_OVERRIDES, config_defaults, is_default, override_value
-from simbench.contract import Scenario
+from simbench.contract import Scenario, write_bytes
 from simbench.errors import SimbenchError
 from simbench.report.figures import (
     box_figure,
@@ -52,7 +52,7 @@ from simbench.report.figures import (
 )
 from simbench.runs.provenance import provenance
 from simbench.runs.runner import SUMMARY_COLUMNS
-from simbench.runs.store import aggregate, diagnostics
+from simbench.runs.store import aggregate, cached_scenarios, diagnostics
 from simbench.runs.studies import STUDY_TIMES, time_budget
 from simbench.runs.zero_baseline import TABLE_NAME as ZERO_BASELINE_TABLE
 from simbench.source import SIMULATED
@@ -80,9 +80,7 @@ def finalize(run_dir: str | Path, config: dict[str, Any] | None) -> Path:
     diag = diagnostics(run_dir)
     epochs = _ok_epochs(epochs, summary)  # figures and claims use the results the tables use
     claims = claims_table(summary, epochs, diag)
-    tmp = run_dir / ".claims.csv.tmp"
-    claims.to_csv(tmp, index=False)
-    tmp.replace(run_dir / "claims.csv")
+    write_bytes(run_dir / "claims.csv", claims.to_csv(index=False).encode())
     return build_report(run_dir, summary, epochs, claims, diag)
 
 
@@ -409,7 +407,7 @@ def _adaptation_counts(jobs: list[dict]) -> pd.DataFrame | None:
 def _validation_section(page: _Page, run_dir: Path, out: Path) -> None:
     """Sim-vs-real statistics (:mod:`simbench.analysis.validation`) of the run's cached scenarios, when the cache
     holds both a real log with a reference trajectory and a simulation; nothing otherwise."""
-    dirs = sorted(p.parent for p in (run_dir / "cache").glob("*/observations.parquet"))
+    dirs = cached_scenarios(run_dir)
     n_real = sum(not (d / "labels.parquet").is_file() for d in dirs)  # real logs have no error labels
     if not 0 < n_real < len(dirs):
         return
@@ -492,9 +490,7 @@ class _Page:
             f"<style>{_CSS}</style></head><body>{''.join(self.html)}</body></html>"
         )
         for name, text in (("index.html", page), ("README.md", "\n".join(self.md) + "\n")):
-            tmp = out / f".{name}.tmp"
-            tmp.write_text(text)
-            tmp.replace(out / name)
+            write_bytes(out / name, text.encode())
         return out
 
 

@@ -8,6 +8,7 @@ estimator's availability, below 1 when it left epochs unsolved.
 
 from __future__ import annotations
 
+import io
 import textwrap
 from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
@@ -24,6 +25,7 @@ from matplotlib.ticker import MaxNLocator
 
 from simbench.analysis.metrics import reference_ecdf, reference_percentile
 from simbench.analysis.validation import ValidationSample, cn0_by_elevation
+from simbench.contract import write_bytes
 from simbench.errors import SimbenchError
 
 METRIC_LABELS = {"horizontal": "horizontal error [m]", "error_3d": "3-D error [m]"}
@@ -162,9 +164,10 @@ def _log_x_if_wide(ax: plt.Axes, values: np.ndarray) -> None:
 def _save(fig: plt.Figure, path: str | Path) -> Path:
     fig.tight_layout()
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format=path.suffix[1:] or "png")
     plt.close(fig)
+    write_bytes(path, buffer.getvalue())  # atomic: two reports of one run never mix their figures
     return path
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import difflib
 import functools
 import inspect
 import re
@@ -269,8 +270,10 @@ def config_groups_help() -> str:
 OmegaConf.register_new_resolver("simbench_config_groups", config_groups_help, replace=True)
 
 
-def compose_config(overrides: list[str] | None = None) -> DictConfig:
+def compose_config(overrides: list[str] | None = None, *, with_hydra: bool = False) -> DictConfig:
     """Compose ``conf/config.yaml`` with Hydra command-line style overrides.
+
+    ``with_hydra`` keeps Hydra's own node (``hydra.sweeper.params`` of a sweep file, unresolved).
 
     Raises
     ------
@@ -290,7 +293,7 @@ def compose_config(overrides: list[str] | None = None) -> DictConfig:
         GlobalHydra.instance().clear()
     try:
         with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
-            cfg = compose(config_name="config", overrides=overrides)
+            cfg = compose(config_name="config", overrides=overrides, return_hydra_config=with_hydra)
     except (HydraException, OmegaConfBaseException) as exc:
         key = getattr(exc.__cause__, "full_key", None)
         if key:  # a bad value of a known key: OmegaConf's first line names the value and what is allowed
@@ -303,7 +306,37 @@ def compose_config(overrides: list[str] | None = None) -> DictConfig:
             "overrides", ": ".join(lines), "write overrides as key=value with keys and types from conf/"
         ) from None
     sources.get(str(cfg.scenario.source))  # an unknown source fails here, in one line
+    check_added_root_keys(overrides, cfg)
     return cfg
+
+
+def check_added_root_keys(overrides: Iterable[str], cfg: DictConfig) -> None:
+    """Reject a ``+key=value`` that adds a top-level key which is not a config group (``+seeed=3``).
+
+    Hydra adds it without a word and nothing reads it. (A ``+`` key inside a typed node,
+    ``+scenario.duraton_s=10``, is refused where the node is typed:
+    :func:`simbench.typed.check_known_keys`.)
+
+    Raises
+    ------
+    SimbenchError
+        Naming the key and the closest key the config has.
+    """
+    groups = config_groups()
+    for item in overrides:
+        key = item.partition("=")[0]
+        if not key.startswith("+") or key.startswith("++"):
+            continue
+        name = key[1:]
+        if "." in name or "/" in name or name in groups:
+            continue
+        known = [str(k) for k in cfg if k != name]
+        close = difflib.get_close_matches(name, known, n=1)
+        raise SimbenchError(
+            name,
+            "unknown key: '+' added it to the config, but nothing reads it",
+            f"{f'did you mean {close[0]}? ' if close else ''}set a known key without '+' (see --cfg job)",
+        )
 
 
 def overrides_from_kwargs(kwargs: dict[str, Any]) -> list[str]:

@@ -50,7 +50,7 @@ from simbench.data.solution_times import match_receiver_epochs
 from simbench.errors import SimbenchError
 from simbench.runs.provenance import provenance
 from simbench.runs.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS, scenario_source, score_solution
-from simbench.runs.store import result_stem, write_result
+from simbench.runs.store import cache_problem, result_stem, write_result
 
 __all__ = ["read_solution", "score_solution_file"]
 
@@ -161,6 +161,9 @@ def score_solution_file(run_dir: str | Path, scenario_key: str, name: str, solut
             "give the foreign solution a name of its own, e.g. rtklib",
         )
     cache = _find_cache(Path(run_dir), scenario_key)
+    problem = cache_problem(cache)
+    if problem:
+        raise SimbenchError("--scenario-key", f"cached scenario damaged: {problem}", "rerun the run to rebuild it")
     sweep_dir = cache.parent.parent
     scenario = Scenario.load(cache)
     pos, layout = read_solution(solution, scenario.nav.gps_week)

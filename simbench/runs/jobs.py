@@ -22,10 +22,10 @@ import estimators
 from simbench.analysis.variants import overrides_json, overrides_of, variant_label
 from simbench.errors import SimbenchError, one_line
 from simbench.runs.compose import preset_estimator_config
-from simbench.runs.provenance import provenance
+from simbench.runs.provenance import code_identity, provenance
 from simbench.runs.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS, run_estimators
-from simbench.runs.scenarios import check_scenario, scenario_key, scenario_settings
-from simbench.runs.store import cached_scenario, is_finished, result_stem, write_result
+from simbench.runs.scenarios import check_scenario, scenario_key, scenario_settings, source_code
+from simbench.runs.store import cache_damaged, cached_scenario, is_finished, result_stem, write_result
 from simbench.typed import to_typed
 
 
@@ -70,13 +70,16 @@ def _run_job(cfg: DictConfig, opts: RunOptions, *, fail_fast: bool) -> pd.DataFr
     root = Path(opts.results_dir)
     key = scenario_key(sim)
     estimator_cfgs = cast(dict[str, Any], OmegaConf.to_container(cfg.estimator, resolve=True, enum_to_str=True) or {})
-    stems = {name: result_stem(root, key, name, c) for name, c in estimator_cfgs.items()}
+    # an estimator's result is keyed by its code too, so an edited estimator is recomputed
+    codes = {name: code_identity(estimators.get(name).__module__) for name in estimator_cfgs}
+    stems = {name: result_stem(root, key, name, c, codes[name]) for name, c in estimator_cfgs.items()}
     pending = {name: c for name, c in estimator_cfgs.items() if not is_finished(stems[name])}
     meta = provenance(cast(dict[str, Any], OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)))
     # the overrides of a row are relative to its gnss_model preset (as shipped), so the preset joins the row
     gnss_model = str(cfg.gnss_model.name)
     tags = {"sweep": opts.sweep_name, "scenario_key": key, "gnss_model": gnss_model}
-    if pending:
+    # a damaged cached scenario is rebuilt even when every result is finished: later jobs and the report read it
+    if pending or cache_damaged(root, key):
         try:
             # the job's one check of its data config (the source's, e.g. validate_sim); loading trusts it
             source = check_scenario(sim)
@@ -113,7 +116,14 @@ def _run_job(cfg: DictConfig, opts: RunOptions, *, fail_fast: bool) -> pd.DataFr
             columns = {**tags, "variant": variant_label(overrides), "overrides": overrides_json(overrides)}
             summary = summary.assign(**columns)
             epochs = epochs.assign(**columns)
-            write_result(stems[name], summary[list(SUMMARY_COLUMNS)], epochs[list(EPOCH_COLUMNS)], diag, meta)
+            code = {"estimator": codes[name], "source": source_code(sim.scenario.source)}
+            write_result(
+                stems[name],
+                summary[list(SUMMARY_COLUMNS)],
+                epochs[list(EPOCH_COLUMNS)],
+                diag,
+                {**meta, "simbench.code": code},
+            )
     rows = [
         pd.read_parquet(stem.with_suffix(".summary.parquet"))
         for stem in stems.values()

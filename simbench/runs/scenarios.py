@@ -18,6 +18,7 @@ from simbench import source as sources
 from simbench.contract import Scenario
 from simbench.errors import SimbenchError
 from simbench.runs.compose import compose_config, overrides_from_kwargs
+from simbench.runs.provenance import code_identity
 from simbench.runs.store import config_key
 from simbench.sim.config import ImuConfig, ReceiverConfig, ScenarioConfig, SimConfig
 from simbench.sim.source import sim_config_of
@@ -26,20 +27,6 @@ from simbench.typed import to_typed
 
 #: The keys of a composed ``conf/config.yaml`` that describe the data (the rest picks estimators and output).
 SIM_KEYS = ("scenario", "receiver", "imu", "seed")
-
-#: The real-log keys that the simulator's scenario node had before each source got its own ``Config``, at
-#: their defaults: a simulated scenario's key hashes them too, so its key, and the cache a resumed sweep
-#: finds, stay what they were (:func:`scenario_key`).
-FORMER_SCENARIO_KEYS: dict[str, Any] = {
-    "obs": "",
-    "nav": "",
-    "nav_bds": "",
-    "nav_glo": "",
-    "nav_gal": "",
-    "truth": "",
-    "systems": "G",
-    "truth_max_gap_s": 2.0,
-}
 
 
 @dataclass
@@ -72,7 +59,7 @@ def scenario_settings(cfg: Mapping[str, Any]) -> ScenarioSettings:
             f"pick the source with its own preset, e.g. scenario={name}",
         )
     scenario = to_typed(node, config, "scenario")
-    rest = to_typed({k: cfg[k] for k in SIM_KEYS if k != "scenario"}, SimConfig, "config")
+    rest = to_typed({k: cfg[k] for k in SIM_KEYS if k != "scenario"}, SimConfig, "")
     return ScenarioSettings(scenario=scenario, receiver=rest.receiver, imu=rest.imu, seed=rest.seed)
 
 
@@ -88,11 +75,16 @@ def sim_config(cfg: Mapping[str, Any]) -> SimConfig:
 
 
 def scenario_key(cfg: ScenarioSettings) -> str:
-    """The cache key of the scenario ``cfg`` describes (:func:`simbench.runs.store.config_key`)."""
-    data = dataclasses.asdict(cfg)
-    if isinstance(cfg.scenario, ScenarioConfig):
-        data["scenario"] = {**FORMER_SCENARIO_KEYS, **data["scenario"]}
-    return config_key(data)
+    """The cache key of the scenario ``cfg`` describes (:func:`simbench.runs.store.config_key`): its
+    settings and the code identity of its source (:func:`source_code`), so a scenario is generated
+    or read again once that code changes."""
+    return config_key({**dataclasses.asdict(cfg), "code": source_code(cfg.scenario.source)})
+
+
+def source_code(name: str) -> str:
+    """The code identity (:func:`~simbench.runs.provenance.code_identity`) of the source registered as
+    ``name``: its module and what that imports, e.g. the simulator's generator or the RINEX reader."""
+    return code_identity(sources.get(name).__module__)
 
 
 def scenario_from_overrides(overrides: Sequence[str]) -> tuple[ScenarioSettings, Scenario]:

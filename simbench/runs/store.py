@@ -3,33 +3,63 @@
 Layout of ``RUN_DIR``::
 
     cache/<scenario_key>/            the generated scenario (Scenario.save), shared by all jobs
-    jobs/<scenario_key>/<result_key>.summary.parquet   one estimator on one scenario: 1 row
-    jobs/<scenario_key>/<result_key>.epochs.parquet    its per-epoch errors
-    jobs/<scenario_key>/<result_key>.diagnostics.json  its diagnostics (report material)
-    summary.parquet, epochs.parquet  the aggregate of every job file (rebuilt at any time)
+    cache/<scenario_key>/manifest.json   sha256 of each of its tables, checked before every load
+    jobs/<scenario_key>/<estimator>-<config hash>-<code hash>.summary.parquet   one estimator on one scenario:
+                                     1 row; its footer records the sha256 of the two files below
+    jobs/<scenario_key>/<...>.epochs.parquet       its per-epoch errors
+    jobs/<scenario_key>/<...>.diagnostics.json     its diagnostics (report material)
+    summary.parquet, epochs.parquet  the aggregate of the run's job files (rebuilt by every finalize)
     claims.csv, report/               built from the aggregate
 
-Keys are hashes of resolved configs, so a rerun into the same directory finds
-finished results and skips them, and every job that needs a scenario reads
-the same cached tables. Every file is written under a temporary name and
-renamed, so a killed run leaves no half-written file behind.
+Keys hash the resolved config and the code identity of what computes it
+(:func:`simbench.runs.provenance.code_identity`): the scenario source's for a
+cache key, the estimator's for a result. A rerun into the same directory finds
+finished results of unchanged code and skips them; an edited estimator is
+recomputed, and its new result replaces the one of the old code. Every job
+that needs a scenario reads the same cached tables.
+
+The store checks itself on read: Parquet pages carry CRC checksums (verified),
+a summary row names the checksums of its epochs and diagnostics, a cached
+scenario those of its tables. A missing or damaged file is named in a one-line
+warning (:func:`simbench.errors.warn`) and recomputed by the next run (the
+report leaves its job out). Every file is written under a temporary name of
+its own and renamed, so a killed run leaves no half-written file behind and
+concurrent writers never collide.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
-import os
+import re
 import shutil
-import tempfile
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 import pyarrow.parquet as pq
 
-from simbench.contract import Scenario, json_default, read_parquet_metadata, write_parquet
+from simbench.contract import (
+    MANIFEST,
+    METADATA_SHA256,
+    Scenario,
+    file_sha256,
+    json_default,
+    metadata_sha256,
+    read_parquet_metadata,
+    temporary_name,
+    write_bytes,
+    write_parquet,
+)
+from simbench.errors import one_line, warn
 from simbench.runs.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS
+from simbench.runs.studies import study_dirs
+
+#: The files of a job besides its summary, whose sha256 the summary's footer records (``simbench.files``).
+JOB_FILES = (".epochs.parquet", ".diagnostics.json")
+#: What a report does with a damaged job file.
+LEFT_OUT = "left out of the aggregate; rerun the run to recompute it"
 
 
 def config_key(config: Any) -> str:
@@ -38,61 +68,163 @@ def config_key(config: Any) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
-def result_stem(run_dir: Path, scenario_key: str, estimator: str, estimator_config: Any) -> Path:
+def result_stem(run_dir: Path, scenario_key: str, estimator: str, estimator_config: Any, code: str = "") -> Path:
     """Path stem of one estimator's results on one scenario.
 
     ``estimator_config`` is the estimator's full composed config (every field,
     choices as their YAML words), so a rerun of the same settings finds its
     result whether a value came from the dataclass default, YAML or the command line.
+    ``code`` is the estimator's code identity (:func:`~simbench.runs.provenance.code_identity`);
+    ``''`` for rows no estimator of this code base computed (a scored solution file).
     """
-    return Path(run_dir) / "jobs" / scenario_key / f"{estimator}-{config_key(estimator_config)}"
+    name = f"{estimator}-{config_key(estimator_config)}" + (f"-{code}" if code else "")
+    return Path(run_dir) / "jobs" / scenario_key / name
+
+
+def read_table(path: Path, consequence: str) -> pd.DataFrame | None:
+    """A stored Parquet file with its page checksums and metadata checksum verified; None, with a
+    one-line warning naming ``path`` and ``consequence``, when it is missing or damaged."""
+    try:
+        table = pq.read_table(path, page_checksum_verification=True)
+        # the footer's own key-value metadata (pyarrow adds the serialized Arrow schema after the checksum),
+        # which must also be what that Arrow schema carries
+        kv = {k: v for k, v in (pq.read_metadata(path).metadata or {}).items() if k != b"ARROW:schema"}
+        recorded = kv.get(METADATA_SHA256.encode())
+        # a file of another writer (no checksum) is taken as it reads
+        if recorded is not None and (json.loads(recorded) != metadata_sha256(kv) or table.schema.metadata != kv):
+            warn(str(path), "has metadata that differs from its sha256 (damaged)", consequence)
+            return None
+        return table.to_pandas()
+    except FileNotFoundError:
+        warn(str(path), "is missing", consequence)
+    except Exception as exc:  # pyarrow raises several types (ArrowInvalid, OSError) for a damaged file
+        warn(str(path), f"cannot be read ({one_line(exc)})", consequence)
+    return None
+
+
+def read_job(stem: Path, consequence: str) -> pd.DataFrame | None:
+    """The summary rows of a stored job whose files are all intact.
+
+    None when the job has no summary (never run, or killed before its summary,
+    which is written last), silently; and when its summary cannot be read or
+    another of its files is missing or differs from the checksum the summary
+    recorded, with a one-line warning naming that file and ``consequence``.
+    """
+    path = stem.with_suffix(".summary.parquet")
+    if not path.is_file():
+        if any(stem.with_suffix(suffix).is_file() for suffix in JOB_FILES):
+            warn(str(path), "is missing beside its job's other files (a killed or damaged job)", consequence)
+        return None
+    summary = read_table(path, consequence)
+    if summary is None:
+        return None
+    # a summary written before checksums were recorded names none; its files must still be there
+    recorded = read_parquet_metadata(path).get("simbench.files", {})
+    for suffix in JOB_FILES:
+        other = stem.with_suffix(suffix)
+        if not other.is_file():
+            warn(str(other), "is missing", consequence)
+            return None
+        if suffix in recorded and file_sha256(other) != recorded[suffix]:
+            warn(str(other), "differs from the sha256 its summary recorded (damaged or overwritten)", consequence)
+            return None
+    return summary
 
 
 def is_finished(stem: Path) -> bool:
-    """A result is finished once its summary row (written last) exists with status ``ok``.
+    """A result is finished once its files are intact (:func:`read_job`) and its summary row has status ``ok``.
 
     Failed and diverged results are retried by a rerun: the failure may have
     been fixed in the meantime, and a deterministic failure costs little. So is
     a result written before a column joined :data:`SUMMARY_COLUMNS` (e.g.
-    ``overrides``): the aggregate must have every column in every row.
+    ``overrides``): the aggregate must have every column in every row. A damaged
+    result is recomputed after a warning naming the file.
     """
-    path = stem.with_suffix(".summary.parquet")
-    if not path.is_file() or set(SUMMARY_COLUMNS) - set(pq.read_schema(path).names):
+    summary = read_job(stem, "recomputing the result")
+    if summary is None or set(SUMMARY_COLUMNS) - set(summary.columns):
         return False
-    return bool((pd.read_parquet(path, columns=["status"])["status"] == "ok").all())
+    return bool((summary["status"] == "ok").all())
 
 
 def write_result(
     stem: Path, summary: pd.DataFrame, epochs: pd.DataFrame, diagnostics: dict[str, Any], metadata: dict[str, Any]
 ) -> None:
-    """Write one estimator's result files; the summary row last, as the completion marker."""
+    """Write one estimator's result files; the summary row last, as the completion marker.
+
+    The summary's footer records the sha256 of the other two files. Results of the
+    same estimator and config computed by other code (another code hash in the
+    stem) are removed: this result supersedes them.
+    """
     write_parquet(epochs, stem.with_suffix(".epochs.parquet"), metadata)
     write_json(stem.with_suffix(".diagnostics.json"), diagnostics)
-    write_parquet(summary, stem.with_suffix(".summary.parquet"), metadata)
+    files = {suffix: file_sha256(stem.with_suffix(suffix)) for suffix in JOB_FILES}
+    write_parquet(summary, stem.with_suffix(".summary.parquet"), {**metadata, "simbench.files": files})
+    coded = re.fullmatch(r"(.+-[0-9a-f]{16})-[0-9a-f]{16}", stem.name)
+    if coded:
+        for old in stem.parent.glob(f"{coded.group(1)}-*.summary.parquet"):
+            old_stem = old.with_name(old.name.removesuffix(".summary.parquet"))
+            if old_stem != stem:
+                for suffix in (*JOB_FILES, ".summary.parquet"):  # the summary last, as it was written
+                    old_stem.with_suffix(suffix).unlink(missing_ok=True)
 
 
 def write_json(path: Path, obj: Any) -> None:
-    """Atomic JSON write."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    tmp.write_text(json.dumps(obj, default=json_default))
-    tmp.replace(path)
+    """Atomic JSON write under a temporary name of its own."""
+    write_bytes(path, json.dumps(obj, default=json_default).encode())
 
 
-def cached_scenario(run_dir: Path, key: str, build: Any) -> Scenario:
+def cache_problem(directory: Path) -> str:
+    """Why the cached scenario in ``directory`` cannot be trusted: ``''`` when its tables match its
+    manifest, else the damaged file and what is wrong with it."""
+    manifest = directory / MANIFEST
+    try:
+        recorded = json.loads(manifest.read_text())
+    except (OSError, ValueError) as exc:
+        return f"{manifest}: cannot be read ({one_line(exc)})"
+    if not isinstance(recorded, dict) or "observations.parquet" not in recorded:
+        return f"{manifest}: names no observations.parquet"
+    for name, digest in recorded.items():
+        path = directory / name
+        if not path.is_file():
+            return f"{path}: is missing"
+        if file_sha256(path) != digest:
+            return f"{path}: differs from the sha256 in {MANIFEST} (damaged or overwritten)"
+    return ""
+
+
+def cache_damaged(run_dir: Path, key: str) -> bool:
+    """True when the run holds the cached scenario ``key`` and it is damaged (:func:`cache_problem`)."""
+    target = Path(run_dir) / "cache" / key
+    return target.is_dir() and bool(cache_problem(target))
+
+
+def cached_scenario(run_dir: Path, key: str, build: Callable[[], Scenario]) -> Scenario:
     """Load the scenario ``key`` from the run's cache, or ``build()`` it and cache it.
 
-    Concurrent jobs may both build a missing scenario; each writes into its own
-    temporary directory and the first rename wins, so readers always see one
-    complete, identical copy (generation is deterministic).
+    A cached scenario is loaded only when its tables match its manifest; a damaged
+    one is rebuilt after a one-line warning naming the file. Concurrent jobs may
+    both build a missing scenario; each writes into its own temporary directory
+    and the first rename wins, so readers always see one complete, identical
+    copy (generation is deterministic).
     """
     target = Path(run_dir) / "cache" / key
-    if (target / "observations.parquet").is_file():
-        return Scenario.load(target)
+    if target.is_dir():
+        problem = cache_problem(target)
+        if not problem:
+            return Scenario.load(target)
+        field, _, what = problem.partition(": ")
+        warn(field, what, "rebuilding the cached scenario")
     scenario = build()
     target.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{key}.", dir=target.parent))
+    tmp = temporary_name(target)  # not tempfile.mkdtemp: the cache folder gets the run's usual permissions
     scenario.save(tmp)
+    if target.is_dir() and cache_problem(target):  # still damaged (no other job rebuilt it): set it aside
+        trash = temporary_name(target)
+        try:
+            target.rename(trash)
+        except OSError:  # another job moved it first
+            pass
+        shutil.rmtree(trash, ignore_errors=True)
     try:
         tmp.rename(target)
     except OSError:  # another job won the race; its copy is identical
@@ -100,20 +232,42 @@ def cached_scenario(run_dir: Path, key: str, build: Any) -> Scenario:
     return scenario
 
 
+def run_folders(run_dir: Path) -> list[Path]:
+    """The folders whose ``jobs/`` and ``cache/`` make up the run ``run_dir``: itself, and for a study
+    collection (``+sweep=thesis``) each study's results_dir (:func:`~simbench.runs.studies.study_dirs`).
+
+    Other folders below ``run_dir`` (earlier runs kept inside it) are no part of it.
+    """
+    run_dir = Path(run_dir)
+    return list(dict.fromkeys([run_dir, *study_dirs(run_dir)]))
+
+
+def job_stems(run_dir: Path) -> list[Path]:
+    """The stems of every job of the run ``run_dir`` (:func:`run_folders`) that wrote its summary."""
+    return [
+        p.with_name(p.name.removesuffix(".summary.parquet"))
+        for folder in run_folders(run_dir)
+        for p in sorted(folder.glob("jobs/*/*.summary.parquet"))
+    ]
+
+
 def aggregate(run_dir: Path, metadata: dict[str, Any]) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """Concatenate every job file below ``run_dir`` into the run's summary and epoch tables.
+    """Concatenate the run's intact job files (:func:`job_stems`, :func:`read_job`) into its summary
+    and epoch tables; a damaged job is left out with a one-line warning naming the file.
 
     Written to ``run_dir/summary.parquet`` and ``run_dir/epochs.parquet``.
     """
     run_dir = Path(run_dir)
-    summaries = sorted(run_dir.glob("**/jobs/*/*.summary.parquet"))
-    summary = (
-        pd.concat([pd.read_parquet(p) for p in summaries], ignore_index=True)
-        if summaries
-        else pd.DataFrame(columns=list(SUMMARY_COLUMNS))
-    )
-    frames = [pd.read_parquet(p) for p in sorted(run_dir.glob("**/jobs/*/*.epochs.parquet"))]
-    frames = [f for f in frames if len(f)]
+    summaries, frames = [], []
+    for stem in job_stems(run_dir):
+        summary = read_job(stem, LEFT_OUT)
+        epochs = None if summary is None else read_table(stem.with_suffix(".epochs.parquet"), LEFT_OUT)
+        if summary is None or epochs is None:
+            continue
+        summaries.append(summary)
+        if len(epochs):
+            frames.append(epochs)
+    summary = pd.concat(summaries, ignore_index=True) if summaries else pd.DataFrame(columns=list(SUMMARY_COLUMNS))
     epochs = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=list(EPOCH_COLUMNS))
     write_parquet(summary, run_dir / "summary.parquet", metadata)
     write_parquet(epochs, run_dir / "epochs.parquet", metadata)
@@ -121,13 +275,35 @@ def aggregate(run_dir: Path, metadata: dict[str, Any]) -> tuple[pd.DataFrame, pd
 
 
 def diagnostics(run_dir: Path) -> dict[str, list[dict[str, Any]]]:
-    """All diagnostics of a run, grouped by estimator name, each with its job's summary key."""
+    """All diagnostics of a run's intact jobs, grouped by estimator name, each with its job's summary row."""
     out: dict[str, list[dict[str, Any]]] = {}
-    for path in sorted(Path(run_dir).glob("**/jobs/*/*.diagnostics.json")):
-        estimator = path.name.split("-")[0]
-        summary = path.with_name(path.name.replace(".diagnostics.json", ".summary.parquet"))
-        row = pd.read_parquet(summary).iloc[0].to_dict() if summary.is_file() else {}
-        out.setdefault(estimator, []).append({"job": row, "diagnostics": json.loads(path.read_text())})
+    for stem in job_stems(run_dir):
+        summary = read_job(stem, LEFT_OUT)
+        if summary is None:
+            continue
+        estimator = stem.name.split("-")[0]
+        path = stem.with_suffix(".diagnostics.json")
+        try:
+            diag = json.loads(path.read_text())
+        except ValueError as exc:  # a job written before checksums: its summary could not vouch for the file
+            warn(str(path), f"cannot be read ({one_line(exc)})", LEFT_OUT)
+            continue
+        out.setdefault(estimator, []).append({"job": summary.iloc[0].to_dict(), "diagnostics": diag})
+    return out
+
+
+def cached_scenarios(run_dir: Path) -> list[Path]:
+    """The folders of the run's cached scenarios (:func:`run_folders`) whose tables match their manifests;
+    a damaged one is left out with a one-line warning naming the file."""
+    out = []
+    for folder in run_folders(run_dir):
+        for directory in sorted(p for p in folder.glob("cache/*") if p.is_dir() and not p.name.startswith(".")):
+            problem = cache_problem(directory)
+            if problem:
+                field, _, what = problem.partition(": ")
+                warn(field, what, "left out of the report; rerun the run to rebuild it")
+            else:
+                out.append(directory)
     return out
 
 

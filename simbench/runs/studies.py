@@ -26,7 +26,7 @@ from simbench.errors import SimbenchError
 from simbench.runs.compose import available
 from simbench.typed import to_typed
 
-__all__ = ["STUDY_TIMES", "StudiesConfig", "StudyRun", "plan", "time_budget"]
+__all__ = ["STUDY_TIMES", "StudiesConfig", "StudyRun", "plan", "study_dir", "study_dirs", "time_budget"]
 
 #: File of ``results_dir`` with one row per study x world: wall time and exit code.
 STUDY_TIMES = "study_times.csv"
@@ -119,16 +119,35 @@ def plan(cfg: StudiesConfig, root: Path, args: Sequence[str]) -> list[StudyRun]:
     for study in cfg.studies:
         extra = [*cfg.study_args.get(study, []), *passed]  # the command line last: it has the final word
         if not cfg.worlds or study in cfg.own_scenario:
-            runs.append(StudyRun(study, "", root / study, [f"+sweep={study}", f"results_dir={root / study}", *extra]))
+            out = study_dir(root, study, "")
+            runs.append(StudyRun(study, "", out, [f"+sweep={study}", f"results_dir={out}", *extra]))
             continue
         for world in cfg.worlds:
             if study not in cfg.world_studies.get(world, [study]):
                 continue
-            out = root / world / study
+            out = study_dir(root, study, world)
             runs.append(
                 StudyRun(study, world, out, [f"+sweep={study}", f"scenario={world}", f"results_dir={out}", *extra])
             )
     return runs
+
+
+def study_dir(root: Path, study: str, world: str) -> Path:
+    """Where a study writes: ``root/<world>/<study>``, or ``root/<study>`` on its own scenario (world ``''``)."""
+    return root / world / study if world else root / study
+
+
+def study_dirs(root: Path) -> list[Path]:
+    """The results_dir of every study ``root/study_times.csv`` records (:data:`STUDY_TIMES`), in its order;
+    none when ``root`` is no study collection. Found from ``root``, not from the recorded paths,
+    which are relative to the folder the collection ran from."""
+    path = Path(root) / STUDY_TIMES
+    if not path.is_file():
+        return []
+    times = pd.read_csv(path, keep_default_na=False, dtype=str)
+    if not {"study", "world"} <= set(times.columns):
+        return []
+    return list(dict.fromkeys(study_dir(Path(root), s, w) for s, w in zip(times["study"], times["world"])))
 
 
 def time_budget(summary: pd.DataFrame) -> pd.DataFrame:

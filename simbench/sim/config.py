@@ -10,11 +10,39 @@ value at composition, naming the key and the allowed values.
 
 from __future__ import annotations
 
+import math
+import os
 from dataclasses import dataclass, field
 
-from simbench.errors import SimbenchError, require_at_least, require_positive
+from simbench.errors import SimbenchError, require_at_least, require_elevation_mask, require_positive
+from simbench.sim.tracking import antenna_gain_dbi
 from simbench.source import SIMULATED, SourceConfig
 from simbench.typed import Choice, check_choices
+
+#: Coherent integration a GPS C/A receiver can use [s]: one code period up to one navigation data bit.
+INTEGRATION_RANGE_S = (0.001, 0.020)
+
+#: The most satellites the generator computes per epoch (a broadcast GPS file has up to 32 PRNs).
+MAX_SATELLITES = 32
+#: Peak memory of a generated scenario per satellite-epoch and per IMU sample [bytes]; measured on the
+#: urban preset (peak RSS of 300 and 1200 s at 1 and 10 Hz: ~400 B per satellite-epoch over 32 PRNs,
+#: ~600 B per 100 Hz IMU sample), rounded up.
+BYTES_PER_SATELLITE_EPOCH = 400
+BYTES_PER_IMU_SAMPLE = 600
+#: Fallback budget where the physical memory cannot be read (no ``os.sysconf``) [bytes].
+DEFAULT_MEMORY_BUDGET = 8 * 2**30
+
+#: Upper bounds of the IMU sigmas (:meth:`ImuConfig.validate`), each far beyond the worst grade of
+#: Groves Table 4.1 (consumer MEMS: accel bias ~0.1-1 m/s^2, gyro bias ~100-10,000 deg/h, ARW a few
+#: deg/sqrt(h)): a larger value is a unit or typing error, and the mechanisation overflows on it.
+IMU_SIGMA_LIMITS: dict[str, float] = {
+    "accel_bias_sigma_mps2": 9.81,  # 1 g
+    "accel_bias_instability_mps2": 9.81,
+    "accel_noise_mps2_rthz": 1.0,
+    "gyro_bias_sigma_dph": 36_000.0,  # 10 deg/s
+    "gyro_bias_instability_dph": 36_000.0,
+    "gyro_noise_dph_rthz": 3_600.0,  # 60 deg/sqrt(h)
+}
 
 
 class TrajectoryKind(Choice):
@@ -344,6 +372,14 @@ class ReceiverConfig:
                 f"must be below 2 chips, got {self.correlator_spacing_chips}",
                 "use an early-late spacing such as 0.1-1 chip",
             )
+        low, high = INTEGRATION_RANGE_S
+        if not low <= self.integration_s <= high:
+            raise SimbenchError(
+                f"{where}.integration_s",
+                f"must be within {low:g}..{high:g} s for GPS C/A (one code period to one data bit), "
+                f"got {self.integration_s}",
+                f"give seconds, e.g. {where}.integration_s=0.001 or 0.02",
+            )
         require_at_least(f"{where}.doppler_sigma_hz", self.doppler_sigma_hz, 0, "give a Doppler sigma in Hz")
         if not self.acquisition_threshold_dbhz >= self.lock_threshold_dbhz:
             raise SimbenchError(
@@ -390,16 +426,36 @@ class ImuConfig:
             raise SimbenchError(
                 f"{where}.rate_hz", f"must be within 100..1000 Hz, got {self.rate_hz}", f"set e.g. {where}.rate_hz=100"
             )
-        for name in (
-            "accel_bias_sigma_mps2",
-            "gyro_bias_sigma_dph",
-            "accel_noise_mps2_rthz",
-            "gyro_noise_dph_rthz",
-            "accel_bias_instability_mps2",
-            "gyro_bias_instability_dph",
-        ):
-            require_at_least(f"{where}.{name}", getattr(self, name), 0, "see conf/imu/ for presets")
-        require_positive(f"{where}.bias_tau_s", self.bias_tau_s, "give the bias correlation time in seconds")
+        check_imu_sigmas(self, where)
+        if not 0 < self.bias_tau_s < math.inf:
+            raise SimbenchError(
+                f"{where}.bias_tau_s",
+                f"must be positive and finite, got {self.bias_tau_s}",
+                "give the bias correlation time in seconds, e.g. 300",
+            )
+
+
+def check_imu_sigmas(config: object, where: str) -> None:
+    """Raise a one-line :class:`SimbenchError` for an IMU sigma of ``config`` outside 0..:data:`IMU_SIGMA_LIMITS`.
+
+    For the simulated IMU (:class:`ImuConfig`) and the GNSS/INS estimators' model of it, which
+    use the same field names and units.
+
+    Parameters
+    ----------
+    config : dataclass instance
+        Has the fields of :data:`IMU_SIGMA_LIMITS`.
+    where : str
+        Config node name, prefixed to the field in the message.
+    """
+    for name, limit in IMU_SIGMA_LIMITS.items():
+        value = getattr(config, name)
+        if not 0 <= value <= limit:  # NaN fails too
+            raise SimbenchError(
+                f"{where}.{name}",
+                f"must be within 0..{limit:g} (more is beyond any IMU grade), got {value}",
+                "check the unit in the field name; see conf/imu/ for presets",
+            )
 
 
 @dataclass
@@ -416,19 +472,25 @@ def validate_sim(cfg: SimConfig) -> SimConfig:
     """Check what the types cannot: value ranges, and the files a trajectory or constellation kind needs."""
     check_choices(cfg)
     s = cfg.scenario
-    if s.duration_s <= 0:
+    if not s.duration_s > 0:  # NaN fails too
         raise SimbenchError(
             "scenario.duration_s",
             f"must be positive, got {s.duration_s}",
             "give the scenario length in seconds, e.g. scenario.duration_s=600",
         )
-    if s.rate_hz <= 0:
+    if not s.rate_hz > 0:
         raise SimbenchError(
             "scenario.rate_hz",
             f"must be positive, got {s.rate_hz}",
             "give the GNSS epoch rate in Hz, e.g. scenario.rate_hz=1",
         )
+    require_elevation_mask(
+        "scenario.constellation.elevation_mask_deg",
+        s.constellation.elevation_mask_deg,
+        "give an elevation mask in degrees, e.g. 7",
+    )
     cfg.imu.validate("imu")
+    check_memory(cfg)
     if s.trajectory.kind == TrajectoryKind.replay and not s.trajectory.replay.path:
         raise SimbenchError(
             "scenario.trajectory.replay.path",
@@ -442,4 +504,55 @@ def validate_sim(cfg: SimConfig) -> SimConfig:
             "set it to a RINEX GPS navigation file, e.g. ../shared/data/wvu_drives/brdc.18n",
         )
     cfg.receiver.validate("receiver")
+    check_reachable_cn0(cfg)
     return cfg
+
+
+def check_reachable_cn0(cfg: SimConfig) -> None:
+    """Raise a one-line :class:`SimbenchError` when no satellite could ever be acquired.
+
+    The strongest mean C/N0 the scenario gives (a satellite at boresight:
+    :func:`~simbench.sim.tracking.cn0_mean_dbhz`) plus three sigmas of its noise
+    and fading must reach the receiver's acquisition threshold (which is at least
+    its lock threshold, :meth:`ReceiverConfig.validate`); otherwise every epoch is
+    empty and the estimators would blame their elevation mask.
+    """
+    cn0 = cfg.scenario.errors.cn0
+    peak = float(antenna_gain_dbi(0.0)) + cn0.received_power_dbw + cn0.constant_db
+    reach = peak + 3.0 * math.hypot(cn0.noise_db, cn0.fade_sigma_db)
+    threshold = cfg.receiver.acquisition_threshold_dbhz
+    if not threshold <= reach:
+        raise SimbenchError(
+            "receiver.acquisition_threshold_dbhz",
+            f"{threshold} dB-Hz is above the strongest C/N0 the scenario gives ({peak:.1f} dB-Hz at boresight, "
+            f"{reach:.1f} with 3-sigma noise), so no satellite is ever acquired",
+            "lower it (the presets in conf/receiver/ use 15-33 dB-Hz) or raise scenario.errors.cn0.received_power_dbw",
+        )
+
+
+def memory_budget() -> int:
+    """Bytes a scenario may take: half the physical memory (:data:`DEFAULT_MEMORY_BUDGET` where unknown)."""
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES") // 2
+    except (AttributeError, ValueError, OSError):  # no sysconf (Windows) or no such name
+        return DEFAULT_MEMORY_BUDGET
+
+
+def check_memory(cfg: SimConfig) -> None:
+    """Raise a one-line :class:`SimbenchError` when the scenario would not fit in :func:`memory_budget`.
+
+    Estimated up front from the satellite-epochs (duration x rate x :data:`MAX_SATELLITES`) and the
+    IMU samples (duration x IMU rate), so a mistyped duration stops before any job instead of ending
+    in a MemoryError hours into a sweep.
+    """
+    s = cfg.scenario
+    epochs = s.duration_s * s.rate_hz
+    need = epochs * MAX_SATELLITES * BYTES_PER_SATELLITE_EPOCH + s.duration_s * cfg.imu.rate_hz * BYTES_PER_IMU_SAMPLE
+    budget = memory_budget()
+    if not need <= budget:
+        raise SimbenchError(
+            "scenario.duration_s",
+            f"{s.duration_s:g} s at {s.rate_hz:g} Hz (IMU {cfg.imu.rate_hz:g} Hz) needs about {need / 2**30:.3g} GB, "
+            f"over the budget of {budget / 2**30:.3g} GB (half this machine's memory)",
+            f"shorten scenario.duration_s (at most about {s.duration_s * budget / need:.0f} s) or lower the rates",
+        )

@@ -1,0 +1,96 @@
+"""The door of a run: every check of a composed config that needs no data, before any job starts.
+
+:func:`check_run` is what ``python -m simbench`` and :func:`simbench.run` call on each
+composed config (for a sweep, on one config per swept value), so a bad value stops the
+run in one line and about a second, not as a ``failed`` row hours into a sweep. It
+checks the output folder, the estimator selection, the data config (the source's own
+check, e.g. :func:`~simbench.sim.config.validate_sim`, with its cross-field and memory
+checks) and every selected estimator's ``Config`` (``validate``). The job itself
+runs the same source and estimator checks again (a job may run in another process);
+they are cheap.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+from typing import Any, cast
+
+from omegaconf import DictConfig, OmegaConf
+
+import estimators
+from estimators.base import validate_config
+from simbench.errors import SimbenchError
+from simbench.runs.scenarios import check_scenario, scenario_settings
+from simbench.typed import to_typed
+
+
+def check_run(cfg: DictConfig) -> None:
+    """Raise a one-line :class:`SimbenchError` for the first problem of a composed run config.
+
+    Parameters
+    ----------
+    cfg : DictConfig
+        A composed ``conf/config.yaml`` (:func:`simbench.runs.compose.compose_config`).
+
+    Raises
+    ------
+    SimbenchError
+        Naming the field: ``results_dir`` (:func:`check_results_dir`), ``estimator`` (none
+        selected), a scenario, receiver or IMU field (the source's check), a key a ``+``
+        override added that the typed schema lacks, or ``estimator.<name>.<field>``.
+    """
+    check_results_dir(str(cfg.results_dir))
+    selected = list(cfg.get("estimator") or {})  # estimator=[] composes to no node at all
+    if not selected:
+        raise SimbenchError(
+            "estimator", "no estimator selected", "pick one or more, e.g. estimator=[l2], or estimator=all"
+        )
+    check_scenario(scenario_settings(cfg))
+    for name in selected:
+        where = f"estimator.{name}"
+        # resolved here: the node's gnss_model fields are interpolations into the root config
+        node = cast(dict[str, Any], OmegaConf.to_container(cfg.estimator[name], resolve=True) or {})
+        validate_config(to_typed(node, estimators.get(name).Config, where), where)
+
+
+def check_results_dir(path: str) -> None:
+    """Raise a one-line :class:`SimbenchError` unless ``path`` names a folder simbench can write.
+
+    An existing folder must be writable; a missing one is created by the run, so the
+    nearest existing parent must be a writable folder. It is not created here: the
+    default ``results/run-${now:...}`` resolves to another second when the run starts.
+
+    Raises
+    ------
+    SimbenchError
+        For an empty path (the run would land in the working directory), a regular file,
+        or a folder the process cannot write in.
+    """
+    if not path.strip():
+        raise SimbenchError(
+            "results_dir",
+            "is empty, so the run would write into the working directory",
+            "give a folder, e.g. results_dir=results/run",
+        )
+    target = Path(path)
+    if target.exists() and not target.is_dir():
+        raise SimbenchError(
+            "results_dir", f"{path} is a file, not a folder", "give a folder, e.g. results_dir=results/run"
+        )
+    parent = target
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        raise SimbenchError(
+            "results_dir", f"{parent} is a file, not a folder", "give a path of folders, e.g. results_dir=results/run"
+        )
+    try:  # os.access would say yes to root on a read-only mount or in /proc
+        with tempfile.TemporaryFile(dir=parent):
+            pass
+    except OSError as exc:
+        raise SimbenchError(
+            "results_dir",
+            f"cannot write in {parent} ({exc.strerror})",
+            "give a folder you can write, e.g. results_dir=results/run",
+        ) from None
