@@ -28,7 +28,8 @@ from importlib.metadata import EntryPoint, entry_points
 from typing import TypeVar
 
 from estimators.base import Estimator, Solution
-from simbench.errors import SimbenchError, one_line
+from simbench.entry_points import load_plugin
+from simbench.errors import SimbenchError
 
 #: Entry-point group in which installed packages name their estimator classes.
 ENTRY_POINT_GROUP = "simbench.estimators"
@@ -90,16 +91,8 @@ def discover(entries: Iterable[EntryPoint], taken: dict[str, type[Estimator]]) -
     """
     found: dict[str, Plugin] = {}
     for entry in entries:
-        dist = getattr(entry, "dist", None)  # None for an entry point not read from an installed package
-        package = dist.name if dist is not None else entry.value.split(":")[0]
-        field = f"estimator plug-in '{entry.name}'"
-        fix = f"fix package '{package}' (README, Add your estimator) or pip uninstall {package}"
-        try:
-            cls = entry.load()
-        except Exception as exc:
-            raise SimbenchError(field, f"package '{package}' cannot load {entry.value}: {one_line(exc)}", fix) from None
-        if not (isinstance(cls, type) and issubclass(cls, Estimator)):
-            raise SimbenchError(field, f"package '{package}' names {entry.value}, not an Estimator subclass", fix)
+        loaded = load_plugin(entry, Estimator, "estimator", "Add your estimator")
+        cls, package, field, fix = loaded.cls, loaded.package, loaded.field, loaded.fix
         config = getattr(cls, "Config", None)
         if not (isinstance(config, type) and dataclasses.is_dataclass(config)):
             raise SimbenchError(

@@ -28,7 +28,8 @@ from importlib.metadata import EntryPoint, entry_points
 from typing import Any, ClassVar, Protocol, TypeVar
 
 from simbench.contract import Scenario
-from simbench.errors import SimbenchError, one_line
+from simbench.entry_points import load_plugin
+from simbench.errors import SimbenchError
 from simbench.typed import check_choices
 
 __all__ = [
@@ -149,16 +150,8 @@ def discover(entries: Iterable[EntryPoint]) -> dict[str, Plugin]:
     """
     found: dict[str, Plugin] = {}
     for entry in entries:
-        dist = getattr(entry, "dist", None)  # None for an entry point not read from an installed package
-        package = dist.name if dist is not None else entry.value.split(":")[0]
-        field = f"source plug-in '{entry.name}'"
-        fix = f"fix package '{package}' (README, Add a source) or pip uninstall {package}"
-        try:
-            cls = entry.load()
-        except Exception as exc:
-            raise SimbenchError(field, f"package '{package}' cannot load {entry.value}: {one_line(exc)}", fix) from None
-        if not (isinstance(cls, type) and issubclass(cls, Source)):
-            raise SimbenchError(field, f"package '{package}' names {entry.value}, not a Source subclass", fix)
+        loaded = load_plugin(entry, Source, "source", "Add a source")
+        cls, package, field, fix = loaded.cls, loaded.package, loaded.field, loaded.fix
         config = getattr(cls, "Config", None)
         defaults: dict[str, Any] = {}
         if isinstance(config, type) and issubclass(config, SourceConfig) and dataclasses.is_dataclass(config):

@@ -33,7 +33,9 @@ PRIVATE_NAME_SCANNED = ("tests", "benchmarks", "examples")
 #: The layers, bottom up. Each is a tuple of units; a unit is a tuple of module prefixes. A module may
 #: import its own unit and every unit of a lower layer.
 LAYERS: tuple[tuple[tuple[str, ...], ...], ...] = (
-    (("simbench.errors", "simbench.typed", "simbench.contract", "simbench.source"),),  # the shared base
+    (
+        ("simbench.errors", "simbench.typed", "simbench.contract", "simbench.source", "simbench.entry_points"),
+    ),  # the shared base
     (("simbench.core",),),  # physics: frames, time, orbits, atmosphere
     (("simbench.gnss",),),  # measurement model, single point, navigation
     (("simbench.sim",), ("simbench.data",)),  # scenario sources, side by side
