@@ -12,6 +12,7 @@ import dataclasses
 import os
 from collections.abc import Mapping
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import pytest
@@ -82,3 +83,25 @@ def dissertation(name: str, **changes: Any) -> Any:
     For the tests of the published model: the dataclass defaults are the shipped ``urban`` preset's.
     """
     return dataclasses.replace(preset_estimator_config(name, "dissertation"), **changes)
+
+
+@dataclasses.dataclass
+class FakeEntryPoint:
+    """What a plug-in group's ``discover`` reads of an ``importlib.metadata.EntryPoint``."""
+
+    name: str
+    target: Any  #: what ``load()`` returns, or the exception it raises
+    package: str = "fake-plugins"
+
+    @property
+    def value(self) -> str:
+        return f"fake_plugins:{getattr(self.target, '__name__', 'Broken')}"
+
+    @property
+    def dist(self) -> SimpleNamespace:
+        return SimpleNamespace(name=self.package)
+
+    def load(self) -> Any:
+        if isinstance(self.target, Exception):
+            raise self.target
+        return self.target

@@ -13,12 +13,11 @@ import importlib
 import subprocess
 import sys
 from pathlib import Path
-from types import SimpleNamespace
 from typing import Any
 
 import pandas as pd
 import pytest
-from conftest import one_line_error
+from conftest import FakeEntryPoint, one_line_error
 from omegaconf import OmegaConf
 
 import estimators
@@ -29,28 +28,6 @@ from simbench.typed import to_typed
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = "huber_spp"
 EXAMPLE_PACKAGE = "simbench-example-estimator"
-
-
-@dataclasses.dataclass
-class FakeEntryPoint:
-    """What :func:`estimators.discover` reads of an ``importlib.metadata.EntryPoint``."""
-
-    name: str
-    target: Any  #: what ``load()`` returns, or the exception it raises
-    package: str = "fake-estimators"
-
-    @property
-    def value(self) -> str:
-        return f"fake_estimators:{getattr(self.target, '__name__', 'Broken')}"
-
-    @property
-    def dist(self) -> SimpleNamespace:
-        return SimpleNamespace(name=self.package)
-
-    def load(self) -> Any:
-        if isinstance(self.target, Exception):
-            raise self.target
-        return self.target
 
 
 def fake_estimator(name: str, config: Any = "dataclass") -> type[estimators.Estimator]:
@@ -108,13 +85,13 @@ def test_installed_example_is_listed_and_configured_from_its_dataclass() -> None
         ([FakeEntryPoint("plain", fake_estimator("plain", config=dict))], ["Fake_plain has no Config dataclass"]),
         ([FakeEntryPoint("alias", fake_estimator("other"))], ["Fake_other.name is 'other'"]),
         ([FakeEntryPoint("all", fake_estimator("all"))], ["reserved name 'all'"]),
-        ([FakeEntryPoint("gone", ImportError("No module named 'fake_estimators'"))], ["cannot load", "ImportError"]),
+        ([FakeEntryPoint("gone", ImportError("No module named 'fake_plugins'"))], ["cannot load", "ImportError"]),
         ([FakeEntryPoint("func", len)], ["not an Estimator subclass"]),
     ],
 )
 def test_a_broken_plugin_is_one_line_naming_its_package(entries: list[FakeEntryPoint], fragments: list[str]) -> None:
     message = one_line_error(estimators.discover, entries, estimators.built_in())
-    assert message.startswith(f"estimator plug-in '{entries[-1].name}': package 'fake-estimators'")
+    assert message.startswith(f"estimator plug-in '{entries[-1].name}': package 'fake-plugins'")
     for fragment in fragments:
         assert fragment in message
 
@@ -122,7 +99,7 @@ def test_a_broken_plugin_is_one_line_naming_its_package(entries: list[FakeEntryP
 def test_the_same_class_from_two_entry_points_is_no_clash() -> None:
     cls = fake_estimator("once")
     found = estimators.discover([FakeEntryPoint("once", cls), FakeEntryPoint("once", cls)], estimators.built_in())
-    assert found == {"once": estimators.Plugin(cls=cls, package="fake-estimators")}
+    assert found == {"once": estimators.Plugin(cls=cls, package="fake-plugins")}
 
 
 def test_cli_stops_on_a_clashing_plugin_in_one_line(fresh_discovery, monkeypatch, capsys) -> None:
@@ -132,7 +109,7 @@ def test_cli_stops_on_a_clashing_plugin_in_one_line(fresh_discovery, monkeypatch
         cli.main()
     assert info.value.code == 2
     lines = capsys.readouterr().err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("error: estimator plug-in 'dcs': package 'fake-estimators'")
+    assert len(lines) == 1 and lines[0].startswith("error: estimator plug-in 'dcs': package 'fake-plugins'")
 
 
 def _plugin_module(tmp_path: Path, monkeypatch, yaml_text: str | None) -> estimators.Plugin:

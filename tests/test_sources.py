@@ -12,12 +12,10 @@ import dataclasses
 import subprocess
 import sys
 from pathlib import Path
-from types import SimpleNamespace
-from typing import Any
 
 import pandas as pd
 import pytest
-from conftest import one_line_error
+from conftest import FakeEntryPoint, one_line_error
 
 import simbench.cli.main as cli
 from simbench import source as sources
@@ -28,28 +26,6 @@ from simbench.runs.scenarios import build_scenario, scenario_settings
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = "static_receiver"
 EXAMPLE_PACKAGE = "simbench-example-estimator"
-
-
-@dataclasses.dataclass
-class FakeEntryPoint:
-    """What :func:`simbench.source.discover` reads of an ``importlib.metadata.EntryPoint``."""
-
-    name: str
-    target: Any  #: what ``load()`` returns, or the exception it raises
-    package: str = "fake-sources"
-
-    @property
-    def value(self) -> str:
-        return f"fake_sources:{getattr(self.target, '__name__', 'Broken')}"
-
-    @property
-    def dist(self) -> SimpleNamespace:
-        return SimpleNamespace(name=self.package)
-
-    def load(self) -> Any:
-        if isinstance(self.target, Exception):
-            raise self.target
-        return self.target
 
 
 def fake_source(name: str, source: str | None = None) -> type[sources.Source]:
@@ -130,7 +106,7 @@ def test_an_unknown_source_is_one_line_listing_the_known_ones() -> None:
 @pytest.mark.parametrize(
     "entries, fragments",
     [
-        ([FakeEntryPoint("gone", ImportError("No module named 'fake_sources'"))], ["cannot load", "ImportError"]),
+        ([FakeEntryPoint("gone", ImportError("No module named 'fake_plugins'"))], ["cannot load", "ImportError"]),
         ([FakeEntryPoint("func", len)], ["not a Source subclass"]),
         ([FakeEntryPoint("mislabelled", fake_source("mislabelled", "simulated"))], ["source: str = 'mislabelled'"]),
         ([FakeEntryPoint("alias", fake_source("other", "alias"))], ["Fake_other.name is 'other'"]),
@@ -144,16 +120,16 @@ def test_a_broken_source_plugin_is_one_line_naming_its_package(
     entries: list[FakeEntryPoint], fragments: list[str]
 ) -> None:
     message = one_line_error(sources.discover, entries)
-    assert message.startswith(f"source plug-in '{entries[-1].name}': package 'fake-sources'")
+    assert message.startswith(f"source plug-in '{entries[-1].name}': package 'fake-plugins'")
     assert all(fragment in message for fragment in fragments)
 
 
 def test_cli_stops_on_a_broken_source_plugin_in_one_line(fresh_discovery, monkeypatch, capsys) -> None:
-    broken = [FakeEntryPoint("gone", ImportError("No module named 'fake_sources'"))]
+    broken = [FakeEntryPoint("gone", ImportError("No module named 'fake_plugins'"))]
     monkeypatch.setattr(sources, "entry_points", lambda group: broken)
     monkeypatch.setattr(sys, "argv", ["simbench", "scenario=urban"])
     with pytest.raises(SystemExit) as info:
         cli.main()
     assert info.value.code == 2
     lines = capsys.readouterr().err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("error: source plug-in 'gone': package 'fake-sources'")
+    assert len(lines) == 1 and lines[0].startswith("error: source plug-in 'gone': package 'fake-plugins'")
