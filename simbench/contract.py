@@ -40,9 +40,13 @@ OBSERVATION_COLUMNS: dict[str, str] = {
     "doppler_l1": "Hz, L1 Doppler (positive for an approaching satellite)",
     "cn0_l1": "dB-Hz, L1 carrier-to-noise density",
     "lli_l1": "bool, loss-of-lock indicator: the receiver flags a possible slip since the last epoch",
-    "code_l2": "m, L2 pseudorange (NaN when single-frequency)",
-    "phase_l2": "m, L2 carrier phase (NaN when single-frequency)",
-    "lli_l2": "bool, L2 loss-of-lock indicator",
+    "code_l2": "m, second-frequency pseudorange: GPS L2 or L5, Galileo E5a or E5b, BeiDou B3I or B2I, "
+    "GLONASS G2 (NaN when single-frequency)",
+    "phase_l2": "m, second-frequency carrier phase (NaN when single-frequency)",
+    "lli_l2": "bool, second-frequency loss-of-lock indicator",
+    "f1_f2_ratio": "1, ratio of the carrier frequencies of the *_l1 and *_l2 signals of this row (NaN without "
+    "a second frequency): 154/120 GPS L1/L2, 154/115 L1/L5 and E1/E5a, 154/118 E1/E5b, 9/7 GLONASS, "
+    "1561.098/1268.52 BeiDou B1I/B3I, 1561.098/1207.14 B1I/B2I",
     "sat_x": "m, satellite ECEF x at transmit time, Earth-fixed frame of transmit time (product)",
     "sat_y": "m, satellite ECEF y (as sat_x)",
     "sat_z": "m, satellite ECEF z (as sat_x)",

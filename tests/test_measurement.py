@@ -16,7 +16,7 @@ from estimators.measurement import arc_ids, predict, prepare_ppp, sigma_factor
 from estimators.ppp_config import SigmaModel
 from simbench.contract import NavInfo, ReceiverData
 from simbench.core import atmosphere
-from simbench.core.constants import DEG, IONO_L2_SCALE, LAMBDA_L1, LAMBDA_L2, SECONDS_PER_WEEK
+from simbench.core.constants import DEG, F_L1, F_L2, IONO_L2_SCALE, LAMBDA_L1, LAMBDA_L2, SECONDS_PER_WEEK
 from simbench.core.frames import geodetic_from_ecef
 from simbench.core.gpstime import day_of_year
 from simbench.core.orbits import NominalConstellation
@@ -100,6 +100,7 @@ def synthetic_data(
             "code_l2": code2[ei, si],
             "phase_l2": phase2[ei, si],
             "lli_l2": lli[ei, si],
+            "f1_f2_ratio": np.where(np.isfinite(code2[ei, si]), F_L1 / F_L2, np.nan),
             "sat_x": los.sat_pos_tx[ei, si, 0],
             "sat_y": los.sat_pos_tx[ei, si, 1],
             "sat_z": los.sat_pos_tx[ei, si, 2],

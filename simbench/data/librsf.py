@@ -371,6 +371,7 @@ def load_librsf(
             "code_l2": nan,
             "phase_l2": nan,
             "lli_l2": np.zeros(n, bool),
+            "f1_f2_ratio": nan,
             "sat_x": sat_pos[:, 0],
             "sat_y": sat_pos[:, 1],
             "sat_z": sat_pos[:, 2],

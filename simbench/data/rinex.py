@@ -49,7 +49,7 @@ from pathlib import Path
 import numpy as np
 
 from simbench.contract import NavInfo, RinexFiles, Scenario
-from simbench.core.constants import C_LIGHT, F_L1, LAMBDA_L2, SECONDS_PER_WEEK
+from simbench.core.constants import C_LIGHT, F_L1, F_L2, LAMBDA_L2, SECONDS_PER_WEEK
 from simbench.core.glonass_orbits import GLO_F1_BASE_HZ, GlonassEphemeris, glonass_l1_frequency
 from simbench.core.gpstime import datetime64_to_gps, format_gps_time
 from simbench.core.orbits import BroadcastEphemeris
@@ -550,6 +550,7 @@ def load_rinex(
             "code_l2": code_l2[keep],
             "phase_l2": phase_l2[keep] * LAMBDA_L2,
             "lli_l2": lli_l2[keep],
+            "f1_f2_ratio": np.where(np.isfinite(code_l2[keep]), F_L1 / F_L2, np.nan),
             "sat_x": sat_pos[:, 0],
             "sat_y": sat_pos[:, 1],
             "sat_z": sat_pos[:, 2],

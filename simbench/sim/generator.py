@@ -34,7 +34,7 @@ import pandas as pd
 import pymap3d
 
 from simbench.contract import LABEL_COLUMNS, OBSERVATION_COLUMNS, TRUTH_COLUMNS, NavInfo, Scenario, empty_odometry
-from simbench.core.constants import C_LIGHT, CHIP_LENGTH_CA, DEG, SECONDS_PER_WEEK
+from simbench.core.constants import C_LIGHT, CHIP_LENGTH_CA, DEG, F_L1, F_L2, SECONDS_PER_WEEK
 from simbench.core.orbits import Constellation, NominalConstellation
 from simbench.errors import SimbenchError
 from simbench.gnss.navigation import read_gps_navigation
@@ -177,6 +177,7 @@ def _observation_tables(state: SimState) -> tuple[pd.DataFrame, pd.DataFrame]:
         "sat_z": los.sat_pos_tx[..., 2],
         "sat_clock": C_LIGHT * los.sat_clock_tx,
         "lli_l2": np.zeros(state.shape, bool),
+        "f1_f2_ratio": np.where(np.isfinite(state.code_l2_m), F_L1 / F_L2, np.nan),
         **state.observations,
     }
     columns = {**keys, "t": state.t[ei], **{name: grid[ei, si] for name, grid in grids.items()}}

@@ -63,7 +63,10 @@ class StaticReceiver(Source):
         columns = {"epoch": k, "t": t[k], "sat": sats.sats[j], "code_l1": code, "cn0_l1": np.full(k.size, 45.0)}
         columns |= {f"sat_{a}": pos[k, j, i] for i, a in enumerate("xyz")}
         columns |= {"el": np.degrees(el[k, j]), "az": np.degrees(az[k, j]), "sat_clock": zero}
-        columns |= {col: nan for col in ("phase_l1", "doppler_l1", "code_l2", "phase_l2", "sat_vx", "sat_vy", "sat_vz")}
+        columns |= {
+            col: nan
+            for col in ("phase_l1", "doppler_l1", "code_l2", "phase_l2", "f1_f2_ratio", "sat_vx", "sat_vy", "sat_vz")
+        }
         columns |= {"lli_l1": zero.astype(bool), "lli_l2": zero.astype(bool), "sat_clock_drift": zero}
         observations = observation_table(columns)
         reference = Reference(t_gps=t0_gps + t, xyz=np.tile(rx, (t.size, 1)), path="static receiver")
