@@ -1,8 +1,10 @@
 """Generator throughput: one hour at 10 Hz, ~10 satellites, every error source on.
 
-Target (foundation issue): under 5 s on one core. Prints the wall time per
-stage-free end-to-end generation, observation rows per second and the ratio to
-the target. Run: ``python benchmarks/generator_throughput.py [--repeat N]``.
+Target: under 5 s on one core (foundation issue), 1.0 s (issue 27). Prints the
+wall and CPU time of an end-to-end generation (best of ``--repeat``; on a
+shared machine the CPU time of this process is the steadier of the two),
+observation rows per second and the ratio to the target.
+Run: ``python benchmarks/generator_throughput.py [--repeat N]``.
 """
 
 from __future__ import annotations
@@ -15,10 +17,11 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")  # one core, as the target says
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from simbench.runs.compose import compose_config
-from simbench.sim.config import SimConfig, to_typed
+from simbench.sim.config import SimConfig
 from simbench.sim.generator import generate
+from simbench.typed import to_typed
 
-TARGET_S = 5.0
+TARGET_S = 1.0
 
 
 def main() -> None:
@@ -51,11 +54,12 @@ def main() -> None:
         ]
     )
     sim = to_typed({k: cfg[k] for k in ("scenario", "receiver", "imu", "seed")}, SimConfig)
-    times = []
+    times, cpu = [], []
     for _ in range(args.repeat):
-        start = time.perf_counter()
+        start, start_cpu = time.perf_counter(), time.process_time()
         sc = generate(sim)
         times.append(time.perf_counter() - start)
+        cpu.append(time.process_time() - start_cpu)
     best = min(times)
     n_obs, n_ep = len(sc.observations), sc.n_epochs
     print(
@@ -63,6 +67,7 @@ def main() -> None:
         f"({n_obs / n_ep:.1f} satellites/epoch), {len(sc.imu)} IMU samples"
     )
     print(f"generation wall time: best {best:.2f} s, all {', '.join(f'{t:.2f}' for t in times)}")
+    print(f"generation CPU time: best {min(cpu):.2f} s, all {', '.join(f'{t:.2f}' for t in cpu)}")
     print(f"throughput: {n_obs / best:,.0f} observations/s, {n_ep / best:,.0f} epochs/s")
     print(f"ratio to the {TARGET_S:.0f} s target: {best / TARGET_S:.2f} ({'met' if best < TARGET_S else 'MISSED'})")
 

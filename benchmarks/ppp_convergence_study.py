@@ -24,6 +24,7 @@ import numpy as np
 import simbench
 from estimators.ekf_ppp import EkfPpp
 from estimators.incremental import Isam2Ppp
+from estimators.ppp_config import IonosphereMode
 from simbench.runs.compose import preset_estimator_config
 
 CONVERGENCE_S = 900.0
@@ -32,7 +33,7 @@ CONVERGENCE_S = 900.0
 def _table_4_4_2(name: str) -> Any:
     """Estimator ``name``'s config under ``gnss_model=dissertation``, dual frequency, ambiguity sigma 100 m."""
     return dataclasses.replace(
-        preset_estimator_config(name, "dissertation"), ionosphere_free=True, ambiguity_sigma_m=100.0
+        preset_estimator_config(name, "dissertation"), ionosphere=IonosphereMode.free, ambiguity_sigma_m=100.0
     )
 
 

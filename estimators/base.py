@@ -34,6 +34,26 @@ SOLUTION_COLUMNS: dict[str, str] = {
     "update_s": "s, wall time of this epoch's update (batch estimators: total time / epochs)",
 }
 
+#: Optional columns of :attr:`Solution.epochs`: the 3x3 ECEF position covariance of an estimator that has
+#: one (its 6 unique entries); absent, or NaN on an epoch, where it has none.
+COVARIANCE_COLUMNS: dict[str, str] = {
+    "cov_xx": "m^2, ECEF position covariance, x x",
+    "cov_xy": "m^2, x y",
+    "cov_xz": "m^2, x z",
+    "cov_yy": "m^2, y y",
+    "cov_yz": "m^2, y z",
+    "cov_zz": "m^2, z z",
+}
+#: Where each of :data:`COVARIANCE_COLUMNS` sits in the 3x3 matrix.
+COVARIANCE_INDEX: dict[str, tuple[int, int]] = {
+    "cov_xx": (0, 0),
+    "cov_xy": (0, 1),
+    "cov_xz": (0, 2),
+    "cov_yy": (1, 1),
+    "cov_yz": (1, 2),
+    "cov_zz": (2, 2),
+}
+
 
 @dataclass
 class Solution:
@@ -42,7 +62,8 @@ class Solution:
     Attributes
     ----------
     epochs : pandas.DataFrame
-        :data:`SOLUTION_COLUMNS`; epochs the estimator could not solve are absent.
+        :data:`SOLUTION_COLUMNS` (and :data:`COVARIANCE_COLUMNS` where the estimator has a
+        position covariance); epochs the estimator could not solve are absent.
     total_s : float
         Wall time of the whole run [s].
     diagnostics : dict
@@ -130,8 +151,24 @@ class Estimator(ABC):
         """Return the per-epoch solution table and diagnostics."""
 
 
-def solution_frame(epoch: np.ndarray, t: np.ndarray, pos: np.ndarray, update_s: np.ndarray) -> pd.DataFrame:
-    """Assemble :data:`SOLUTION_COLUMNS` from arrays (pos is (n, 3) ECEF metres)."""
-    return pd.DataFrame(
+def solution_frame(
+    epoch: np.ndarray, t: np.ndarray, pos: np.ndarray, update_s: np.ndarray, cov: np.ndarray | None = None
+) -> pd.DataFrame:
+    """Assemble :data:`SOLUTION_COLUMNS` from arrays.
+
+    Parameters
+    ----------
+    epoch, t, update_s : numpy.ndarray
+        Epoch indices, times [s] and update wall times [s], one per solved epoch.
+    pos : numpy.ndarray
+        (n, 3) ECEF positions [m].
+    cov : numpy.ndarray, optional
+        (n, 3, 3) ECEF position covariances [m^2]: adds :data:`COVARIANCE_COLUMNS`.
+    """
+    frame = pd.DataFrame(
         {"epoch": epoch.astype(np.int64), "t": t, "x": pos[:, 0], "y": pos[:, 1], "z": pos[:, 2], "update_s": update_s}
     )
+    if cov is not None:
+        for column, (i, j) in COVARIANCE_INDEX.items():
+            frame[column] = cov[:, i, j]
+    return frame

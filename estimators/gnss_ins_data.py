@@ -17,7 +17,7 @@ import numpy as np
 
 from estimators.gnss_ins_config import GnssInsConfig
 from estimators.measurement import prepare_ppp
-from estimators.ppp_config import MeasurementMode
+from estimators.ppp_config import IonosphereMode, MeasurementMode
 from simbench.contract import ReceiverData
 from simbench.core import atmosphere
 from simbench.core.frames import geodetic_from_ecef
@@ -77,7 +77,7 @@ def prepare_gnss_ins(data: ReceiverData, cfg: GnssInsConfig) -> GnssInsData:
     """
     obs = prepare_ppp(
         data,
-        ionosphere_free=False,
+        ionosphere=IonosphereMode.broadcast,
         code_sigma_m=cfg.code_sigma_m,
         phase_sigma_m=1.0,
         elevation_mask_deg=cfg.elevation_mask_deg,

@@ -37,7 +37,7 @@ from estimators.ins_mechanisation import (
     level_roll_pitch,
     yaw_of,
 )
-from estimators.window_solver import CLK, POS, WindowNode, WindowSolver, initial_sigmas
+from estimators.window_solver import CLK, NS, POS, NormalEquations, WindowNode, WindowSolver, initial_sigmas
 from simbench.contract import Need, ReceiverData
 from simbench.core.constants import DEG
 from simbench.errors import SimbenchError
@@ -99,6 +99,7 @@ class _Track:
 
     epoch: list[int] = field(default_factory=list)
     pos: list[np.ndarray] = field(default_factory=list)
+    cov: list[np.ndarray] = field(default_factory=list)  #: ECEF position covariance of each recorded state [m^2]
     update_s: list[float] = field(default_factory=list)
     iterations: list[int] = field(default_factory=list)
     n_capped: int = 0
@@ -256,6 +257,8 @@ def _record(solver: WindowSolver, track: _Track, epoch: int, gnss: GnssEpoch | N
     track.epoch.append(epoch)
     track.pos.append(solver.nodes[-1].pose.translation().copy())
     track.update_s.append(time.perf_counter() - tic)
+    # after the clock stops: the covariance is for scoring consistency, not part of the estimator's update
+    track.cov.append(newest_position_covariance(solver))
     if gnss is not None:
         track.code_rows += len(gnss.code)
         track.doppler_rows += int(np.count_nonzero(gnss.w_rr))
@@ -265,6 +268,23 @@ def _record(solver: WindowSolver, track: _Track, epoch: int, gnss: GnssEpoch | N
         track.code_rows_with_s += int(np.count_nonzero(leaving.s_code))
         track.doppler_rows_with_s += int(np.count_nonzero(leaving.s_rr))
         _keep_outliers(track.outliers, epoch - (len(solver.nodes) - 2), leaving)
+
+
+def newest_position_covariance(solver: WindowSolver) -> np.ndarray:
+    """ECEF covariance of the newest state's position [m^2]: its marginal under the window's normal equations.
+
+    The block-tridiagonal information is reduced onto the newest state by forward Schur
+    complements (linear in the window length, where a dense inverse is cubic). GTSAM's
+    Pose3 tangent holds the translation in the body frame, so the block is rotated to ECEF.
+    """
+    # the solver keeps its linearisation at the current states; rebuilding it here would double the cost
+    ne: NormalEquations = solver._normal_equations(solver.nodes, solver._linearised(), solver._stacked_factors())
+    schur = ne.D[0]
+    for k in range(1, len(ne.D)):
+        schur = ne.D[k] - ne.U[k - 1].T @ np.linalg.solve(schur, ne.U[k - 1])
+    body = np.linalg.inv(schur + 1e-12 * np.eye(NS))[POS : POS + 3, POS : POS + 3]
+    rotation = solver.nodes[-1].pose.rotation().matrix()
+    return rotation @ body @ rotation.T
 
 
 def _keep_outliers(out: list[dict[str, Any]], epoch: int, node: WindowNode) -> None:
@@ -290,7 +310,9 @@ def _keep_outliers(out: list[dict[str, Any]], epoch: int, node: WindowNode) -> N
 
 def _solution(prep: GnssInsData, track: _Track) -> pd.DataFrame:
     epochs = np.asarray(track.epoch)
-    return solution_frame(epochs, prep.t[epochs], np.asarray(track.pos), np.asarray(track.update_s))
+    return solution_frame(
+        epochs, prep.t[epochs], np.asarray(track.pos), np.asarray(track.update_s), np.asarray(track.cov)
+    )
 
 
 def _diagnostics(

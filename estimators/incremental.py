@@ -19,8 +19,8 @@ All incremental estimators share one loop over the epochs of the shared PPP grap
 Estimators:
 
 * ``isam2_ppp``: a-priori Gaussian noise (elevation-weighted sigmas). With
-  ``ionosphere_free = true`` it is the Ch. 4 iSAM2-PPP (IF code and phase, 2.5 m /
-  0.025 m over sin(el), 7 deg mask); with ``false`` the Ch. 7 single-frequency L1
+  ``ionosphere = free`` it is the Ch. 4 iSAM2-PPP (IF code and phase, 2.5 m /
+  0.025 m over sin(el), 7 deg mask); with ``broadcast`` the Ch. 7 single-frequency L1
   incremental L2 comparator.
 * ``isam2_dcs``: the same noise wrapped in GTSAM's DCS m-estimator (kernel width
   ``kernel_width`` in whitened units); iSAM2 re-weights whenever it relinearises.
@@ -199,7 +199,7 @@ class IncrementalGraphEstimator(Estimator):
             "n_arcs": int(obs.n_arcs),
             "inter_system_bias_m": isb,
             "epochs_without_gnss_update": int(skipped),
-            "ionosphere_free": bool(cfg.ionosphere_free),
+            **obs.model_info(),
             "config": asdict(cfg),
             **self._diagnostics(),
         }

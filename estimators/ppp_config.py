@@ -26,11 +26,13 @@ __all__ = [
     "STANDSTILL_MPS",
     "ClockModel",
     "GnssModelConfig",
+    "IonosphereMode",
     "MeasurementMode",
     "MotionModel",
     "MotionModelConfig",
     "SigmaModel",
     "StochasticModelConfig",
+    "VarianceComponents",
 ]
 
 
@@ -63,6 +65,34 @@ class SigmaModel(Choice):
     #: trusted less whatever its elevation. Rows without a C/N0 fall back to ``1 / sin(el)``.
     cn0 = "cn0"
     elevation_cn0 = "elevation_cn0"  #: the product of the two
+
+
+class IonosphereMode(Choice):
+    """How the ionospheric delay leaves the code and phase (member names are the YAML words)."""
+
+    #: ``free`` when every tracked satellite has a second frequency (decided on the data by
+    #: :func:`~estimators.measurement.prepare_ppp`), else ``broadcast``
+    auto = "auto"
+    #: first frequency only, the broadcast Klobuchar delay removed (scaled to the row's carrier)
+    broadcast = "broadcast"
+    #: the ionosphere-free combination of each row's two frequencies (any system); rows without a
+    #: second frequency are dropped
+    free = "free"
+
+
+class VarianceComponents(Choice):
+    """Code variance factors estimated from the log itself (member names are the YAML words).
+
+    A robust (Huber) single-point pass per epoch gives code residuals; per group the factor
+    on the code sigma is Helmert's estimate from the residuals and their redundancy numbers,
+    relative to the other groups (geometric mean over the rows 1; the overall scale stays
+    the a-priori model's): :func:`estimators.measurement.variance_factors`.
+    """
+
+    none = "none"  #: the a-priori sigmas as they are
+    system = "system"  #: one factor per GNSS system
+    #: one factor per GNSS system and C/N0 bin (5 dB-Hz; the system's where a bin has few rows)
+    system_cn0 = "system_cn0"
 
 
 class MotionModel(Choice):
@@ -109,9 +139,20 @@ class GnssModelConfig:
     #: the batch code's 1e6 (outlier beyond 3.7 sigma) keeps every row and MM equals L2; 10 (beyond
     #: 1.6 sigma, the incremental code's value) for both
     outlier_scale: float = 10.0
+    #: ionosphere-free combination where every tracked satellite has a second frequency, else
+    #: L1 with the broadcast Klobuchar delay; ``free`` or ``broadcast`` force one
+    ionosphere: IonosphereMode = IonosphereMode.auto
+    #: code variance factors estimated from the log, relative between the GNSS systems, so that
+    #: sigmas calibrated on one receiver carry over to another's systems (a no-op on one system).
+    #: Nagoya (GREC, Septentrio): DCS 1.60 -> 1.15 m, L2 2.77 -> 0.70 m; Hong Kong (GC) and the
+    #: single-system simulated worlds: unchanged (docs/estimators.md)
+    variance_components: VarianceComponents = VarianceComponents.system
     #: values of the fields above for one estimator, where its published code differs from the
-    #: others (estimator name -> field -> value), e.g. ``{mm: {outlier_scale: 1.0e6}}``
-    per_estimator: dict[str, dict[str, Any]] = field(default_factory=dict)
+    #: others (estimator name -> field -> value), e.g. ``{mm: {outlier_scale: 1.0e6}}``. RTKLIB's
+    #: ``ionosphere`` takes its own words (klobuchar | none), so it keeps its Klobuchar here
+    per_estimator: dict[str, dict[str, Any]] = field(
+        default_factory=lambda: {"rtklib_spp": {"ionosphere": "klobuchar"}}
+    )
 
     @staticmethod
     def model_fields() -> list[str]:
@@ -147,7 +188,10 @@ class StochasticModelConfig:
     #: unflagged cycle slip or a switch of reflected path; :func:`simbench.gnss.arcs.doppler_phase_jumps`);
     #: 0: loss-of-lock flags and gaps only (Table 4.4.2's data came with flagged slips)
     doppler_slip_m: float = GnssModelConfig.doppler_slip_m
-    ionosphere_free: bool = False  #: L1/L2 ionosphere-free combination (needs dual-frequency data)
+    #: auto (free where every satellite has a second frequency) | broadcast (L1, Klobuchar) | free
+    ionosphere: IonosphereMode = GnssModelConfig.ionosphere
+    #: none | system | system_cn0: code variance factors estimated from the log (:class:`VarianceComponents`)
+    variance_components: VarianceComponents = GnssModelConfig.variance_components
     #: L1 only (not in Table 4.4.2): a slant ionosphere residual per satellite arc (code +I, phase -I)
     #: so that code-phase divergence after Klobuchar does not drag the position
     estimate_iono: bool = True
@@ -204,8 +248,9 @@ class StochasticModelConfig:
         )
 
     def needs(self) -> frozenset[Need]:
-        """What the data must offer for this model: L2 for IF, carrier phase for ``code_phase``."""
-        needs = {Need.dual_frequency} if self.ionosphere_free else set()
+        """What the data must offer for this model: a second frequency for ``ionosphere=free``, carrier
+        phase for ``code_phase``."""
+        needs = {Need.dual_frequency} if self.ionosphere == IonosphereMode.free else set()
         if self.measurements == MeasurementMode.code_phase:
             needs.add(Need.phase)
         return frozenset(needs)
@@ -213,7 +258,8 @@ class StochasticModelConfig:
     def prepare_kwargs(self) -> dict[str, Any]:
         """Keyword arguments of :func:`~estimators.measurement.prepare_ppp` for this config."""
         return {
-            "ionosphere_free": self.ionosphere_free,
+            "ionosphere": self.ionosphere,
+            "variance_components": self.variance_components,
             "code_sigma_m": self.code_sigma_m,
             "phase_sigma_m": self.phase_sigma_m,
             "elevation_mask_deg": self.elevation_mask_deg,

@@ -61,6 +61,7 @@ Pose3 local-coordinate Jacobian at a small offset from the prior mean).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from functools import lru_cache
 from typing import Any, NamedTuple, cast
@@ -69,7 +70,7 @@ import gtsam
 import numpy as np
 from gtsam.symbol_shorthand import B, V, X
 from scipy.linalg import cho_factor, cho_solve, solve_triangular
-from scipy.linalg import solveh_banded as solve_banded_h
+from scipy.linalg.lapack import dpbsv
 
 from estimators.gnss_ins_config import GnssInsConfig
 from estimators.gnss_ins_data import GnssEpoch
@@ -143,21 +144,24 @@ class WindowNode:
 
     def copy(self) -> WindowNode:
         """A copy whose state arrays and S can change without touching this node (factors are shared)."""
-        return self._with_state(gtsam.Pose3(self.pose), self.vel.copy(), self.bias.copy(), self.clk.copy())
+        return self._with_state(gtsam.Pose3(self.pose), self.vel.copy(), self.bias.copy(), self.clk.copy(), True)
 
     def retract(self, d: np.ndarray) -> WindowNode:
-        """The node moved by the error-state step ``d`` (shape (17,)), S copied as in :meth:`copy`."""
+        """The node moved by the error-state step ``d`` (shape (17,)), S shared as in :func:`retracted`."""
         return retracted([self], d)[0]
 
-    def _with_state(self, pose: gtsam.Pose3, vel: np.ndarray, bias: np.ndarray, clk: np.ndarray) -> WindowNode:
-        """A node with this one's factors, a copy of its S and the given (new, unshared) state."""
+    def _with_state(
+        self, pose: gtsam.Pose3, vel: np.ndarray, bias: np.ndarray, clk: np.ndarray, copy_s: bool
+    ) -> WindowNode:
+        """A node with this one's factors, its S (a copy if ``copy_s``) and the given (new, unshared) state."""
         # a shallow copy by hand: dataclasses.replace (re-running __init__) and copy.copy (generic protocol)
         # cost more than the pose retraction, once per node and Gauss-Newton trial
         out = object.__new__(WindowNode)
         out.__dict__.update(self.__dict__)
         out.pose, out.vel, out.bias, out.clk = pose, vel, bias, clk
-        out.s_code = None if self.s_code is None else self.s_code.copy()
-        out.s_rr = None if self.s_rr is None else self.s_rr.copy()
+        if copy_s:
+            out.s_code = None if self.s_code is None else self.s_code.copy()
+            out.s_rr = None if self.s_rr is None else self.s_rr.copy()
         return out
 
     def attach_gnss(self, gnss: GnssEpoch | None) -> None:
@@ -290,6 +294,11 @@ def window_gnss_terms(
     J[R:, DRIFT] = 1.0
     J *= lay.w[:, None]
     return GnssTerms(e, J, lay.w, lay.bounds)
+
+
+def _norm(x: np.ndarray) -> float:
+    """``np.linalg.norm`` of a vector (the same ``sqrt(x . x)``) without its generic dispatch."""
+    return math.sqrt(float(x.dot(x)))
 
 
 def _mv(M: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -487,7 +496,11 @@ class NormalEquations(NamedTuple):
         ab = np.zeros((bw, NS * n))
         ab.ravel()[dst] = np.concatenate([self.D.ravel(), self.U.ravel()])[src]
         ab[-1] += 1e-12  # the prior and IMU chain make H positive definite; guard round-off only
-        return solve_banded_h(ab, self.eta, check_finite=False)
+        # LAPACK's pbsv as scipy.linalg.solveh_banded calls it, without its per-call validation
+        _, dx, info = dpbsv(ab, self.eta, lower=0, overwrite_ab=1)
+        if info != 0:
+            raise np.linalg.LinAlgError(f"banded Cholesky failed: LAPACK pbsv info {info}")
+        return cast(np.ndarray, dx)
 
     def dense(self) -> np.ndarray:
         """H as a dense (17 n, 17 n) array."""
@@ -519,13 +532,17 @@ def upper_cholesky(info: np.ndarray) -> np.ndarray:
 
 
 def retracted(nodes: list[WindowNode], dx: np.ndarray) -> list[WindowNode]:
-    """The nodes moved by the error-state step ``dx`` (shape (17 n,)); S copied as in :meth:`WindowNode.copy`."""
+    """The nodes moved by the error-state step ``dx`` (shape (17 n,)), sharing their S arrays.
+
+    S is never changed in place (:meth:`WindowSolver.s_step` hands each node new
+    arrays), so a retracted window and the one it came from can share it.
+    """
     d = dx.reshape(len(nodes), NS)
     # the vector states move in one addition each; only the pose retraction (GTSAM) is per node
     vel = np.array([n.vel for n in nodes]) + d[:, VEL : VEL + 3]
     bias = np.array([n.bias for n in nodes]) + d[:, BA : BG + 3]
     clk = np.array([n.clk for n in nodes]) + d[:, CLK:]
-    return [n._with_state(n.pose.retract(dn[:6]), v, b, c) for n, dn, v, b, c in zip(nodes, d, vel, bias, clk)]
+    return [n._with_state(n.pose.retract(dn[:6]), v, b, c, False) for n, dn, v, b, c in zip(nodes, d, vel, bias, clk)]
 
 
 def _clock_model(dt: float, h0: float, h_2: float) -> tuple[np.ndarray, np.ndarray]:
@@ -577,6 +594,7 @@ class WindowSolver:
         self._lin: _Linearisation | None = None  # at the current nodes
         self._factors: _WindowFactors | None = None  # of the current nodes
         self._s_penalty: float | None = None  # 2 sum lambda |S| of the current nodes
+        self._s: np.ndarray | None = None  # S of the current nodes in GNSS row order (_s_of)
 
     # ---------------------------------------------------------------- building
 
@@ -637,7 +655,16 @@ class WindowSolver:
 
     def _factors_changed(self) -> None:
         """A node came or left, or its GNSS rows changed: drop everything derived from the window."""
-        self._ne, self._lin, self._factors, self._s_penalty = None, None, None, None
+        self._ne, self._lin, self._factors, self._s_penalty, self._s = None, None, None, None, None
+
+    def _s_vector(self) -> np.ndarray:
+        """:func:`_s_of` the current nodes, kept until an S step or a change of the window.
+
+        X steps and retractions keep S.
+        """
+        if self._s is None:
+            self._s = _s_of(self.nodes)
+        return self._s
 
     def _stacked_factors(self) -> _WindowFactors:
         """:func:`window_factors` of the current nodes, kept until :meth:`_factors_changed`."""
@@ -667,9 +694,17 @@ class WindowSolver:
         return self._lin
 
     def _normal_equations(
-        self, nodes: list[WindowNode], lin: _Linearisation, factors: _WindowFactors, gnss_nodes: set[int] | None = None
+        self,
+        nodes: list[WindowNode],
+        lin: _Linearisation,
+        factors: _WindowFactors,
+        gnss_nodes: set[int] | None = None,
+        s: np.ndarray | None = None,
     ) -> NormalEquations:
-        """:class:`NormalEquations` of a window from its linearisation and S (GNSS of ``gnss_nodes`` only)."""
+        """:class:`NormalEquations` of a window from its linearisation and S (GNSS of ``gnss_nodes`` only).
+
+        ``s`` is :func:`_s_of` ``nodes`` when the caller has it.
+        """
         n = len(nodes)
         D = np.zeros((n, NS, NS))
         eta = np.zeros((n, NS))
@@ -685,7 +720,8 @@ class WindowSolver:
         squares = [[b0 @ b0], (b[:, None] @ b[..., None]).ravel()]
         if g is not None:
             node = factors.gnss.node
-            JtJ, Jtb, bb = _gnss_blocks(g, -(g.e + _s_of(nodes) * factors.gnss.used), factors.gnss)
+            s = _s_of(nodes) if s is None else s
+            JtJ, Jtb, bb = _gnss_blocks(g, -(g.e + s * factors.gnss.used), factors.gnss)
             if gnss_nodes is not None:
                 keep = np.isin(node, sorted(gnss_nodes))
                 node, JtJ, Jtb, bb = node[keep], JtJ[keep], Jtb[keep], bb[keep]
@@ -728,10 +764,12 @@ class WindowSolver:
         kept for the next step: the line search's cost evaluation is then free.
         """
         if self._ne is None:
-            self._ne = self._normal_equations(self.nodes, self._linearised(), self._stacked_factors())
+            self._ne = self._normal_equations(
+                self.nodes, self._linearised(), self._stacked_factors(), s=self._s_vector()
+            )
         ne = self._ne
         dx = ne.solve()
-        step = float(np.linalg.norm(dx))
+        step = _norm(dx)
         self._ne = None
         # a step below the tolerance cannot change the cost beyond round-off: take it as is
         if not line_search or step < self.tol:
@@ -746,7 +784,7 @@ class WindowSolver:
         for _ in range(6):
             trial = retracted(self.nodes, alpha * dx)
             lin = self._linearise(trial, factors)
-            trial_ne = self._normal_equations(trial, lin, factors)
+            trial_ne = self._normal_equations(trial, lin, factors, s=self._s_vector())  # a retraction keeps S
             if trial_ne.sq + s_pen <= c0 * (1.0 + 1e-12):
                 self.nodes, self._lin, self._ne = trial, lin, trial_ne
                 return float(np.sqrt(ne.sq)), alpha * step
@@ -762,11 +800,12 @@ class WindowSolver:
         R = len(g.e) // 2
         lam = np.concatenate([np.full(R, self.lam_rho), np.full(R, self.lam_d)])
         new = soft_threshold(-g.e, lam) * (g.w > 0)  # c = z - g(X), whitened
-        old = _s_of(self.nodes)
+        old = self._s_vector()
         for i, lo, hi in g.bounds:
             self.nodes[i].s_code, self.nodes[i].s_rr = new[lo:hi], new[R + lo : R + hi]
-        self._ne, self._s_penalty = None, None
-        return float(np.linalg.norm(new - old))
+        # the bounds cover the rows in order: the nodes' S, concatenated, is new
+        self._ne, self._s_penalty, self._s = None, None, new
+        return _norm(new - old)
 
     def solve(self, record: bool = False) -> tuple[int, list[tuple[float, ...]]]:
         """Algorithm 1 on the current window. Returns the iteration count and (if asked) the table rows.
@@ -778,25 +817,25 @@ class WindowSolver:
         i = 0
         while i < self.max_iterations:
             i += 1
-            s_before = self.s_l1_norm()
+            s_before = self.s_l1_norm() if record else 0.0
             b_norm, dx = self.x_step()
             if record:
                 table.append((i, b_norm, s_before, dx, 0.0))
             if dx < self.tol:
                 if not use_s:
                     break
-                s_old = _s_of(self.nodes)
+                s_old = self._s_vector() if record else None
                 ds = self.s_step()
                 b_norm, dx = self.x_step()
-                if record:
-                    table.append((i, b_norm, self.s_l1_norm(), dx, float(np.abs(_s_of(self.nodes) - s_old).sum())))
+                if s_old is not None:
+                    table.append((i, b_norm, self.s_l1_norm(), dx, float(np.abs(self._s_vector() - s_old).sum())))
                 if dx < self.tol and ds < self.tol:
                     break
         return i, table
 
     def s_l1_norm(self) -> float:
         """``|S|_1`` over the window [whitened units]."""
-        return float(np.abs(_s_of(self.nodes)).sum())
+        return float(np.abs(self._s_vector()).sum())
 
     def ekf_update(self, gate: float) -> int:
         """EKF update of the newest node (one linearisation at the prediction), with innovation gating.

@@ -1,7 +1,8 @@
 """simbench: simulation-and-benchmark harness for robust GNSS and GNSS/INS estimation.
 
-The notebook entry points are :func:`simulate` (one scenario) and :func:`run`
-(a study: estimators x seeds, scored, with a report), both in :mod:`simbench.api`;
+The notebook entry points are :func:`scenario` (any scenario, simulated or a real log),
+:func:`simulate` (a simulated one) and :func:`run` (a study: estimators x seeds, scored,
+with a report), all in :mod:`simbench.api`;
 the command line is ``python -m simbench`` (:mod:`simbench.cli`, a Hydra app, configs
 in the repository's ``conf/``).
 
@@ -21,7 +22,7 @@ import lazy_loader
 __getattr__, __dir__, __all__ = lazy_loader.attach(
     __name__,
     submod_attrs={
-        "api": ["simulate", "run", "StudyResult"],
+        "api": ["scenario", "simulate", "run", "StudyResult"],
         "contract": ["Scenario", "ReceiverData", "NavInfo"],
         "errors": ["SimbenchError"],
     },

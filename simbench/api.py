@@ -1,5 +1,5 @@
-"""The Python API: :func:`simulate` one scenario, :func:`run` a study from a notebook, with the command
-line's cache and store.
+"""The Python API: :func:`scenario` builds any scenario (simulated or a real log), :func:`simulate` a
+simulated one, :func:`run` a study from a notebook, with the command line's cache and store.
 
 ``simbench.run(...)`` composes the same ``conf/`` configuration the command
 line composes for ``python -m simbench ... seed=0,1 -m``, runs each seed as one
@@ -22,14 +22,15 @@ import pandas as pd
 from omegaconf import OmegaConf
 from tqdm.auto import tqdm
 
+from simbench.contract import Scenario
 from simbench.errors import SimbenchError
 from simbench.report.build import finalize
 from simbench.runs.checks import check_run
 from simbench.runs.compose import compose_config, overrides_from_kwargs
 from simbench.runs.jobs import run_job
-from simbench.runs.scenarios import simulate
+from simbench.runs.scenarios import build_scenario, scenario_settings, simulate
 
-__all__ = ["StudyResult", "run", "simulate"]
+__all__ = ["StudyResult", "run", "scenario", "simulate"]
 
 #: Columns that identify one result (one estimator setting on one scenario) in the store.
 RESULT_KEY = ["scenario_key", "estimator", "overrides"]
@@ -59,6 +60,35 @@ class StudyResult:
     claims: pd.DataFrame
     report: Path
     results_dir: Path
+
+
+def scenario(name: str, seed: int = 0, **overrides: Any) -> Scenario:
+    """Build any scenario the way a run does: a simulated preset or a real log.
+
+    Parameters
+    ----------
+    name : str
+        A preset in ``conf/scenario/``: simulated (``urban``, ``open_sky``, ...) or a
+        real log (``hk_tst_2019``, ``nagoya_static``, ``rinex`` with its files given).
+    seed : int
+        Random seed of a simulated scenario (a real log ignores it).
+    **overrides
+        Dotted config keys, e.g. ``receiver="high"``, ``**{"scenario.obs": "a.obs"}``,
+        or with ``__`` for dots: ``scenario__systems="GC"``; a list value
+        (``scenario__nav=["a.20n", "b.20n"]``) gives several files.
+
+    Returns
+    -------
+    Scenario
+
+    Raises
+    ------
+    SimbenchError
+        An unknown preset or key, missing files of a real log, or any reader's one-line error.
+    """
+    lists = {k: f"[{','.join(map(str, v))}]" for k, v in overrides.items() if isinstance(v, (list, tuple))}
+    cfg = compose_config([f"scenario={name}", f"seed={seed}", *overrides_from_kwargs({**overrides, **lists})])
+    return build_scenario(scenario_settings(cfg))
 
 
 def run(

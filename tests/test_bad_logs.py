@@ -211,8 +211,12 @@ REFUSED: list[tuple[str, Callable[[Piece], bytes], Callable[[Piece], str]]] = [
         lambda p: text(_bad_number(p)),
         lambda p: f"line {p.line_of(7, 2)} has a malformed observation",
     ),
-    ("RINEX 2", lambda p: text(["     2.11" + p.head[0][9:], *p.lines()[1:]]), lambda p: "is RINEX 2.11 type 'O'"),
-    ("navigation file", lambda p: NAV.read_bytes(), lambda p: "not RINEX 3 observation data"),
+    (
+        "RINEX 3 labelled 2.11",
+        lambda p: text(["     2.11" + p.head[0][9:], *p.lines()[1:]]),
+        lambda p: "is RINEX 2.11 without a '# / TYPES OF OBSERV' header line",
+    ),
+    ("navigation file", lambda p: NAV.read_bytes(), lambda p: "not RINEX 2/3 observation data"),
     ("gzip cut", lambda p: gzip.compress(text(p.lines()))[:5000], lambda p: "cannot be unpacked"),
 ]
 

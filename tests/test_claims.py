@@ -14,7 +14,7 @@ import pandas as pd
 import pytest
 
 from estimators.ice import AdaptiveNoiseModel, IceConfig
-from simbench.analysis.claims import CLAIMS, CONVERGENCE_S, adaptation_outcome, claims_table
+from simbench.analysis.claims import CLAIMS, CONVERGENCE_S, adaptation_outcome, claims_by_world, claims_table
 from simbench.analysis.variants import overrides_json, variant_label
 from simbench.runs.runner import SUMMARY_COLUMNS
 
@@ -122,7 +122,7 @@ def test_ch4_convergence_holds_only_when_isam2_is_lower_early() -> None:
 
 
 def test_ch4_overall_median_reads_the_ionosphere_free_variant() -> None:
-    iono_free = {"ionosphere_free": True}  # the sweep's only variant: no default rows exist
+    iono_free = {"ionosphere": "free"}  # the sweep's only variant: no default rows exist
     similar = _rows("ch4_convergence", _scaled(isam2_ppp=1.05, ekf_ppp=1.0), "error_3d_median", overrides=iono_free)
     row = _verdict(similar, "ch4_overall_median")
     assert row["holds"] == "holds" and row["measured"] == pytest.approx(1.05)
@@ -233,9 +233,32 @@ def test_ch7_adaptations_holds_when_ice_adapts_less_often_than_the_naive_rule() 
 
     row = _verdict(summary, "ch7_adaptations", diagnostics=jobs(3, 12))
     assert row["holds"] == "holds" and row["measured"] == pytest.approx(0.25) and row["n_seeds"] == 2
+    assert not row["vacuous"]
     row = _verdict(summary, "ch7_adaptations", diagnostics=jobs(12, 12))
     assert row["holds"] == "does not hold" and row["measured"] == pytest.approx(1.0)
     assert _verdict(summary, "ch7_adaptations", diagnostics={})["holds"] == "not measured"
+    # 0 against 6: fewer, but nothing was adapted at all -- a pass that says nothing, flagged
+    row = _verdict(summary, "ch7_adaptations", diagnostics=jobs(0, 3))
+    assert row["holds"] == "holds" and row["vacuous"] and "vacuous" in row["note"]
+
+
+def test_a_ci_straddling_the_threshold_is_inconclusive_and_the_cell_says_so() -> None:
+    # BCE-AD 0.95 of BCE on average, but seed by seed from 0.6 to 1.3: the CI holds 1
+    noisy = np.array([0.6, 1.3, 0.7, 1.25, 0.8, 1.05, 0.65, 1.3, 0.9, 1.1, 0.75, 1.0])
+    summary = _rows("ch6_bce_ad", {"bce_ad": BASE * noisy, "bce": BASE})
+    row = _verdict(summary, "ch6_bce_ad")
+    assert row["ci_low"] < 1.0 < row["ci_high"] and row["holds"] == "inconclusive"
+    cell = claims_by_world(claims_table(summary, NO_EPOCHS, {})).set_index("claim_id").loc["ch6_bce_ad", "urban"]
+    assert cell.endswith("inconclusive") and f"{row['measured']:.3g}" in cell
+    # the same mean with every seed below 1 decides
+    steady = _rows("ch6_bce_ad", {"bce_ad": BASE * 0.9, "bce": BASE})
+    assert _verdict(steady, "ch6_bce_ad")["holds"] == "holds"
+
+
+def test_every_claim_states_a_published_number_or_why_none_beside_its_rule() -> None:
+    for claim in CLAIMS:
+        assert claim.rule and claim.published
+        assert any(ch.isdigit() for ch in claim.published) or "no number" in claim.published
 
 
 def test_crt_accuracy_order_holds_for_crt_below_iekf_below_ekf_at_the_default_window() -> None:
@@ -320,7 +343,7 @@ def test_each_claim_gets_one_verdict_per_world_from_that_worlds_rows_alone() -> 
                     "ch4_convergence",
                     _scaled(isam2_ppp=1.05, ekf_ppp=1.0),
                     "error_3d_median",
-                    overrides={"ionosphere_free": True},
+                    overrides={"ionosphere": "free"},
                 ),
             ),
         ],
@@ -339,7 +362,7 @@ def test_each_claim_gets_one_verdict_per_world_from_that_worlds_rows_alone() -> 
     assert table.loc[("ch7_ice_low", ""), "holds"] == "not measured"  # its sweep ran on no world
 
     wide = claims_by_world(claims_table(summary, epochs, {})).set_index("claim_id")
-    assert list(wide.columns) == ["published", "flight", "morgantown1", "urban"]
+    assert list(wide.columns) == ["published", "rule", "flight", "morgantown1", "urban"]
     assert wide.loc["ch5_bce_low", "urban"].startswith("0.778 [") and wide.loc["ch5_bce_low", "urban"].endswith(
         "] holds"
     )

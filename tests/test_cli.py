@@ -6,12 +6,17 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 import pytest
 
 from estimators.rtklib_spp import RtklibSpp
+from simbench.cli.main import SUBCOMMANDS, planned_jobs, suggest_names
+from simbench.cli.score import scenario_key_of
+from simbench.cli.terminal import SUMMARY_WIDTH, compact_summary
 from simbench.contract import read_parquet_metadata
-from simbench.runs.compose import available, config_groups
+from simbench.errors import SimbenchError
+from simbench.runs.compose import available, compose_config, config_groups
 from simbench.runs.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -43,7 +48,11 @@ def test_cli_writes_store_and_report(tmp_path: Path) -> None:
     assert len(meta["simbench.git_sha"]) >= 7 and "numpy" in meta["simbench.versions"]
     assert (out / "report" / "ecdf_horizontal_urban_low.png").stat().st_size > 10_000
     assert "horizontal_median" in (out / "report" / "README.md").read_text()
-    assert "ekf_ppp" in proc.stdout
+    # the compact summary: every estimator that ran, sorted by median, at most 100 columns
+    lines = proc.stdout.splitlines()
+    assert "h med [m]" in lines[0] and max(map(len, lines)) <= SUMMARY_WIDTH
+    shown = [ln.split()[0] for ln in lines[2:] if ln.strip()]
+    assert set(summary["estimator"]) <= set(shown) and "ekf_ppp" in shown
 
 
 def test_cli_overrides_scenario_and_receiver(tmp_path: Path) -> None:
@@ -80,7 +89,7 @@ def _one_error_line(proc: subprocess.CompletedProcess) -> str:
 @pytest.mark.parametrize("source", ["missing_rinex", "malformed_librsf"])
 def test_cli_scenario_that_cannot_be_built_ends_the_run_in_one_line(tmp_path: Path, source: str) -> None:
     if source == "missing_rinex":
-        args, problem = ("scenario=rinex", f"scenario.obs={tmp_path / 'none.obs'}"), "file does not exist"
+        args, problem = ("scenario=hk_tst_2019", f"scenario.obs={tmp_path / 'none.obs'}"), "file does not exist"
     else:
         bad = tmp_path / "bad.txt"
         bad.write_text("garbage line\n1 2 3\n")
@@ -142,6 +151,8 @@ def test_cli_help_says_what_simbench_is_and_lists_the_groups() -> None:
     assert text.startswith("simbench -- a simulation-and-benchmark harness")
     for command in ("pip install -e . && python -m simbench", "+sweep=smoke", "python -m simbench report"):
         assert command in text
+    for name in SUBCOMMANDS:  # every subcommand, not only report
+        assert f"  python -m simbench {name} " in text, name
     assert "schema" not in text and "powered by Hydra" not in text
     lines = text.splitlines()
     for group in config_groups():
@@ -149,3 +160,67 @@ def test_cli_help_says_what_simbench_is_and_lists_the_groups() -> None:
         line = next(ln for ln in lines if ln.startswith(f"  {key}: "))
         assert line.split(": ", 1)[1].split("  (")[0] == ", ".join(available(group))
     assert {"estimator", "scenario", "receiver", "imu", "sweep"} <= set(config_groups())
+
+
+def test_a_misspelt_name_gets_a_suggestion() -> None:
+    with pytest.raises(SimbenchError, match=r"unknown estimator 'dsc' \(did you mean 'dcs'\?\)"):
+        suggest_names(["estimator=[l2,dsc]"])
+    with pytest.raises(SimbenchError, match=r"unknown scenario 'urbn' \(did you mean 'urban'\?\)"):
+        suggest_names(["scenario=urbn"])
+    with pytest.raises(SimbenchError, match=r"^estimator.ekf_pp: unknown estimator 'ekf_pp' \(did you mean 'ekf_ppp'"):
+        suggest_names(["estimator.ekf_pp.measurements=code"])
+    with pytest.raises(SimbenchError, match=r"unknown estimator 'zzz' --"):  # nothing close: no guess
+        suggest_names(["estimator=[zzz]"])
+    suggest_names(["estimator=[l2,dcs]", "scenario=urban", "estimator.dcs.prior_scale=2"])
+
+
+def test_compact_summary_sorts_by_median_and_fits_100_columns() -> None:
+    rows = pd.DataFrame(
+        [
+            {"estimator": "dcs", "overrides": '{"prior_scale":10.0,"some_long_setting_name":"a-long-value"}'},
+            {"estimator": "dcs", "overrides": "{}"},
+            {"estimator": "l2", "overrides": "{}"},
+            {"estimator": "ekf_ins", "overrides": "{}", "status": "failed", "message": "x" * 200},
+        ]
+    ).assign(
+        status=lambda f: f.get("status", pd.Series("ok", index=f.index)).fillna("ok"),
+        gnss_model="urban",
+        availability=[1.0, 1.0, 0.4, 0.0],
+        horizontal_median_ref=[3.0, 2.0, np.inf, np.nan],
+        horizontal_p95_ref=[4.0, 3.0, np.inf, np.nan],
+        error_3d_median_ref=[5.0, 4.0, np.inf, np.nan],
+        total_s=[1.0, 2.0, 0.5, np.nan],
+        n_epochs=100,
+    )
+    lines = compact_summary(rows).splitlines()
+    names = [ln.split()[0] for ln in lines[2:6]]
+    assert names[0] == "dcs" and names[1].startswith("dcs[prior_scale=10.0,") and names[1].endswith("…")
+    assert names[2:] == ["l2", "ekf_ins"] and "—" in lines[4]  # undefined medians, then no ok row at all
+    assert lines[6].startswith("ekf_ins: failed: xxx") and len(lines) == 7
+    assert max(map(len, lines)) <= SUMMARY_WIDTH and "20.0" in lines[2]  # 2 s over 100 epochs = 20 ms
+
+
+def test_score_finds_the_scenario_by_name_and_seed(tmp_path: Path) -> None:
+    pd.DataFrame(
+        {
+            "scenario_key": ["k0", "k0", "k1", "k2"],
+            "scenario": ["urban", "urban", "urban", "flight"],
+            "seed": [0, 0, 1, 0],
+            "receiver": "low",
+            "sweep": "",
+            "source": "simulated",
+        }
+    ).to_parquet(tmp_path / "summary.parquet")
+    assert scenario_key_of(tmp_path, ["scenario=urban", "seed=1"]) == "k1"
+    assert scenario_key_of(tmp_path, ["scenario=flight"]) == "k2"
+    with pytest.raises(SimbenchError, match="match 2 scenarios"):
+        scenario_key_of(tmp_path, ["scenario=urban"])
+    with pytest.raises(SimbenchError, match="is not key=value"):
+        scenario_key_of(tmp_path, ["world=urban"])
+
+
+def test_a_sweep_knows_its_job_count_for_the_progress_bar() -> None:
+    args = ["-m", "seed=0,1,2", "receiver=low,high", "estimator=[l2]"]
+    assert planned_jobs(args, compose_config(["estimator=[l2]"], with_hydra=True)) == 6
+    # a sweep file's params count where the command line does not set the key: smoke is 2 scenarios x 2 seeds
+    assert planned_jobs(["+sweep=smoke"], compose_config(["+sweep=smoke"], with_hydra=True)) == 4

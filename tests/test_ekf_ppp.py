@@ -29,7 +29,7 @@ from test_measurement import horizontal_error, synthetic_data
 @pytest.mark.parametrize("dual", [True, False])
 def test_converges_on_exact_data(dual: bool) -> None:
     data, truth = synthetic_data(600, dual=dual, seed=1)
-    sol = EkfPpp(dissertation("ekf_ppp", ionosphere_free=dual)).estimate(data)
+    sol = EkfPpp(dissertation("ekf_ppp", ionosphere="free" if dual else "broadcast")).estimate(data)
     ep = sol.epochs
     assert len(ep) == 600 and ep["epoch"].is_monotonic_increasing
     err = horizontal_error(ep, truth)
@@ -44,7 +44,7 @@ def test_converges_on_exact_data(dual: bool) -> None:
 
 def test_loss_of_lock_starts_a_fresh_bias() -> None:
     data, truth = synthetic_data(600, dual=True, seed=2, slip=(300, "G15"))
-    sol = EkfPpp(dissertation("ekf_ppp", ionosphere_free=True)).estimate(data)
+    sol = EkfPpp(dissertation("ekf_ppp", ionosphere="free")).estimate(data)
     d = sol.diagnostics
     assert d["n_arcs"] == d["n_satellites"] + 1 == d["n_ambiguity_resets"]
     g15 = [b for s, b in zip(d["arc_sat"], d["arc_bias_m"]) if s == "G15"]
@@ -54,7 +54,7 @@ def test_loss_of_lock_starts_a_fresh_bias() -> None:
     assert err[300:].max() < 0.3  # the slip does not disturb the position
     # the same slip without the flag: the old bias is kept and the position is pulled away
     data_unflagged, _ = synthetic_data(600, dual=True, seed=2, slip=(300, "G15"), flag_slip=False)
-    bad = horizontal_error(EkfPpp(dissertation("ekf_ppp", ionosphere_free=True)).estimate(data_unflagged).epochs, truth)
+    bad = horizontal_error(EkfPpp(dissertation("ekf_ppp", ionosphere="free")).estimate(data_unflagged).epochs, truth)
     assert bad[300:].max() > 3 * err[300:].max()
 
 
@@ -68,15 +68,15 @@ def test_code_only_filter() -> None:
 def test_random_walk_clock_model_agrees() -> None:
     data, truth = synthetic_data(300, dual=True, seed=4)
     err = horizontal_error(
-        EkfPpp(dissertation("ekf_ppp", ionosphere_free=True, clock_model="random_walk")).estimate(data).epochs, truth
+        EkfPpp(dissertation("ekf_ppp", ionosphere="free", clock_model="random_walk")).estimate(data).epochs, truth
     )
     assert err[150:].max() < 0.3
 
 
 def test_errors_and_registry() -> None:
     single, _ = synthetic_data(5, dual=False)
-    with pytest.raises(SimbenchError, match="ionosphere_free"):
-        EkfPpp(dissertation("ekf_ppp", ionosphere_free=True)).estimate(single)
+    with pytest.raises(SimbenchError, match="ionosphere"):
+        EkfPpp(dissertation("ekf_ppp", ionosphere="free")).estimate(single)
     with pytest.raises(SimbenchError, match="clock_model"):
         EkfPpp(EkfPppConfig(clock_model="pink")).estimate(single)
     assert estimators.get("ekf_ppp") is EkfPpp
@@ -104,7 +104,7 @@ def test_open_sky_dual_frequency_converges_below_a_metre() -> None:
             "++scenario.errors.attitude_masking.enabled": False,
         },
     )
-    ep = EkfPpp(dissertation("ekf_ppp", ionosphere_free=True)).estimate(sc.receiver_view()).epochs
+    ep = EkfPpp(dissertation("ekf_ppp", ionosphere="free")).estimate(sc.receiver_view()).epochs
     assert len(ep) >= 0.95 * sc.n_epochs
     truth = sc.truth.set_index("epoch").loc[ep["epoch"]]
     lat, lon, h = pymap3d.ecef2geodetic(truth["x"].iloc[0], truth["y"].iloc[0], truth["z"].iloc[0])

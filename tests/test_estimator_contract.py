@@ -163,9 +163,9 @@ def test_needs_follow_the_config() -> None:
     cls = estimators.get("ekf_ppp")
     assert cls(cls.Config()).needs() == frozenset()  # measurements=auto: code wherever phase is missing
     assert cls(cls.Config(measurements="code_phase")).needs() == {Need.phase}
-    assert cls(cls.Config(ionosphere_free=True)).needs() == {Need.dual_frequency}
+    assert cls(cls.Config(ionosphere="free")).needs() == {Need.dual_frequency}
     l2 = estimators.get("l2")
-    assert l2(l2.Config(ionosphere_free=True, measurements="code_phase")).needs() == {Need.phase, Need.dual_frequency}
+    assert l2(l2.Config(ionosphere="free", measurements="code_phase")).needs() == {Need.phase, Need.dual_frequency}
 
 
 def test_the_simulated_scenario_offers_phase_imu_and_labels(scenario: simbench.Scenario) -> None:
@@ -198,7 +198,7 @@ def test_runner_skips_gnss_ins_without_imu_and_phase_estimators_on_code_only_dat
     rows = run_estimators(code_only, dict.fromkeys(phase_users), progress=False).summary.set_index("estimator")
     assert (rows["status"] == "ok").all() and (rows["n_solved"] > 0).all()
     single = run_estimators(
-        _without(scenario, Need.dual_frequency), {"l2": {"ionosphere_free": True}}, progress=False
+        _without(scenario, Need.dual_frequency), {"l2": {"ionosphere": "free"}}, progress=False
     ).summary.iloc[0]
     assert single["status"] == "skipped" and single["message"] == MISSING_NEED_REASONS[Need.dual_frequency]
 

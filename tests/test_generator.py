@@ -11,6 +11,8 @@ from simbench.contract import IMU_COLUMNS, LABEL_COLUMNS, OBSERVATION_COLUMNS, T
 from simbench.core.constants import LAMBDA_L1
 from simbench.errors import SimbenchError
 from simbench.sim import tracking
+from simbench.sim.canyon import canyon_rays
+from simbench.sim.config import NlosConfig
 from simbench.sim.processes import gauss_markov, stream
 
 SHORT = {"scenario.duration_s": 300}
@@ -178,3 +180,23 @@ def test_scenario_parquet_round_trip(urban: Scenario, tmp_path) -> None:
         pd.testing.assert_frame_equal(getattr(back, name), getattr(urban, name))
     assert back.nav == urban.nav
     assert back.meta["seed"] == 3 and back.meta["config"]["scenario"]["duration_s"] == 300
+
+
+def test_canyon_rays_where_wanted_are_those_of_the_whole_grid() -> None:
+    """Rays computed for a subset of (epoch, satellite) pairs are bit for bit those of the whole grid."""
+    n, m = 300, 8
+    rng = np.random.default_rng(2)
+    el, az = rng.uniform(-0.2, 1.5, (n, m)), rng.uniform(0.0, 2.0 * np.pi, (n, m))
+    heading = rng.uniform(0.0, 2.0 * np.pi, n)
+    left, right = rng.uniform(8.0, 25.0, (2, n))
+    h_left, h_right = rng.uniform(0.0, 50.0, (2, n))
+    travelled = np.cumsum(rng.uniform(0.0, 10.0, n))
+    cfg = NlosConfig(reflector_beyond_m=(0.0, 40.0))
+    wanted = el > 0.3
+    args = (el, az, heading, left, right, h_left, h_right, travelled, cfg, 1.0)
+    every = canyon_rays(*args, np.random.default_rng(9))
+    some = canyon_rays(*args, np.random.default_rng(9), where=wanted)
+    for field in ("blocked", "amplitude", "delay_m", "phase_rad"):
+        full, part = getattr(every, field), getattr(some, field)
+        assert full[wanted].tobytes() == part[wanted].tobytes(), field
+    assert some.blocked[~wanted].all() and not some.amplitude[~wanted].any() and not some.delay_m[~wanted].any()

@@ -19,7 +19,7 @@ def scenario() -> simbench.Scenario:
 @pytest.mark.parametrize("ionosphere_free", [False, True])
 def test_isam2_ppp_matches_batch_l2_at_the_last_epoch(scenario: simbench.Scenario, ionosphere_free: bool) -> None:
     # same graph model and data: the filtered iSAM2 estimate of the last epoch is the batch smoother's
-    common = {"ionosphere_free": ionosphere_free, "ambiguity_sigma_m": 10.0}
+    common = {"ionosphere": "free" if ionosphere_free else "broadcast", "ambiguity_sigma_m": 10.0}
     inc = Isam2Ppp(IncrementalConfig(**common)).estimate(scenario.receiver_view()).epochs
     batch = L2Batch(L2Config(**common)).estimate(scenario.receiver_view()).epochs
     assert inc["epoch"].iloc[-1] == batch["epoch"].iloc[-1]

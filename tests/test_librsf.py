@@ -59,7 +59,7 @@ def test_shared_model_recovers_the_synthetic_truth(scenario: Scenario) -> None:
     """No Klobuchar applied, hydrostatic delay cancelled: the fit matches the 0.5 m code noise."""
     obs = prepare_ppp(
         scenario.receiver_view(),
-        ionosphere_free=False,
+        ionosphere="broadcast",
         code_sigma_m=0.5,
         phase_sigma_m=0.01,
         elevation_mask_deg=7.0,

@@ -13,7 +13,7 @@ import pymap3d
 import pytest
 
 from estimators.measurement import arc_ids, predict, prepare_ppp, sigma_factor
-from estimators.ppp_config import SigmaModel
+from estimators.ppp_config import IonosphereMode, MeasurementMode, SigmaModel, VarianceComponents
 from simbench.contract import NavInfo, ReceiverData
 from simbench.core import atmosphere
 from simbench.core.constants import DEG, F_L1, F_L2, IONO_L2_SCALE, LAMBDA_L1, LAMBDA_L2, SECONDS_PER_WEEK
@@ -213,7 +213,9 @@ def test_geodetic_matches_pymap3d() -> None:
 @pytest.mark.parametrize("dual", [True, False])
 def test_prepare_ppp_corrections_leave_only_noise(dual: bool) -> None:
     data, truth = synthetic_data(30, dual=dual, code_noise_m=0.0, phase_noise_m=0.0)
-    obs = prepare_ppp(data, ionosphere_free=dual, code_sigma_m=2.5, phase_sigma_m=0.025, elevation_mask_deg=15.0)
+    obs = prepare_ppp(
+        data, ionosphere="free" if dual else "broadcast", code_sigma_m=2.5, phase_sigma_m=0.025, elevation_mask_deg=15.0
+    )
     assert np.all(np.diff(obs.epoch) >= 0) and np.all(obs.el > 15 * DEG)
     np.testing.assert_allclose(obs.sigma_code, 2.5 / np.sin(obs.el))
     np.testing.assert_allclose(obs.sigma_phase, 0.025 / np.sin(obs.el))
@@ -245,7 +247,7 @@ def test_prepare_ppp_drops_epochs_below_min_satellites() -> None:
     counts = o[o["el"] > 10].groupby("epoch").size()
     need = int(counts.max())
     obs = prepare_ppp(
-        data, ionosphere_free=False, code_sigma_m=2.5, phase_sigma_m=0.025, elevation_mask_deg=10, min_satellites=need
+        data, ionosphere="broadcast", code_sigma_m=2.5, phase_sigma_m=0.025, elevation_mask_deg=10, min_satellites=need
     )
     assert set(obs.epoch_ids) == set(counts.index[counts >= need])
 
@@ -253,15 +255,15 @@ def test_prepare_ppp_drops_epochs_below_min_satellites() -> None:
 def test_prepare_ppp_errors() -> None:
     single, _ = synthetic_data(3, dual=False)
     kw = dict(code_sigma_m=2.5, phase_sigma_m=0.025, elevation_mask_deg=7.0)
-    with pytest.raises(SimbenchError, match="ionosphere_free"):
-        prepare_ppp(single, ionosphere_free=True, **kw)
+    with pytest.raises(SimbenchError, match="ionosphere"):
+        prepare_ppp(single, ionosphere="free", **kw)
     with pytest.raises(SimbenchError, match="no epoch has"):
-        prepare_ppp(single, ionosphere_free=False, **{**kw, "elevation_mask_deg": 89.0})
+        prepare_ppp(single, ionosphere="broadcast", **{**kw, "elevation_mask_deg": 89.0})
     broken = ReceiverData(single.observations.drop(columns=["sat_clock"]), single.imu, single.nav)
     with pytest.raises(SimbenchError, match="sat_clock"):
-        prepare_ppp(broken, ionosphere_free=False, **kw)
+        prepare_ppp(broken, ionosphere="broadcast", **kw)
     with pytest.raises(SimbenchError, match="code_sigma_m"):
-        prepare_ppp(single, ionosphere_free=False, **{**kw, "code_sigma_m": 0.0})
+        prepare_ppp(single, ionosphere="broadcast", **{**kw, "code_sigma_m": 0.0})
 
 
 def test_sigma_models_follow_elevation_and_cn0() -> None:
@@ -270,7 +272,7 @@ def test_sigma_models_follow_elevation_and_cn0() -> None:
     o = data.observations
     cn0 = np.where(np.arange(len(o)) % 4 == 0, np.nan, 25.0 + (np.arange(len(o)) % 25))
     data = ReceiverData(o.assign(cn0_l1=cn0), data.imu, data.nav)
-    kw = dict(ionosphere_free=False, code_sigma_m=2.5, phase_sigma_m=0.025, elevation_mask_deg=7.0)
+    kw = dict(ionosphere="broadcast", code_sigma_m=2.5, phase_sigma_m=0.025, elevation_mask_deg=7.0)
     by_el = prepare_ppp(data, **kw)
     np.testing.assert_allclose(by_el.sigma_code, 2.5 / np.sin(by_el.el))
     with_cn0 = by_el.cn0
@@ -313,3 +315,38 @@ def test_doppler_breaks_arcs_at_unflagged_slips_but_not_at_clock_jumps() -> None
     arcs = pd.Series(arc_ids(df, doppler_slip_m=1.0), index=df.index).groupby(df["sat"]).nunique()
     assert arcs.to_dict() == {"C11": 1, "G01": 1, "G02": 2, "G03": 1}
     assert (pd.Series(arc_ids(df), index=df.index).groupby(df["sat"]).nunique() == 1).all()  # check off
+
+
+def test_variance_components_recover_each_systems_noise() -> None:
+    """GPS rows with 0.5 m code noise, Galileo rows with 1.5 m (each satellite's geometry serves both,
+    a dozen rows per epoch), both given a 1 m a-priori sigma: the estimated factors' ratio is 3
+    within 5 %, and the rows' sigmas follow."""
+    data, _ = synthetic_data(300, dual=False, code_noise_m=0.0)
+    o = data.observations
+    rng = np.random.default_rng(7)
+    gps = o.assign(code_l1=o["code_l1"] + 0.5 * rng.standard_normal(len(o)))
+    galileo = o.assign(sat="E" + o["sat"].str[1:], code_l1=o["code_l1"] + 1.5 * rng.standard_normal(len(o)))
+    two_systems = ReceiverData(pd.concat([gps, galileo], ignore_index=True), data.imu, data.nav)
+    # C/N0 45 dB-Hz on every row: the cn0 model's factor is 1, the a-priori sigma 1 m everywhere
+    kw = dict(
+        ionosphere=IonosphereMode.broadcast,
+        code_sigma_m=1.0,
+        phase_sigma_m=0.01,
+        elevation_mask_deg=10.0,
+        measurements=MeasurementMode.code,
+        sigma_model=SigmaModel.cn0,
+    )
+    obs = prepare_ppp(two_systems, variance_components=VarianceComponents.system, **kw)
+    factors = obs.variance_factors
+    assert set(factors) == {"G", "E"}
+    # relative factors: their geometric mean over the rows is 1 (here sqrt(0.5 1.5) -> 1)
+    assert factors["E"] / factors["G"] == pytest.approx(3.0, rel=0.05)
+    assert np.sqrt(factors["E"] * factors["G"]) == pytest.approx(1.0, rel=0.01)
+    is_e = np.array([s.startswith("E") for s in obs.sat])
+    np.testing.assert_allclose(obs.sigma_code, np.where(is_e, factors["E"], factors["G"]), rtol=1e-3)
+    # the C/N0 bins of one level are the system's groups; without components the sigmas stay a priori
+    by_bin = prepare_ppp(two_systems, variance_components=VarianceComponents.system_cn0, **kw).variance_factors
+    assert set(by_bin) == {"G 45-50 dB-Hz", "E 45-50 dB-Hz"}
+    assert by_bin["E 45-50 dB-Hz"] == pytest.approx(factors["E"], rel=1e-6)
+    plain = prepare_ppp(two_systems, **kw)
+    assert plain.variance_factors == {} and np.allclose(plain.sigma_code, 1.0)

@@ -32,7 +32,8 @@ def _two_systems(sc: simbench.Scenario) -> simbench.Scenario:
     obs = sc.observations.copy()
     odd = obs["sat"].str[1:].astype(int) % 2 == 1
     obs.loc[odd, "sat"] = "E" + obs.loc[odd, "sat"].str[1:]
-    obs.loc[odd, ["code_l1", "phase_l1"]] += ISB_M
+    # a receiver clock offset: on every frequency alike (the ionosphere-free combination keeps it)
+    obs.loc[odd, ["code_l1", "phase_l1", "code_l2", "phase_l2"]] += ISB_M
     return dataclasses.replace(sc, observations=obs)
 
 
@@ -65,7 +66,7 @@ def test_auto_keeps_code_rows_without_phase(gps: simbench.Scenario) -> None:
     gone = obs.index[::3]
     obs.loc[gone, "phase_l1"] = np.nan
     data = dataclasses.replace(gps, observations=obs).receiver_view()
-    kwargs = {"ionosphere_free": False, "code_sigma_m": 2.5, "phase_sigma_m": 0.025, "elevation_mask_deg": 7.0}
+    kwargs = {"ionosphere": "broadcast", "code_sigma_m": 2.5, "phase_sigma_m": 0.025, "elevation_mask_deg": 7.0}
     auto = prepare_ppp(data, measurements=MeasurementMode.auto, **kwargs)
     strict = prepare_ppp(data, measurements=MeasurementMode.code_phase, **kwargs)
     code = prepare_ppp(data, measurements=MeasurementMode.code, **kwargs)
@@ -89,7 +90,8 @@ def test_auto_keeps_code_rows_without_phase(gps: simbench.Scenario) -> None:
 def _solve_graph(sc: simbench.Scenario, **config):
     from estimators.ppp_graph import PppGraph, solve, vel_key
 
-    cfg = dissertation("l2", **config)  # the graph model of Table 4.4.2 but for ``config``
+    # the graph model of Table 4.4.2 but for ``config``, on L1 code (the bounds below are sized on its noise)
+    cfg = dissertation("l2", **{"ionosphere": "broadcast", **config})
     obs = prepare_ppp(sc.receiver_view(), **cfg.prepare_kwargs())
     g = PppGraph(obs, cfg)
     graph = g.structure_factors()

@@ -50,15 +50,15 @@ def _as_two_systems(data: ReceiverData, isb_m: float) -> ReceiverData:
 def test_inter_system_bias_state() -> None:
     data, truth = synthetic_data(300, dual=True, seed=5)
     mixed = _as_two_systems(data, 40.0)
-    prep = prepare_ppp(mixed, ionosphere_free=True, code_sigma_m=2.5, phase_sigma_m=0.025, elevation_mask_deg=7)
+    prep = prepare_ppp(mixed, ionosphere="free", code_sigma_m=2.5, phase_sigma_m=0.025, elevation_mask_deg=7)
     assert prep.systems == ("G", "C") and prep.n_isb == 1
     assert set(np.unique(prep.system_index)) == {0, 1}
-    sol = EkfPpp(dissertation("ekf_ppp", ionosphere_free=True)).estimate(mixed)
+    sol = EkfPpp(dissertation("ekf_ppp", ionosphere="free")).estimate(mixed)
     err = np.median(horizontal_error(sol.epochs, truth)[-100:])
     assert err < 0.3
     assert sol.diagnostics["inter_system_bias_m"]["C"] == pytest.approx(40.0, abs=0.5)
     # one system: no extra state, the same convergence
-    one = EkfPpp(dissertation("ekf_ppp", ionosphere_free=True)).estimate(data)
+    one = EkfPpp(dissertation("ekf_ppp", ionosphere="free")).estimate(data)
     assert one.diagnostics["inter_system_bias_m"] == {}
     assert np.median(horizontal_error(one.epochs, truth)[-100:]) < 0.3
     # ignoring the bias (every satellite called GPS) costs metres
@@ -67,7 +67,7 @@ def test_inter_system_bias_state() -> None:
         ignored, observations=ignored.observations.assign(sat="G" + ignored.observations["sat"].str[1:])
     )
     bad = np.median(
-        horizontal_error(EkfPpp(dissertation("ekf_ppp", ionosphere_free=True)).estimate(ignored).epochs, truth)[-100:]
+        horizontal_error(EkfPpp(dissertation("ekf_ppp", ionosphere="free")).estimate(ignored).epochs, truth)[-100:]
     )
     assert bad > 1.0 > err
 

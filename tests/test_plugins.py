@@ -1,7 +1,7 @@
 """Plug-in estimators: entry-point discovery, their config, one-line errors, and a run through the CLI.
 
 The installed example (``examples/simbench-example-estimator``, estimator
-``huber_spp``; ``.ci/run`` installs it) is the real plug-in; broken packages are
+``cauchy_spp``; ``.ci/run`` installs it) is the real plug-in; broken packages are
 simulated with entry points handed to :func:`estimators.discover` or patched in
 for the CLI, so nothing else is installed.
 """
@@ -26,7 +26,7 @@ from simbench.runs.compose import compose_config, plugin_config_node, register_s
 from simbench.typed import to_typed
 
 ROOT = Path(__file__).resolve().parent.parent
-EXAMPLE = "huber_spp"
+EXAMPLE = "cauchy_spp"
 EXAMPLE_PACKAGE = "simbench-example-estimator"
 
 
@@ -65,9 +65,9 @@ def test_installed_example_is_listed_and_configured_from_its_dataclass() -> None
         composed = compose_config(overrides).estimator
         assert set(composed) == set(estimators.registered())
         typed = to_typed(OmegaConf.to_container(composed[EXAMPLE]), config, EXAMPLE)
-        assert typed == config() and typed.huber_k == 1.345
-    chosen = compose_config([f"estimator=[l2,{EXAMPLE}]", f"estimator.{EXAMPLE}.huber_k=2"]).estimator
-    assert list(chosen) == ["l2", EXAMPLE] and chosen[EXAMPLE].huber_k == 2.0
+        assert typed == config() and typed.cauchy_c == 2.385
+    chosen = compose_config([f"estimator=[l2,{EXAMPLE}]", f"estimator.{EXAMPLE}.cauchy_c=3"]).estimator
+    assert list(chosen) == ["l2", EXAMPLE] and chosen[EXAMPLE].cauchy_c == 3.0
 
 
 @pytest.mark.parametrize(

@@ -124,7 +124,7 @@ def test_single_point_solution_within_tens_of_metres(hk: Scenario) -> None:
     """The issue's acceptance check: SPP within the usual 5-30 m of the reference for most epochs."""
     obs = prepare_ppp(
         hk.receiver_view(),
-        ionosphere_free=False,
+        ionosphere="broadcast",
         code_sigma_m=2.5,
         phase_sigma_m=0.03,
         elevation_mask_deg=10.0,
@@ -190,7 +190,7 @@ def test_bad_input_gives_one_line_errors(tmp_path: Path) -> None:
     other.write_text("2032,46701,22.3,114.17,6.6\n2032,46702,22.3,114.17,6.6\n")
     assert "does not overlap" in one_line_error(load_rinex, OBS, NAV, other)
     # the navigation file given as observations
-    assert "RINEX 3 observation" in one_line_error(read_rinex_obs, NAV)
+    assert "not RINEX 2/3 observation data" in one_line_error(read_rinex_obs, NAV)
 
 
 def test_scenario_dispatch_validates_paths() -> None:

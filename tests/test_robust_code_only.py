@@ -25,9 +25,7 @@ from omegaconf import OmegaConf
 
 import estimators
 import simbench
-from estimators.measurement import prepare_ppp
 from simbench.analysis.metrics import enu_errors
-from simbench.gnss.spp import solve_epochs
 from simbench.runs.compose import compose_config
 from simbench.typed import to_typed
 
@@ -47,7 +45,9 @@ def _composed(name: str) -> dict:
 def _config(name: str, **changes: object) -> object:
     """Estimator ``name``'s config as the default run composes it, code only, with ``changes``."""
     cls = estimators.get(name)
-    return to_typed({**_composed(name), "measurements": "code", **changes}, cls.Config, f"estimator.{name}")
+    node = _composed(name)
+    code_only = {"measurements": "code"} if "measurements" in node else {}  # wls_spp: code only anyway
+    return to_typed({**node, **code_only, **changes}, cls.Config, f"estimator.{name}")
 
 
 def _horizontal(name: str, scenario: simbench.Scenario, **changes: object) -> np.ndarray:
@@ -60,22 +60,8 @@ def _median_horizontal(name: str, scenario: simbench.Scenario) -> float:
 
 
 def _wls_median(scenario: simbench.Scenario) -> float:
-    """Per-epoch weighted least squares on the same prepared code rows and sigmas as the estimators."""
-    cfg = _config("l2")
-    obs = prepare_ppp(scenario.receiver_view(), **cfg.prepare_kwargs())
-    k = np.repeat(np.arange(obs.n_epochs), obs.epoch_stop - obs.epoch_start)
-    sol = solve_epochs(
-        k,
-        obs.sat_pos,
-        obs.code,
-        n_epochs=obs.n_epochs,
-        sigma=obs.sigma_code,
-        system_index=obs.system_index,
-        el=obs.el,
-        doy=obs.doy,
-    )
-    frame = pd.DataFrame({"epoch": obs.epoch_ids, "x": sol.pos[:, 0], "y": sol.pos[:, 1], "z": sol.pos[:, 2]})
-    return float(np.median(enu_errors(frame, scenario.truth)["horizontal"]))
+    """Per-epoch weighted least squares (``wls_spp``) on the same shared code model and sigmas."""
+    return _median_horizontal("wls_spp", scenario)
 
 
 @pytest.fixture(scope="module")

@@ -129,7 +129,7 @@ def _run(source: str, scenario: str, seeds: int = 2) -> tuple[pd.DataFrame, pd.D
             )
     return (
         pd.DataFrame(rows, columns=list(SUMMARY_COLUMNS)),
-        pd.concat(frames, ignore_index=True)[list(EPOCH_COLUMNS)],
+        pd.concat(frames, ignore_index=True).reindex(columns=list(EPOCH_COLUMNS)),
     )
 
 

@@ -77,7 +77,7 @@ def test_the_example_source_runs_through_the_cli(tmp_path: Path) -> None:
             "simbench",
             f"scenario={EXAMPLE}",
             "scenario.duration_s=20",
-            "estimator=[huber_spp]",
+            "estimator=[cauchy_spp]",
             f"results_dir={out}",
             "progress=false",
         ],

@@ -177,7 +177,7 @@ def test_cli_parses_worlds_and_rejects_bad_flags() -> None:
             "scenario=urban",
             "seed=1",
             "--against",
-            "scenario=rinex",
+            "scenario=hk_tst_2019",
             "--out=/tmp/x",
             "--against",
             "scenario=open_sky",
@@ -185,7 +185,7 @@ def test_cli_parses_worlds_and_rejects_bad_flags() -> None:
             "10",
         ]
     )
-    assert worlds == [["scenario=urban", "seed=1"], ["scenario=rinex"], ["scenario=open_sky"]]
+    assert worlds == [["scenario=urban", "seed=1"], ["scenario=hk_tst_2019"], ["scenario=open_sky"]]
     assert options == {"out": "/tmp/x", "mask": "10"}
     assert "--nope" in one_line_error(parse_args, ["--nope"])
     assert "--against" in one_line_error(parse_args, ["scenario=urban", "--against"])

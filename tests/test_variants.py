@@ -22,8 +22,8 @@ from simbench.analysis.variants import (
 def test_overrides_are_the_fields_that_differ_from_the_dataclass_defaults() -> None:
     assert overrides_of(CrtLssConfig()) == {}
     assert overrides_of(CrtLssConfig(window=5, tol=1e-3)) == {"window": 5}  # tol is the default
-    changed = overrides_of(EkfPppConfig(clock_model="random_walk", ionosphere_free=True))
-    assert changed == {"clock_model": "random_walk", "ionosphere_free": True}
+    changed = overrides_of(EkfPppConfig(clock_model="random_walk", ionosphere="free"))
+    assert changed == {"clock_model": "random_walk", "ionosphere": "free"}
     assert type(changed["clock_model"]) is str  # the Enum becomes its YAML word
 
 
@@ -34,7 +34,7 @@ def test_json_is_canonical_and_the_label_is_for_display() -> None:
     assert overrides_json({}) == NO_OVERRIDES
     assert json.loads(a) == {"lambda_d": 2.0, "window": 5}
     assert variant_label({"window": 5, "lambda_d": 2.0}) == "lambda_d=2.0,window=5"
-    assert variant_label({"ionosphere_free": True}) == "ionosphere_free=True" and variant_label({}) == ""
+    assert variant_label({"ionosphere": "free"}) == "ionosphere=free" and variant_label({}) == ""
 
 
 def test_override_value_is_a_typed_column_with_the_default_filled_in() -> None:

@@ -35,12 +35,18 @@ CLAIM_COLUMNS = [
     "metric",
     "measured",
     "published",
+    "rule",
     "holds",
     "ci_low",
     "ci_high",
     "n_seeds",
+    "vacuous",
     "note",
 ]
+
+#: The three verdicts of a measured claim (``holds`` column); ``not measured`` when it was not.
+HOLDS, DOES_NOT_HOLD, INCONCLUSIVE = "holds", "does not hold", "inconclusive"
+NOT_MEASURED = "not measured"
 
 BOOTSTRAP_RESAMPLES = 2000
 CONFIDENCE = 0.95
@@ -55,12 +61,26 @@ CONVERGENCE_S = 900.0
 
 @dataclass(frozen=True)
 class Outcome:
+    """One claim measured on one world.
+
+    ``holds`` is the verdict of the rule on ``measured``; ``inconclusive`` overrides it when the
+    95 % CI straddles the rule's threshold (the seeds do not decide), and ``vacuous`` marks a
+    pass that says nothing (e.g. 0 adaptations against 6: nothing was adapted at all).
+    """
+
     measured: float
     holds: bool
     ci_low: float = np.nan
     ci_high: float = np.nan
     n_seeds: int = 0
     note: str = ""
+    inconclusive: bool = False
+    vacuous: bool = False
+
+    @property
+    def verdict(self) -> str:
+        """:data:`HOLDS`, :data:`DOES_NOT_HOLD` or :data:`INCONCLUSIVE`."""
+        return INCONCLUSIVE if self.inconclusive else HOLDS if self.holds else DOES_NOT_HOLD
 
 
 @dataclass(frozen=True)
@@ -70,6 +90,8 @@ class Claim:
     statement: str
     metric: str
     published: str
+    #: the verdict's rule on ``measured``, beside the published number
+    rule: str
     #: (summary, epochs, diagnostics by estimator) -> outcome, or None when not measured
     evaluate: Callable[[pd.DataFrame, pd.DataFrame, dict], Outcome | None]
     #: the sweep (conf/sweep/<name>.yaml) whose rows measure it
@@ -139,7 +161,13 @@ def _below(table: pd.DataFrame | None, a: str, others: list[str]) -> Outcome | N
         hi,
         len(table),
         "ratio of mean per-seed medians to the best competitor; holds if < 1 with the 95 % CI below 1",
+        inconclusive=straddles(lo, hi, 1.0),
     )
+
+
+def straddles(ci_low: float, ci_high: float, threshold: float) -> bool:
+    """True when a finite CI holds ``threshold`` strictly inside: the seeds decide neither way."""
+    return bool(np.isfinite(ci_low) and np.isfinite(ci_high) and ci_low < threshold < ci_high)
 
 
 def _spread_within(table: pd.DataFrame | None, tolerance: float) -> Outcome | None:
@@ -176,6 +204,7 @@ def _ch4_convergence(summary: pd.DataFrame, epochs: pd.DataFrame, diagnostics: d
         hi,
         len(table),
         "mean 3-D error in the first 15 min, iSAM2 / EKF; holds if the 95 % CI is below 1",
+        inconclusive=straddles(lo, hi, 1.0),
     )
 
 
@@ -192,6 +221,7 @@ def _ch4_medians(summary: pd.DataFrame, epochs: pd.DataFrame, diagnostics: dict)
         hi,
         len(table),
         "median 3-D error over all epochs, iSAM2 / EKF; holds if within 0.8..1.25",
+        inconclusive=straddles(lo, hi, 0.8) or straddles(lo, hi, 1.25),
     )
 
 
@@ -257,6 +287,7 @@ CLAIMS: list[Claim] = [
         "in the first 15 minutes",
         "mean 3-D error t<15 min, iSAM2/EKF",
         "188.79/665.35 cm = 0.28",
+        "95 % CI < 1",
         _ch4_convergence,
         sweep="ch4_convergence",
     ),
@@ -266,6 +297,7 @@ CLAIMS: list[Claim] = [
         "over all epochs the medians of iSAM2-PPP and EKF-PPP are similar",
         "median 3-D error, iSAM2/EKF",
         "40.01/39.7 cm = 1.01",
+        "0.8 to 1.25",
         _ch4_medians,
         sweep="ch4_convergence",
     ),
@@ -274,7 +306,8 @@ CLAIMS: list[Claim] = [
         "Watson 2019, Ch.5 Table 5.3.3",
         "on low-quality data BCE has a lower median horizontal error than L2, DCS and MM",
         "median horizontal error, BCE / best of L2, DCS, MM",
-        "< 1 on all three collects",
+        "6.70/9.13 = 0.73, 3.58/4.11 = 0.87, 7.31/8.02 = 0.91 (collects 1-3)",
+        "< 1, 95 % CI < 1",
         lambda s, e, d: _below(
             per_seed(s, "ch5_bce", ["bce", "l2", "dcs", "mm"], "horizontal_median", "low"), "bce", ["l2", "dcs", "mm"]
         ),
@@ -285,6 +318,7 @@ CLAIMS: list[Claim] = [
         "Watson 2019, Ch.5 Table 5.3.4",
         "on high-quality data L2, DCS, MM and BCE perform comparably (within about 15 %)",
         "relative spread of median horizontal error",
+        "0.75/0.67 - 1 = 0.12, 0.81/0.42 - 1 = 0.93, 1.44/1.20 - 1 = 0.20 (collects 1-3)",
         "<= 0.15",
         lambda s, e, d: _spread_within(
             per_seed(s, "ch5_bce", ["bce", "l2", "dcs", "mm"], "horizontal_median", "high"), 0.15
@@ -296,7 +330,8 @@ CLAIMS: list[Claim] = [
         "Watson 2019, Ch.5 Fig. 5.3.7",
         "BCE is the least sensitive to the a priori covariance scale s in {0.1, 0.3, 1, 3, 10, 100}",
         "spread of median over s: BCE / least-sensitive other",
-        "< 1",
+        "no number (figure only)",
+        "<= 1",
         _ch5_sensitivity,
         sweep="ch5_sensitivity",
     ),
@@ -305,7 +340,8 @@ CLAIMS: list[Claim] = [
         "Watson 2019, Ch.5 Fig. 5.3.8",
         "BCE has the largest run time of the batch estimators",
         "run time per observation, BCE / slowest other",
-        "> 1",
+        "no number (figure only)",
+        "> 1 (BCE the slowest)",
         _ch5_runtime,
         sweep="ch5_bce",
     ),
@@ -314,7 +350,8 @@ CLAIMS: list[Claim] = [
         "Watson 2019, Ch.6 Tables 6.3.1",
         "BCE-AD is at or below BCE when errors correlate with C/N0 or elevation",
         "median horizontal error, BCE-AD / BCE",
-        "<= 1",
+        "2.14/6.70 = 0.32, 3.58/3.58 = 1.00, 3.25/7.31 = 0.44 (collects 1-3)",
+        "< 1, 95 % CI < 1",
         lambda s, e, d: _below(per_seed(s, "ch6_bce_ad", ["bce_ad", "bce"], "horizontal_median"), "bce_ad", ["bce"]),
         sweep="ch6_bce_ad",
     ),
@@ -323,7 +360,8 @@ CLAIMS: list[Claim] = [
         "Watson 2019, Ch.7 Table 7.3.1",
         "on low-quality data ICE has the lowest median among incremental L2, DCS and MM",
         "median horizontal error, ICE / best of iSAM2 L2, DCS, MM",
-        "< 1",
+        "0.56/0.64 = 0.88, 0.93/1.94 = 0.48, 1.48/2.82 = 0.52 (collects 1-3)",
+        "< 1, 95 % CI < 1",
         lambda s, e, d: _below(
             per_seed(s, "ch7_ice", ["ice", "isam2_ppp", "isam2_dcs", "isam2_mm"], "horizontal_median", "low"),
             "ice",
@@ -336,6 +374,7 @@ CLAIMS: list[Claim] = [
         "Watson 2019, Ch.7 Table 7.3.2",
         "on high-quality data the incremental estimators are comparable (within about 15 %)",
         "relative spread of median horizontal error",
+        "0.37/0.35 - 1 = 0.06, 0.84/0.81 - 1 = 0.04, 1.00/0.89 - 1 = 0.12 (collects 1-3)",
         "<= 0.15",
         lambda s, e, d: _spread_within(
             per_seed(s, "ch7_ice", ["ice", "isam2_ppp", "isam2_dcs", "isam2_mm"], "horizontal_median", "high"), 0.15
@@ -347,7 +386,8 @@ CLAIMS: list[Claim] = [
         "Watson 2019, Ch.7 Sec. 7.3",
         "merging by statistical tests needs fewer model adaptations than adapting every T_c outliers",
         "ICE adaptations / naive adaptations",
-        "< 1",
+        "no number (text only)",
+        "< 1 (vacuous with no adaptation)",
         lambda s, e, d: adaptation_outcome(d),
         sweep="ch7_ice",
     ),
@@ -356,7 +396,8 @@ CLAIMS: list[Claim] = [
         "Roysdon & Farrell 2019, Fig. 2",
         "accuracy improves from EKF to IEKF to CRT-LSS",
         "p95 3-D error, CRT-LSS / EKF (IEKF between)",
-        "< 1",
+        "no number (figure only)",
+        "ordered, 95 % CI < 1",
         lambda s, e, d: _ordered(per_seed(s, "crt_window", ["crt_lss", "iekf_ins", "ekf_ins"], "error_3d_p95")),
         sweep="crt_window",
     ),
@@ -365,6 +406,7 @@ CLAIMS: list[Claim] = [
         "Roysdon & Farrell 2019, Fig. 2",
         "CRT-LSS accuracy improves with the window length L",
         "Spearman(L, p95 3-D error)",
+        "no number (figure only)",
         "< 0",
         _crt_window,
         sweep="crt_window",
@@ -386,7 +428,8 @@ def _ordered(table: pd.DataFrame | None) -> Outcome | None:
         lo,
         hi,
         len(table),
-        "holds if ordered and the 95 % CI of CRT-LSS / EKF is below 1; mean per-seed p95 3-D error: "
+        inconclusive=ordered and straddles(lo, hi, 1.0),
+        note="holds if ordered and the 95 % CI of CRT-LSS / EKF is below 1; mean per-seed p95 3-D error: "
         + ", ".join(f"{k} {v:.2f} m" for k, v in means.items()),
     )
 
@@ -399,11 +442,15 @@ def adaptation_outcome(diagnostics: dict[str, list[dict]]) -> Outcome | None:
     if not counts:
         return None
     ice, naive = map(float, np.sum(counts, axis=0))
+    # no adaptation at all is fewer than any naive count, but says nothing about merging by tests
+    vacuous = ice == 0
     return Outcome(
         ice / naive,
         ice < naive,
         n_seeds=len(counts),
-        note=f"{ice:.0f} adaptations vs {naive:.0f} naive over {len(counts)} jobs",
+        note=f"{ice:.0f} adaptations vs {naive:.0f} naive over {len(counts)} jobs"
+        + ("; vacuous: ICE never adapted, so there was nothing to merge" if vacuous else ""),
+        vacuous=vacuous,
     )
 
 
@@ -423,6 +470,7 @@ def claims_table(
             "statement": claim.statement,
             "metric": claim.metric,
             "published": claim.published,
+            "rule": claim.rule,
         }
         worlds = claim_worlds(summary, claim.sweep)
         if not worlds:
@@ -445,10 +493,11 @@ def claims_table(
                         **base,
                         "world": world,
                         "measured": outcome.measured,
-                        "holds": "holds" if outcome.holds else "does not hold",
+                        "holds": outcome.verdict,
                         "ci_low": outcome.ci_low,
                         "ci_high": outcome.ci_high,
                         "n_seeds": outcome.n_seeds,
+                        "vacuous": outcome.vacuous,
                         "note": outcome.note,
                     }
                 )
@@ -475,10 +524,11 @@ def _diagnostics_in_world(diagnostics: dict[str, list[dict]], world: str) -> dic
 def _not_measured(note: str) -> dict[str, Any]:
     return {
         "measured": np.nan,
-        "holds": "not measured",
+        "holds": NOT_MEASURED,
         "ci_low": np.nan,
         "ci_high": np.nan,
         "n_seeds": 0,
+        "vacuous": False,
         "note": note,
     }
 
@@ -489,33 +539,42 @@ def claims_by_world(claims: pd.DataFrame) -> pd.DataFrame:
     Parameters
     ----------
     claims : pandas.DataFrame
-        :func:`claims_table` (or ``claims.csv``).
+        :func:`claims_table` (or ``claims.csv``; one written before the ``rule`` column has none).
 
     Returns
     -------
     pandas.DataFrame
-        Columns ``claim_id``, ``published``, then one per world (sorted by name) with
-        cells like ``0.84 holds`` / ``1.07 [0.91, 1.23] does not hold``, ``not measured``,
+        Columns ``claim_id``, ``published``, ``rule``, then one per world (sorted by name) with
+        cells like ``0.84 holds`` / ``1.07 [0.91, 1.23] inconclusive``, ``not measured``,
         or :data:`NOT_RUN` where the claim's sweep did not run on that world. No world
         columns when no claim's sweep ran.
     """
+    claims = claims.assign(
+        rule=claims["rule"] if "rule" in claims else "",
+        vacuous=claims["vacuous"].fillna(False).astype(bool) if "vacuous" in claims else False,
+    )
     measured = claims[claims["world"].fillna("") != ""]
     worlds = sorted(measured["world"].astype(str).unique())
     cells = {(r.claim_id, r.world): _cell(r) for r in measured.itertuples()}
     order = list(dict.fromkeys(claims["claim_id"]))
-    published = claims.drop_duplicates("claim_id").set_index("claim_id")["published"]
+    first = claims.drop_duplicates("claim_id").set_index("claim_id")
     return pd.DataFrame(
         [
-            {"claim_id": cid, "published": published[cid], **{w: cells.get((cid, w), NOT_RUN) for w in worlds}}
+            {
+                "claim_id": cid,
+                "published": first.loc[cid, "published"],
+                "rule": first.loc[cid, "rule"],
+                **{w: cells.get((cid, w), NOT_RUN) for w in worlds},
+            }
             for cid in order
         ],
-        columns=["claim_id", "published", *worlds],
+        columns=["claim_id", "published", "rule", *worlds],
     )
 
 
 def _cell(row: Any) -> str:
     """``measured [ci] verdict`` of one :func:`claims_table` row (an ``itertuples`` record)."""
-    if row.holds == "not measured":
+    if row.holds == NOT_MEASURED:
         return row.holds
-    ci = f" [{row.ci_low:.2f}, {row.ci_high:.2f}]" if np.isfinite(row.ci_low) and np.isfinite(row.ci_high) else ""
-    return f"{row.measured:.3g}{ci} {row.holds}"
+    ci = f" [{row.ci_low:.3g}, {row.ci_high:.3g}]" if np.isfinite(row.ci_low) and np.isfinite(row.ci_high) else ""
+    return f"{row.measured:.3g}{ci} {row.holds}" + (" (vacuous)" if row.vacuous else "")

@@ -49,6 +49,54 @@ def enu_errors(solution: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
     return out
 
 
+def local_enu(position: np.ndarray, origin: np.ndarray) -> np.ndarray:
+    """East, north, up of ECEF points in the local frame at ``origin`` [m].
+
+    Parameters
+    ----------
+    position : numpy.ndarray
+        (n, 3) ECEF positions [m].
+    origin : numpy.ndarray
+        (3,) ECEF origin [m], e.g. the first reference point of a scenario.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n, 3) east, north, up [m].
+    """
+    lat, lon, h = pymap3d.ecef2geodetic(*np.asarray(origin, float))
+    p = np.asarray(position, float).reshape(-1, 3)
+    return np.column_stack(pymap3d.ecef2enu(p[:, 0], p[:, 1], p[:, 2], lat, lon, h))
+
+
+def nees(error: np.ndarray, covariance: np.ndarray) -> np.ndarray:
+    """Normalised estimation error squared ``d^T P^-1 d`` per epoch (dimensionless).
+
+    Parameters
+    ----------
+    error : numpy.ndarray
+        (n, k) estimation errors, e.g. ECEF position minus truth [m].
+    covariance : numpy.ndarray
+        (n, k, k) covariances in the same frame and unit squared [m^2]; an epoch whose
+        covariance is not finite or not positive definite gets NaN.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n,) NEES; chi-square with k degrees of freedom for a consistent estimator.
+    """
+    d = np.asarray(error, float)
+    P = np.asarray(covariance, float)
+    out = np.full(len(d), np.nan)
+    usable = np.isfinite(P).all(axis=(1, 2)) & np.isfinite(d).all(axis=1)
+    if usable.any():
+        # a singular or indefinite block (no covariance: all zero) is no statement about consistency
+        eig = np.linalg.eigvalsh(P[usable])
+        ok = np.flatnonzero(usable)[eig.min(axis=1) > 0]
+        out[ok] = np.einsum("ni,ni->n", d[ok], np.linalg.solve(P[ok], d[ok][..., None])[..., 0])
+    return out
+
+
 def summary_stats(values: np.ndarray, prefix: str) -> dict[str, float]:
     """Median, mean, variance, standard deviation, p95 and max of an error series [m, m^2].
 

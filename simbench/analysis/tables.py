@@ -16,7 +16,7 @@ from scipy import stats
 
 from simbench.analysis.claims import BOOTSTRAP_RESAMPLES, CONFIDENCE, CONVERGENCE_S, ratio_of_means
 from simbench.analysis.published import DRIVE_MEDIANS_BY_SWEEP, DRIVE_MEDIANS_M, DRIVE_SCENARIOS, PUBLISHED_FAMILY
-from simbench.analysis.variants import NO_OVERRIDES, is_default
+from simbench.analysis.variants import NO_OVERRIDES, display_names, is_default
 from simbench.source import SIMULATED
 
 #: Columns that identify a variant of an estimator: its gnss_model preset, the structured overrides
@@ -83,24 +83,44 @@ def _mean_ci_ref(values: np.ndarray) -> tuple[float, float, float]:
     return _mean_ci(values)
 
 
+#: The percentile statistics of :func:`seed_statistics` with a bootstrap CI over seeds: summary column -> name.
+CI_STATISTICS = {
+    "horizontal_median_ref": "horizontal_median",
+    "horizontal_p95_ref": "horizontal_p95",
+    "error_3d_median_ref": "error_3d_median",
+    "error_3d_p95_ref": "error_3d_p95",
+}
+
+
 def seed_statistics(summary: pd.DataFrame) -> pd.DataFrame:
-    """Per group, estimator and variant: mean over seeds of each statistic, CI of the median's mean.
+    """Per group, estimator and variant: mean over seeds of each statistic, with bootstrap CIs.
+
+    "Median" here and everywhere in the report is the mean over seeds of each seed's median
+    over its reference epochs (``horizontal_median_ref``): one number per seed, so seeds
+    weigh alike whatever their length, and the CI is over seeds.
 
     Columns: group keys, estimator, overrides, variant, n_seeds, n_failed, availability;
-    horizontal_median_ref (mean over seeds of the median over reference epochs) with its
-    bootstrap ci_low/ci_high, horizontal_p95_ref, error_3d_median_ref -- inf when a seed's
-    availability is below the percentile; horizontal_median_solved and horizontal_max
-    (over the solved epochs only), time_per_obs_s, update_median_s.
+    horizontal_median_ref with its bootstrap ci_low/ci_high; horizontal_p95_ref,
+    error_3d_median_ref and error_3d_p95_ref, each with ``<name>_ci_low``/``_ci_high``
+    (inf when a seed's availability is below the percentile; the CIs are NaN with fewer
+    than 3 seeds or no spread); horizontal_median_solved and horizontal_max (over the solved
+    epochs only), time_per_obs_s, update_median_s and time_per_epoch_s (the estimator's
+    run time over its reference epochs) [s].
     """
     out = []
     summary = with_variant_columns(summary)
+    for column in CI_STATISTICS:  # results written before a column existed have it missing
+        if column not in summary:
+            summary[column] = np.nan
     for keys, rows in summary.groupby(GROUP + ["estimator"] + VARIANT, dropna=False):
         ok = rows[rows["status"] == "ok"]
-        med, lo, hi = _mean_ci_ref(ok["horizontal_median_ref"].to_numpy(float))
+        cis = {c: _mean_ci_ref(ok[c].to_numpy(float)) for c in CI_STATISTICS}
 
         def mean(column: str, ok: pd.DataFrame = ok) -> float:
-            return float(ok[column].mean()) if len(ok) else np.nan
+            return float(ok[column].mean()) if len(ok) and column in ok else np.nan
 
+        med, lo, hi = cis["horizontal_median_ref"]
+        per_epoch = ok["total_s"].to_numpy(float) / np.maximum(ok["n_epochs"].to_numpy(float), 1) if len(ok) else []
         out.append(
             {
                 **dict(zip(GROUP + ["estimator"] + VARIANT, keys)),
@@ -110,27 +130,59 @@ def seed_statistics(summary: pd.DataFrame) -> pd.DataFrame:
                 "horizontal_median_ref": med,
                 "ci_low": lo,
                 "ci_high": hi,
-                "horizontal_p95_ref": _mean_ci_ref(ok["horizontal_p95_ref"].to_numpy(float))[0],
-                "error_3d_median_ref": _mean_ci_ref(ok["error_3d_median_ref"].to_numpy(float))[0],
+                **{
+                    f"{c}{suffix}": value
+                    for c in list(CI_STATISTICS)[1:]
+                    for suffix, value in zip(("", "_ci_low", "_ci_high"), cis[c])
+                },
                 "horizontal_median_solved": mean("horizontal_median"),
                 "horizontal_max": mean("horizontal_max"),
                 "time_per_obs_s": mean("time_per_obs_s"),
                 "update_median_s": mean("update_median_s"),
+                "time_per_epoch_s": float(np.mean(per_epoch)) if len(per_epoch) else np.nan,
             }
         )
     return pd.DataFrame(out)
 
 
-def paired_comparisons(summary: pd.DataFrame, baseline: str) -> pd.DataFrame:
-    """Each estimator against ``baseline`` on the same seeds (default variants only).
+#: Fewest seeds for the Wilcoxon signed-rank test of :func:`paired_comparisons` (its p cannot go below
+#: 0.05 with fewer); with fewer, or no difference at all, ``wilcoxon_p`` is NaN.
+WILCOXON_MIN_SEEDS = 6
 
-    Columns: group keys, estimator, n_seeds, ratio (mean per-seed median over the solved
-    epochs / baseline's), its bootstrap CI, wins (fraction of seeds with a lower median), the
-    Wilcoxon signed-rank p-value, and the mean availability of the estimator and the baseline
+
+def _named(summary: pd.DataFrame, baseline: str) -> tuple[pd.DataFrame, str | None]:
+    """The ok rows with ``estimator`` replaced by the variant's display name, and the baseline's name.
+
+    The names are a ``name`` column's where ``summary`` has one (the report's, over the whole run),
+    else :func:`~simbench.analysis.variants.display_names` of these rows. The baseline is the
+    estimator's default variant where it ran one, else its first variant.
+    """
+    ok = summary[summary["status"] == "ok"]
+    ok = ok.assign(estimator=ok["name"] if "name" in ok else display_names(ok))
+    rows = summary.loc[ok.index]
+    of_baseline = ok[rows["estimator"] == baseline]
+    if of_baseline.empty:
+        return ok, None
+    default = of_baseline[is_default(rows.loc[of_baseline.index, "overrides"])]
+    return ok, str((default if len(default) else of_baseline)["estimator"].iloc[0])
+
+
+def paired_comparisons(summary: pd.DataFrame, baseline: str) -> pd.DataFrame:
+    """Each estimator variant against ``baseline`` on the same seeds.
+
+    Every variant is compared, named as in figures (:func:`~simbench.analysis.variants.display_names`);
+    the baseline is its default variant where it ran one. Columns: group keys, estimator,
+    n_seeds, ratio (mean per-seed median over the solved epochs / baseline's), its bootstrap
+    CI, wins (fraction of seeds with a lower median), the Wilcoxon signed-rank p-value
+    (NaN below :data:`WILCOXON_MIN_SEEDS` seeds or without any difference), and the mean
+    availability of the estimator and the baseline
     on those seeds (a ratio below 1 bought with a lower availability is no win).
     """
-    out = []
-    ok = summary[(summary["status"] == "ok") & is_default(summary["overrides"])]
+    out: list[dict] = []
+    ok, name_of_baseline = _named(summary, baseline)
+    if name_of_baseline is None:
+        return pd.DataFrame(out)
+    baseline = name_of_baseline
     for keys, rows in ok.groupby(GROUP, dropna=False):
         table = rows.pivot_table(index=["seed"], columns="estimator", values="horizontal_median", aggfunc="first")
         availability = rows.pivot_table(index=["seed"], columns="estimator", values="availability", aggfunc="first")
@@ -142,7 +194,8 @@ def paired_comparisons(summary: pd.DataFrame, baseline: str) -> pd.DataFrame:
                 continue
             ratio, lo, hi = ratio_of_means(pair, name, baseline)
             diff = pair[name] - pair[baseline]
-            p = float(stats.wilcoxon(diff).pvalue) if len(pair) >= 6 and diff.abs().sum() > 0 else np.nan
+            testable = len(pair) >= WILCOXON_MIN_SEEDS and diff.abs().sum() > 0
+            p = float(stats.wilcoxon(diff).pvalue) if testable else np.nan
             out.append(
                 {
                     **dict(zip(GROUP, keys)),
@@ -164,10 +217,14 @@ def paired_comparisons(summary: pd.DataFrame, baseline: str) -> pd.DataFrame:
 def oracle_gap(summary: pd.DataFrame, oracle: str = "oracle") -> pd.DataFrame:
     """Each estimator's mean per-seed median (solved epochs) minus the oracle's, per group [m].
 
+    Every variant, named as in figures; the oracle's default variant where it ran one.
     With the mean availability of the estimator and of the oracle on the same seeds.
     """
-    ok = summary[(summary["status"] == "ok") & is_default(summary["overrides"])]
-    out = []
+    ok, name_of_oracle = _named(summary, oracle)
+    out: list[dict] = []
+    if name_of_oracle is None:
+        return pd.DataFrame(out)
+    oracle = name_of_oracle
     for keys, rows in ok.groupby(GROUP, dropna=False):
         table = rows.pivot_table(index="seed", columns="estimator", values="horizontal_median", aggfunc="first")
         availability = rows.pivot_table(index="seed", columns="estimator", values="availability", aggfunc="first")

@@ -61,6 +61,51 @@ def variant_label(overrides: dict[str, Any]) -> str:
     return ",".join(f"{key}={value}" for key, value in sorted(overrides.items()))
 
 
+#: Longest value text in a :func:`display_names` tag; longer values (lists, paths) are cut with '…'.
+TAG_VALUE_CHARS = 12
+
+
+def display_names(frame: pd.DataFrame) -> pd.Series:
+    """The name of each row's estimator variant in figures and tables: short, and unique per variant.
+
+    An estimator that ran in one variant is its name (``dcs``); one that ran in several is
+    ``name[tag]``, the tag holding what tells them apart: the ``gnss_model`` preset where
+    the variants' presets differ, then the explicit overrides as ``k=v`` (``dcs[prior_scale=10]``,
+    ``l2[dissertation]``), never the full override text.
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        Rows with ``estimator`` and, where present, ``gnss_model`` and ``overrides`` columns.
+
+    Returns
+    -------
+    pandas.Series of str
+        Same index as ``frame``.
+    """
+    if frame.empty:
+        return pd.Series([], index=frame.index, dtype=object)
+    model = frame["gnss_model"].fillna("").astype(str) if "gnss_model" in frame else pd.Series("", index=frame.index)
+    overrides = (
+        frame["overrides"].fillna(NO_OVERRIDES) if "overrides" in frame else pd.Series(NO_OVERRIDES, index=frame.index)
+    )
+    keys = pd.DataFrame({"estimator": frame["estimator"].astype(str), "model": model, "overrides": overrides})
+    variants = keys.drop_duplicates()
+    several = variants.groupby("estimator").size() > 1
+    models = variants.groupby("estimator")["model"].nunique() > 1
+    texts: dict[tuple[str, str, str], str] = {}
+    for name, preset, text in variants.itertuples(index=False):
+        parts = [preset] if models[name] and preset else []
+        parts += [f"{k}={_short(v)}" for k, v in sorted(json.loads(text).items())]
+        texts[(name, preset, text)] = f"{name}[{','.join(parts)}]" if several[name] and parts else name
+    return pd.Series([texts[k] for k in keys.itertuples(index=False)], index=frame.index, dtype=object)
+
+
+def _short(value: Any) -> str:
+    text = json.dumps(value) if isinstance(value, (list, dict)) else str(value)
+    return text if len(text) <= TAG_VALUE_CHARS else text[: TAG_VALUE_CHARS - 1] + "…"
+
+
 def is_default(overrides: pd.Series) -> pd.Series:
     """True for rows whose estimator ran with every setting at its default.
 

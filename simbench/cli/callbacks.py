@@ -10,6 +10,8 @@ import pandas as pd
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
+from simbench.cli.terminal import compact_summary
+from simbench.errors import SimbenchError
 from simbench.report.build import finalize
 
 #: Exit code of a run or sweep with a ``failed`` row (0: every row ``ok``, ``skipped`` or ``diverged``;
@@ -26,21 +28,28 @@ class FinalizeRun(Callback):
     """
 
     def on_run_end(self, config: DictConfig, **kwargs: Any) -> None:
-        self._finalize(Path(config.results_dir), config)
+        self._finalize(Path(config.results_dir), config, sweep=False)
 
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
-        self._finalize(Path(config.hydra.sweep.dir), config)
+        self._finalize(Path(config.hydra.sweep.dir), config, sweep=True)
 
     @staticmethod
-    def _finalize(run_dir: Path, config: DictConfig) -> None:
+    def _finalize(run_dir: Path, config: DictConfig, sweep: bool) -> None:
         if not (run_dir / "jobs").is_dir():
             return  # nothing ran (e.g. a config error stopped the job)
         # the keys of the root config are strings, and so are those of the dict it becomes
         run_config = OmegaConf.masked_copy(config, cast(list[str], [k for k in config if k != "hydra"]))
-        report = finalize(run_dir, cast(dict[str, Any], OmegaConf.to_container(run_config, resolve=True)))
+        try:
+            report = finalize(run_dir, cast(dict[str, Any], OmegaConf.to_container(run_config, resolve=True)))
+        except SimbenchError as exc:  # e.g. report.formats: one line, not Hydra's callback warning
+            print(f"error: {exc}", file=sys.stderr)
+            raise SystemExit(2) from exc
         print(f"results: {run_dir.resolve()}  report: {report.resolve() / 'index.html'}", file=sys.stderr)
         summary_path = run_dir.resolve() / "summary.parquet"
-        status = pd.read_parquet(summary_path, columns=["status"])["status"]
+        summary = pd.read_parquet(summary_path)
+        if sweep:  # a single run printed its rows already; a sweep ends with all of its rows, seeds averaged
+            print(compact_summary(summary))
+        status = summary["status"]
         failed = int((status == "failed").sum())
         if failed:
             print(f"{failed} of {len(status)} rows failed: see {summary_path}", file=sys.stderr)

@@ -39,7 +39,8 @@ def main(argv: list[str]) -> int:
         cfg = compose_config(overrides)
         sim = scenario_settings(cfg)
         scenario = build_scenario(sim)
-        stem = f"{sim.scenario.name}_{sim.receiver.name}_{sim.seed}"
+        # a RINEX log without scenario.name is named after its observation file (in meta)
+        stem = f"{scenario.meta.get('name') or sim.scenario.name}_{sim.receiver.name}_{sim.seed}"
         files = export_scenario(scenario, fmt, own["out"], stem, receiver=sim.receiver.name)
     except SimbenchError as exc:
         print(f"error: {exc}", file=sys.stderr)
@@ -47,7 +48,8 @@ def main(argv: list[str]) -> int:
     for f in files:
         print(f)
     if fmt == ExportFormat.rinex.value:
-        nav = files[1]  # a log read from RINEX with several systems: its further files go to scenario.nav_*
+        navs = [str(f) for f in files[1:] if not f.name.endswith("_truth.csv")]
+        nav = navs[0] if len(navs) == 1 else f"[{','.join(navs)}]"  # several files: records merged
         truth = next((f" scenario.truth={f}" for f in files if f.name.endswith("_truth.csv")), "")
         print(
             f"read back: python -m simbench scenario=rinex scenario.obs={files[0]} scenario.nav={nav}{truth}",

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import inspect
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 
 import hydra
@@ -22,14 +22,23 @@ from hydra.errors import HydraException
 from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf, open_dict
 from tabulate import tabulate
+from tqdm.auto import tqdm
 
 import estimators
 from simbench.cli import export, report, score, tables, validate, zero_baseline
 from simbench.cli.studies import run_studies
-from simbench.cli.terminal import SHOWN, one_line_warnings
+from simbench.cli.terminal import compact_summary, did_you_mean, one_line_warnings
 from simbench.errors import SimbenchError
 from simbench.runs.checks import check_run
-from simbench.runs.compose import CONF_DIR, check_group_choices, compose_config, register_schemas
+from simbench.runs.compose import (
+    CONF_DIR,
+    available,
+    check_group_choices,
+    compose_config,
+    config_groups,
+    group_choices,
+    register_schemas,
+)
 from simbench.runs.jobs import run_job
 from simbench.runs.studies import StudiesConfig
 
@@ -44,6 +53,21 @@ SUBCOMMANDS: dict[str, Callable[[list[str]], int]] = {
 }
 
 
+class _Progress:
+    """The one progress bar of a run or a sweep whose jobs run in this process (Hydra's basic launcher)."""
+
+    jobs: int | None = None  #: jobs the sweep will run, when :func:`planned_jobs` could count them
+    bar: tqdm | None = None
+
+
+def progress_bar(estimators_per_job: int) -> tqdm:
+    """The bar over jobs x estimators, made at the first job (with an ETA when the job count is known)."""
+    if _Progress.bar is None:
+        total = (_Progress.jobs or 1) * estimators_per_job
+        _Progress.bar = tqdm(total=total, desc="jobs x estimators", unit="est", dynamic_ncols=True)
+    return _Progress.bar
+
+
 @hydra.main(config_path=str(CONF_DIR), config_name="config", version_base="1.3")
 def _app(cfg: DictConfig) -> None:
     one_line_warnings()  # again: a launcher may run the job in another process
@@ -54,19 +78,16 @@ def _app(cfg: DictConfig) -> None:
             cfg.results_dir = hc.sweep.dir
         if cfg.blas_threads is None:  # a cluster job uses the CPUs its launcher reserved (submitit)
             cfg.blas_threads = hc.launcher.get("cpus_per_task")
+    bar = progress_bar(len(cfg.estimator)) if cfg.progress else None
     try:
-        if cfg.progress:
-            print(
-                f"job: scenario={cfg.scenario.name} receiver={cfg.receiver.name} seed={cfg.seed} "
-                f"estimators={','.join(cfg.estimator)}",
-                file=sys.stderr,
-            )
-        rows = run_job(cfg, fail_fast=hc.mode != RunMode.MULTIRUN)
+        rows = run_job(cfg, fail_fast=hc.mode != RunMode.MULTIRUN, bar=bar)
     except SimbenchError as exc:
         print(f"error: {exc}", file=sys.stderr)
         sys.exit(2)
     if hc.mode != RunMode.MULTIRUN:
-        print(rows.reindex(columns=SHOWN).to_string(index=False, float_format=lambda v: f"{v:.3f}"))
+        if bar is not None:
+            bar.close()
+        print(compact_summary(rows))
 
 
 def main() -> None:
@@ -90,16 +111,75 @@ def main() -> None:
             print(tabulate(estimator_table(), headers="keys", tablefmt="plain", showindex=False))
             return
         # group options are checked for sweeps and flags too: Hydra would only say "Could not load"
+        suggest_names(a for a in args if not a.startswith("-"))
         check_group_choices(a for a in args if not a.startswith("-"))
         shaping = config_overrides(args)
         cfg = compose_config(shaping, with_hydra=True) if shaping is not None else None
         if cfg is not None and "studies" in cfg:  # a sweep of sweeps (thesis): studies x worlds
             sys.exit(run_studies(StudiesConfig.from_config(cfg), Path(cfg.results_dir), args))
         check_jobs(args, (shaping, cfg) if shaping is not None and cfg is not None else None)
+        if cfg is not None and (
+            any(a in RUN_FLAGS for a in args) or OmegaConf.select(cfg, "hydra.mode") == RunMode.MULTIRUN
+        ):
+            _Progress.jobs = planned_jobs(args, cfg)
     except SimbenchError as exc:
         print(f"error: {exc}", file=sys.stderr)
         sys.exit(2)
     _app()
+
+
+def suggest_names(overrides: Iterable[str]) -> None:
+    """Refuse a misspelt option or estimator name with the closest known one (``did you mean 'dcs'?``).
+
+    Covers group options (``estimator=[l2,dsc]``, ``scenario=urbn``) and the estimator of an
+    ``estimator.<name>.<field>`` key; other keys are left to the config checks.
+
+    Raises
+    ------
+    SimbenchError
+        Naming the unknown name, the suggestion and the known names.
+    """
+    groups = config_groups()
+    for item in overrides:
+        key, sep, value = item.partition("=")
+        group = key.lstrip("+~")
+        if sep and group in groups:
+            known = available(group)
+            for name in group_choices(value) or []:
+                if name not in known:
+                    raise SimbenchError(
+                        group,
+                        f"unknown {group} '{name}'{did_you_mean(name, known)}",
+                        f"choose from {', '.join(known)}",
+                    )
+        parts = group.split(".")
+        if sep and len(parts) > 2 and parts[0] == "estimator":
+            known = sorted(estimators.registered())
+            if parts[1] not in known:
+                raise SimbenchError(
+                    f"estimator.{parts[1]}",
+                    f"unknown estimator '{parts[1]}'{did_you_mean(parts[1], known)}",
+                    f"choose from {', '.join(known)} (python -m simbench --estimators lists them)",
+                )
+
+
+def planned_jobs(args: list[str], cfg: DictConfig) -> int | None:
+    """How many jobs a command-line sweep runs: the product of its sweeps' lengths (with a sweep
+    file's params where the command line does not set the key); None when Hydra alone can tell
+    (``glob(...)``, or a parameter it cannot parse here)."""
+    given = [a for a in args if a not in RUN_FLAGS]
+    params = OmegaConf.select(cfg, "hydra.sweeper.params", default=None) or {}
+    keys = {a.partition("=")[0].lstrip("+~") for a in given}
+    given += [f"{k}={v}" for k, v in params.items() if k not in keys]
+    try:
+        parsed = OverridesParser.create().parse_overrides(given)
+        total = 1
+        for override in parsed:
+            if override.is_sweep_override() and not override.key_or_group.startswith("hydra."):
+                total *= len(list(override.sweep_string_iterator()))
+    except HydraException:
+        return None
+    return total
 
 
 def config_overrides(args: list[str]) -> list[str] | None:

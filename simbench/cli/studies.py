@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from simbench.cli.terminal import compact_summary
 from simbench.report.build import finalize
 from simbench.runs.studies import STUDY_TIMES, StudiesConfig, plan
 
@@ -52,6 +53,8 @@ def run_studies(cfg: StudiesConfig, root: Path, args: Sequence[str]) -> int:
         # written after every study: a killed run still says where its time went
         pd.concat([earlier, pd.DataFrame(times)], ignore_index=True).to_csv(path, index=False)
     report = finalize(root, {"studies": cfg.studies, "worlds": cfg.worlds, "args": list(args)})
+    if (root / "summary.parquet").is_file():
+        print(compact_summary(pd.read_parquet(root / "summary.parquet")))
     print(f"results: {root.resolve()}  report: {report.resolve() / 'index.html'}", file=sys.stderr)
     failed = [f"{t['study']}" + (f" on {t['world']}" if t["world"] else "") for t in times if t["exit_code"]]
     if failed:

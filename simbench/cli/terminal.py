@@ -1,27 +1,92 @@
-"""What the terminal shows: result rows, and simbench's warnings as one line each."""
+"""What the terminal shows: a compact sorted summary of result rows, "did you mean" suggestions, and
+simbench's warnings as one line each."""
 
 from __future__ import annotations
 
+import difflib
 import sys
 import warnings
+from collections.abc import Iterable
 from typing import TextIO
 
-from simbench.errors import SimbenchWarning
+import numpy as np
+import pandas as pd
+from tabulate import tabulate
 
-#: Summary columns printed after a run or a scored solution.
-SHOWN = [
-    "estimator",
-    "variant",
-    "status",
-    "availability",
-    "horizontal_median",
-    "horizontal_mean",
-    "horizontal_p95",
-    "horizontal_max",
-    "error_3d_median",
-    "update_median_s",
-    "message",
-]
+from simbench.analysis.tables import with_variant_columns
+from simbench.analysis.variants import display_names
+from simbench.errors import SimbenchWarning
+from simbench.report.style import sig3
+
+#: Widest summary line [characters]: it fits a terminal of 100 columns.
+SUMMARY_WIDTH = 100
+#: Longest estimator name shown; longer variant names are cut with '…'.
+NAME_WIDTH = 24
+
+
+def compact_summary(summary: pd.DataFrame) -> str:
+    """The result rows as one line per estimator variant, sorted by median error, with units.
+
+    Parameters
+    ----------
+    summary : pandas.DataFrame
+        ``summary.parquet`` rows (one run, or every seed and world of a sweep: values are
+        means over the ``ok`` rows).
+
+    Returns
+    -------
+    str
+        A table at most :data:`SUMMARY_WIDTH` characters wide: estimator, rows ok / all,
+        availability [%], horizontal median and p95 and 3-D median over reference epochs [m]
+        (— when the availability does not reach the percentile) and time per epoch [ms]; under the
+        table, one line per variant with a row that is not ok: its status and message.
+    """
+    if summary.empty:
+        return "(no result rows)"
+    rows = with_variant_columns(summary)
+    rows = rows.assign(name=display_names(rows), ok=rows["status"] == "ok")
+    out = []
+    for name, group in rows.groupby("name"):
+        ok = group[group["ok"]]
+
+        def mean(column: str, ok: pd.DataFrame = ok) -> float:
+            values = ok[column].to_numpy(float) if column in ok else np.array([])
+            return float(np.inf if np.isinf(values).any() else values.mean()) if len(values) else np.nan
+
+        per_epoch = ok["total_s"].to_numpy(float) / np.maximum(ok["n_epochs"].to_numpy(float), 1)
+        problem = group.loc[~group["ok"], "message"].fillna("").astype(str)
+        out.append(
+            {
+                "estimator": str(name) if len(str(name)) <= NAME_WIDTH else str(name)[: NAME_WIDTH - 1] + "…",
+                "ok": f"{len(ok)}/{len(group)}",
+                "avail [%]": sig3(100 * mean("availability")),
+                "h med [m]": sig3(mean("horizontal_median_ref")),
+                "h p95 [m]": sig3(mean("horizontal_p95_ref")),
+                "3D med [m]": sig3(mean("error_3d_median_ref")),
+                "ms/epoch": sig3(1e3 * float(per_epoch.mean())) if len(per_epoch) else "",
+                "_note": (group.loc[~group["ok"], "status"].iloc[0] + ": " + problem.iloc[0]) if len(problem) else "",
+                "_key": mean("horizontal_median_ref"),
+            }
+        )
+    table = pd.DataFrame(out).sort_values(["_key", "estimator"], na_position="last")
+    align = ["left", "right", "right", "right", "right", "right", "right"]
+    text = tabulate(
+        table.drop(columns=["_key", "_note"]),
+        headers="keys",
+        tablefmt="simple",
+        showindex=False,
+        disable_numparse=True,
+        colalign=align,
+    )
+    # why a row is not ok, under the table: a message is too long for a column
+    notes = [f"{name}: {note}" for name, note in zip(table["estimator"], table["_note"]) if note]
+    return "\n".join(line.rstrip()[:SUMMARY_WIDTH] for line in [*text.splitlines(), *notes])
+
+
+def did_you_mean(name: str, known: Iterable[str]) -> str:
+    """`` (did you mean 'dcs'?)`` for the closest known name, or ``''`` when none is close."""
+    close = difflib.get_close_matches(name, list(known), n=1, cutoff=0.6)
+    return f" (did you mean '{close[0]}'?)" if close else ""
 
 
 def one_line_warnings() -> None:

@@ -3,9 +3,9 @@
 Each world is a list of Hydra overrides as for ``python -m simbench``; the first
 world's come first, each further world starts with ``--against``::
 
-    python -m simbench validate scenario=rinex scenario.systems=G
-    python -m simbench validate scenario=urban receiver=low seed=0 --against scenario=rinex
-    python -m simbench validate scenario=rinex --against scenario=urban receiver=low \\
+    python -m simbench validate scenario=hk_tst_2019 scenario.systems=G
+    python -m simbench validate scenario=urban receiver=low seed=0 --against scenario=hk_tst_2019
+    python -m simbench validate scenario=hk_tst_2019 --against scenario=urban receiver=low \\
         --against scenario=urban receiver=high --out results/validation
 
 It prints one row per world (:class:`simbench.analysis.validation.WorldStatistics`) with
@@ -80,7 +80,7 @@ def parse_args(args: list[str]) -> tuple[list[list[str]], dict[str, str]]:
         else:
             worlds[-1].append(item)
     if len(worlds) > 1 and not all(worlds[1:]):
-        raise SimbenchError("--against", "is followed by no override", "write e.g. --against scenario=rinex")
+        raise SimbenchError("--against", "is followed by no override", "write e.g. --against scenario=hk_tst_2019")
     return worlds, options
 
 

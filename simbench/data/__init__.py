@@ -13,12 +13,14 @@ from __future__ import annotations
 
 from simbench.data.beidou import read_beidou_navigation
 from simbench.data.librsf import LibrsfLog, load_librsf, read_librsf, write_synthetic_librsf
+from simbench.data.qzss import read_qzss_navigation
 from simbench.data.reference import Reference, match_reference, read_reference, truth_table
 from simbench.data.rinex import RinexObs, load_rinex, read_rinex_obs
 from simbench.data.sp3 import Sp3Orbits, read_sp3
 
 __all__ = [
     "read_beidou_navigation",
+    "read_qzss_navigation",
     "LibrsfLog",
     "load_librsf",
     "read_librsf",

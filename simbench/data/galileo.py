@@ -22,7 +22,7 @@ from simbench.core.galileo_orbits import GalileoEphemeris
 from simbench.core.gpstime import datetime64_to_gps
 from simbench.core.orbits import FIT_HALF_WINDOW_S
 from simbench.errors import SimbenchError
-from simbench.gnss.navigation import read_rinex3_records
+from simbench.gnss.navigation import NavPaths, check_coverage, files_field, nav_paths, read_rinex3_records
 
 __all__ = ["read_galileo_navigation"]
 
@@ -82,19 +82,26 @@ _INAV_SIGNAL_BITS = 0b101  # E1-B, E5b-I
 
 
 def read_galileo_navigation(
-    path: str | os.PathLike[str], max_age_s: float = FIT_HALF_WINDOW_S, setting: str = "scenario.nav_gal"
+    path: NavPaths,
+    max_age_s: float = FIT_HALF_WINDOW_S,
+    setting: str = "scenario.nav_gal",
+    span: tuple[float, float] | None = None,
 ) -> GalileoEphemeris:
     """Read Galileo ephemerides from a RINEX 3 navigation file (Galileo-only or mixed).
 
     Parameters
     ----------
-    path : str or PathLike
-        RINEX 3 navigation file; only ``E`` records are read, and unhealthy or
+    path : str, PathLike or sequence of them
+        RINEX 3 navigation file(s), records merged
+        (:func:`~simbench.gnss.navigation.read_rinex3_records`); only ``E`` records are read, and unhealthy or
         incomplete ones are dropped.
     max_age_s : float
         Largest |t - Toe| at which a record may be used [s]; default 7200.
     setting : str
         Config setting that named the file, for error messages.
+    span : tuple of float, optional
+        First and last observation epoch [s, continuous GPS] that the records must cover
+        (:func:`~simbench.gnss.navigation.check_coverage`).
 
     Returns
     -------
@@ -107,10 +114,10 @@ def read_galileo_navigation(
     SimbenchError
         Missing file, not RINEX 3 navigation data, a malformed record, or no healthy Galileo record.
     """
-    p = os.fspath(path)
-    field = f"{setting} '{p}'"
+    paths = nav_paths(path)
+    field = files_field(setting, paths)
     fix = "pass a RINEX 3 Galileo or mixed navigation file (e.g. BRDC00IGS_R_<yyyydoy>0000_01D_MN.rnx)"
-    nav = read_rinex3_records(p, "E", setting, fix)
+    nav = read_rinex3_records(paths, "E", setting, fix)
     a = nav.values
     if a.shape[1] < len(_LAYOUT):
         raise SimbenchError(field, f"has Galileo records of {a.shape[1]} numbers, not {len(_LAYOUT)}", fix)
@@ -135,7 +142,8 @@ def read_galileo_navigation(
     toe = week[keep] * SECONDS_PER_WEEK + toe_sow[keep]
     toc = datetime64_to_gps(nav.epoch[keep])
     toe += SECONDS_PER_WEEK * np.round((toc - toe) / SECONDS_PER_WEEK)
+    check_coverage(toe, max_age_s, span, field, "E")
     sats, sat_idx = np.unique(nav.sv[keep], return_inverse=True)
     records = {k: x[keep] for k, x in v.items()}
     records.update(sat=sat_idx, toe=toe, toc=toc, tgd=np.nan_to_num(bgd[keep]))
-    return GalileoEphemeris(sats, records, source=os.path.basename(p), max_age_s=max_age_s)
+    return GalileoEphemeris(sats, records, source=", ".join(os.path.basename(p) for p in paths), max_age_s=max_age_s)

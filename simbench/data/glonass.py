@@ -16,7 +16,7 @@ import numpy as np
 from simbench.core.glonass_orbits import GLO_MAX_AGE_S, GlonassEphemeris
 from simbench.core.gpstime import utc_to_gps
 from simbench.errors import SimbenchError
-from simbench.gnss.navigation import read_rinex3_records
+from simbench.gnss.navigation import NavPaths, check_coverage, files_field, nav_paths, read_rinex3_records
 
 __all__ = ["read_glonass_navigation"]
 
@@ -26,19 +26,26 @@ _KM = 1_000.0
 
 
 def read_glonass_navigation(
-    path: str | os.PathLike[str], max_age_s: float = GLO_MAX_AGE_S, setting: str = "scenario.nav_glo"
+    path: NavPaths,
+    max_age_s: float = GLO_MAX_AGE_S,
+    setting: str = "scenario.nav_glo",
+    span: tuple[float, float] | None = None,
 ) -> GlonassEphemeris:
     """Read GLONASS ephemerides from a RINEX 3 navigation file (GLONASS-only or mixed).
 
     Parameters
     ----------
-    path : str or PathLike
-        RINEX 3 navigation file; only ``R`` records are read, and unhealthy or
+    path : str, PathLike or sequence of them
+        RINEX 3 navigation file(s), records merged
+        (:func:`~simbench.gnss.navigation.read_rinex3_records`); only ``R`` records are read, and unhealthy or
         incomplete ones are dropped.
     max_age_s : float
         Largest |t - tb| at which a record may be used [s]; default 1800.
     setting : str
         Config setting that named the file, for error messages.
+    span : tuple of float, optional
+        First and last observation epoch [s, continuous GPS] that the records must cover
+        (:func:`~simbench.gnss.navigation.check_coverage`).
 
     Returns
     -------
@@ -52,10 +59,10 @@ def read_glonass_navigation(
         Missing file, not RINEX 3 navigation data, a malformed record, a
         frequency number outside -7..+13, or no healthy GLONASS record.
     """
-    p = os.fspath(path)
-    field = f"{setting} '{p}'"
+    paths = nav_paths(path)
+    field = files_field(setting, paths)
     fix = "pass a RINEX 3 GLONASS or mixed navigation file (e.g. BRDC00IGS_R_<yyyydoy>0000_01D_MN.rnx)"
-    nav = read_rinex3_records(p, "R", setting, fix)
+    nav = read_rinex3_records(paths, "R", setting, fix)
     a = nav.values
     if a.shape[1] < len(_LAYOUT):
         raise SimbenchError(field, f"has GLONASS records of {a.shape[1]} numbers, not {len(_LAYOUT)}", fix)
@@ -73,10 +80,12 @@ def read_glonass_navigation(
     keep = np.all(np.isfinite(np.stack([v[k] for k in need])), axis=0) & (v["health"] == 0)
     if not keep.any():
         raise SimbenchError(field, "has no complete healthy GLONASS record", fix)
+    tb = utc_to_gps(nav.epoch[keep])
+    check_coverage(tb, max_age_s, span, field, "R")
     sats, sat_idx = np.unique(nav.sv[keep], return_inverse=True)
     records = {
         "sat": sat_idx,
-        "tb": utc_to_gps(nav.epoch[keep]),
+        "tb": tb,
         "pos": _KM * np.stack([v["x"], v["y"], v["z"]], axis=1)[keep],
         "vel": _KM * np.stack([v["vx"], v["vy"], v["vz"]], axis=1)[keep],
         "acc": _KM * np.stack([v["ax"], v["ay"], v["az"]], axis=1)[keep],
@@ -84,4 +93,4 @@ def read_glonass_navigation(
         "gamma": v["gamma"][keep],
         "freq": v["freq"][keep].astype(int),
     }
-    return GlonassEphemeris(sats, records, source=os.path.basename(p), max_age_s=max_age_s)
+    return GlonassEphemeris(sats, records, source=", ".join(os.path.basename(p) for p in paths), max_age_s=max_age_s)

@@ -4,6 +4,9 @@ Two file layouts are read: ``week,TOW,lat,lon,h`` CSV (degrees, ellipsoidal
 metres; the Hong Kong UrbanNav-style ground truth) and ``SOW X Y Z``
 (whitespace or commas, ECEF metres; the WVU drives), where a time column of
 more than a week's seconds is continuous GPS seconds (``t,x,y,z``) instead.
+A static receiver's reference may be one point: ``lat,lon,h`` (degrees, ellipsoidal
+metres) or ``x,y,z`` (ECEF metres; told apart by magnitude), written in the setting
+itself or as the one row of a file (commas or whitespace).
 Epochs are matched by linear interpolation in time; an epoch further than ``max_gap_s`` from reference samples on either
 side gets no truth row: its observations stay in the scenario (estimators
 use them), but :func:`simbench.analysis.metrics.enu_errors` merges solutions with
@@ -46,11 +49,15 @@ class Reference:
     xyz : np.ndarray, shape (k, 3)
         Antenna ECEF positions [m].
     path : str
+        The file, or the point as written (``'35.1,136.9,104.8'``).
+    static : bool
+        A static antenna: ``xyz`` holds its one position, which holds at every time.
     """
 
     t_gps: np.ndarray
     xyz: np.ndarray
     path: str
+    static: bool = False  #: one surveyed point (``xyz`` of one row) valid at every time, ``t_gps`` empty
 
 
 def _ref_error(field: str, path: str, problem: str) -> SimbenchError:
@@ -71,6 +78,8 @@ def read_reference(
     path : str or PathLike
         ``week,TOW,lat,lon,h`` CSV (a header line is allowed) or ``SOW X Y Z``;
         with 4 columns, times above a week's seconds are continuous GPS seconds.
+        A static antenna's one point: ``lat,lon,h`` [deg, deg, m] or ``x,y,z`` [m ECEF],
+        as the string itself or a file of one such row.
     week_hint : int, optional
         GPS week for ``SOW X Y Z`` files, which carry none (e.g. the week of
         the observations).
@@ -85,7 +94,7 @@ def read_reference(
     Raises
     ------
     SimbenchError
-        Missing file, unknown layout, ``SOW X Y Z`` without ``week_hint``,
+        Missing file, unknown layout, a point that is neither lat,lon,h nor ECEF, ``SOW X Y Z`` without ``week_hint``,
         a latitude beyond +-90 or a longitude beyond +-180 degrees, time going
         backwards; the message names the line.
 
@@ -95,6 +104,9 @@ def read_reference(
         Rows that repeat the time of the row before (the first is kept).
     """
     p = os.fspath(path)
+    point = _numbers(p)
+    if point is not None and not os.path.isfile(p):
+        return _static_reference(point, p, field)
     if not os.path.isfile(p):
         raise _ref_error(field, p, "file does not exist")
     with open(p, errors="replace") as fh:
@@ -126,6 +138,8 @@ def read_reference(
                 )
         t = a[:, 0] * SECONDS_PER_WEEK + a[:, 1]
         xyz = ecef_from_geodetic(a[:, 2] * DEG, a[:, 3] * DEG, a[:, 4])
+    elif a.shape == (1, 3):
+        return _static_reference(list(a[0]), p, field)
     elif a.shape[1] == 4:
         if np.all(a[:, 0] >= SECONDS_PER_WEEK):  # no second of week is that large: continuous GPS seconds
             t = a[:, 0]
@@ -155,6 +169,36 @@ def read_reference(
         )
     first = np.setdiff1d(np.arange(t.size), repeat)
     return Reference(t_gps=t[first], xyz=np.asarray(xyz)[first], path=p)
+
+
+#: A point with a norm above this is ECEF metres, below it latitude, longitude and height [m].
+_ECEF_NORM_M = 1.0e6
+
+
+def _numbers(text: str) -> list[float] | None:
+    """The three numbers of a point written as ``a,b,c`` or ``a b c``; None for anything else."""
+    parts = text.replace(",", " ").split()
+    try:
+        values = [float(v) for v in parts]
+    except ValueError:
+        return None
+    return values if len(values) == 3 else None
+
+
+def _static_reference(point: list[float], where: str, field: str) -> Reference:
+    """The :class:`Reference` of one surveyed point: ECEF metres, or lat, lon [deg] and ellipsoidal height [m]."""
+    a = np.asarray(point, float)
+    if np.linalg.norm(a) > _ECEF_NORM_M:
+        xyz = a
+    elif abs(a[0]) <= 90.0 and abs(a[1]) <= 180.0:
+        xyz = np.asarray(ecef_from_geodetic(a[0] * DEG, a[1] * DEG, a[2]), float)
+    else:
+        raise SimbenchError(
+            f"{field} '{where}'",
+            "is neither lat,lon,h (|lat| <= 90, |lon| <= 180 degrees) nor ECEF x,y,z (metres, norm > 1000 km)",
+            "write the surveyed point as lat,lon,h in degrees and ellipsoidal metres, or as ECEF x,y,z",
+        )
+    return Reference(t_gps=np.zeros(0), xyz=xyz.reshape(1, 3), path=where, static=True)
 
 
 def check_near_fixes(ref: Reference, truth_pos: np.ndarray, fix_pos: np.ndarray, field: str = "scenario.truth") -> None:
@@ -215,6 +259,10 @@ def match_reference(ref: Reference, t_gps: np.ndarray, max_gap_s: float = 2.0) -
     t = np.asarray(t_gps, float)
     rt, rx = ref.t_gps, ref.xyz
     out = np.full((t.size, 6), np.nan)
+    if ref.static:  # a static antenna: its point at every epoch, at rest
+        out[:, :3] = rx[0]
+        out[:, 3:] = 0.0
+        return out
     if rt.size >= 2:
         tc = np.clip(t, rt[0], rt[-1])
         i = np.clip(np.searchsorted(rt, tc, side="right") - 1, 0, rt.size - 2)

@@ -22,17 +22,28 @@ raw observables as the simulator's does, the header's Klobuchar coefficients
 go into :class:`~simbench.contract.NavInfo`, and the shared measurement model
 (:func:`estimators.measurement.prepare_ppp`) applies both.
 
-GPS (``G``, L1 C/A; L2 into the ``*_l2`` columns when the file has one of
-:data:`L2_SIGNALS`), GLONASS (``R``, L1 C/A FDMA: the wavelength of each
+GPS (``G``, L1 C/A), GLONASS (``R``, L1 C/A FDMA: the wavelength of each
 satellite from the frequency channel of its navigation record; orbits by
 numerical integration, :mod:`simbench.core.glonass_orbits`), Galileo (``E``,
-E1; clock minus BGD(E1,E5b), :mod:`simbench.core.galileo_orbits`) and BeiDou
-(``C``, B1I; :mod:`simbench.data.beidou`) are supported. Navigation data of a
-system come from its own file (``nav_glo``, ``nav_gal``, ``nav_bds``) when
-given, else from ``nav``, which may be a mixed RINEX 3 file. With several
+E1; clock minus BGD(E1,E5b), :mod:`simbench.core.galileo_orbits`), BeiDou
+(``C``, B1I: ``C1I`` in RINEX 3.02, ``C2I`` in 3.01 and 3.03+, :func:`first_signals`;
+:mod:`simbench.data.beidou`) and QZSS (``J``, L1 C/A; GPS-like records,
+:mod:`simbench.data.qzss`) are supported. Each satellite's second frequency
+(:data:`SECOND_SIGNALS`: GPS L2 else L5, Galileo E5a else E5b, BeiDou B3I else
+B2I, GLONASS G2, QZSS L2C else L5) goes into the ``*_l2`` columns with its
+``f1_f2_ratio``; a satellite keeps one second signal for the whole log (the one
+with the most code values), so its inter-frequency bias stays constant.
+A requested system without usable rows is left out with a one-line warning and
+a line in ``meta['system_notes']``. Navigation data of a system come from its own
+files (``nav_glo``, ``nav_gal``, ``nav_bds``) when given, else from ``nav``, which
+may be mixed RINEX 3 files; several files have their records merged, and the
+merged records must cover the whole observation span. With several
 systems the single-point solution and the shared model give every non-GPS
 system its own receiver clock offset (``PppObservations.system_index``),
 which absorbs the system time offsets and inter-system biases.
+
+RINEX 2.1x observation files are rewritten in RINEX 3 layout first (:func:`_rinex2_as_rinex3`:
+RINEX 2 types mapped to RINEX 3 codes), so one reader serves both.
 
 The RINEX observation parser is our own fixed-column reader: georinex needs
 ~30 s for the Hong Kong log (7 s for GPS alone) and rounds epochs to
@@ -43,40 +54,65 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from simbench.contract import NavInfo, RinexFiles, Scenario
-from simbench.core.constants import C_LIGHT, F_L1, F_L2, LAMBDA_L2, SECONDS_PER_WEEK
+from simbench.core.constants import C_LIGHT, F_B1I, F_L1, F_L2, SECONDS_PER_WEEK
 from simbench.core.glonass_orbits import GLO_F1_BASE_HZ, GlonassEphemeris, glonass_l1_frequency
-from simbench.core.gpstime import datetime64_to_gps, format_gps_time
+from simbench.core.gpstime import datetime64_to_gps
 from simbench.core.orbits import BroadcastEphemeris
 from simbench.data.beidou import read_beidou_navigation
 from simbench.data.galileo import read_galileo_navigation
 from simbench.data.glonass import read_glonass_navigation
 from simbench.data.logs import epoch_grid_of, log_scenario, log_truth, observation_table, rough_fix
+from simbench.data.qzss import read_qzss_navigation
 from simbench.data.reference import read_reference
 from simbench.errors import SimbenchError, warn
-from simbench.gnss.navigation import SYSTEM_NAMES, read_gps_navigation, read_rinex_lines
+from simbench.gnss.navigation import SYSTEM_NAMES, NavPaths, nav_paths, read_gps_navigation, read_rinex_lines
 
-__all__ = ["RinexObs", "read_rinex_obs", "load_rinex", "SIGNALS", "L2_SIGNALS", "NAV_SETTINGS"]
+__all__ = [
+    "RinexObs",
+    "read_rinex_obs",
+    "load_rinex",
+    "first_signals",
+    "second_frequency",
+    "SIGNALS",
+    "SECOND_SIGNALS",
+    "NAV_SETTINGS",
+]
 
-#: Observation code (band + attribute) used per system and the carrier frequency [Hz]:
-#: GPS L1 C/A, GLONASS L1 C/A (channel 0; each satellite's channel k adds k * 0.5625 MHz),
-#: Galileo E1 (RINEX 3 code 1C: E1-C pilot) and BeiDou B1I (RINEX 3 band 2).
+#: Observation code (band + attribute) written per system and the carrier frequency [Hz]:
+#: GPS and QZSS L1 C/A, GLONASS L1 C/A (channel 0; each satellite's channel k adds k * 0.5625 MHz),
+#: Galileo E1 (RINEX 3 code 1C: E1-C pilot) and BeiDou B1I (RINEX 3.03+ band 2). The reader also
+#: takes the other labels of :func:`first_signals`.
 SIGNALS: dict[str, tuple[str, float]] = {
     "G": ("1C", F_L1),
     "R": ("1C", GLO_F1_BASE_HZ),
     "E": ("1C", F_L1),
-    "C": ("2I", 1_561.098e6),
+    "C": ("2I", F_B1I),
+    "J": ("1C", F_L1),
 }
-#: GPS L2 signals read into the ``*_l2`` columns, first present wins (P(Y) semi-codeless, L2C M+L, M, L).
-L2_SIGNALS: tuple[str, ...] = ("2W", "2X", "2L", "2S", "2P")
-#: Config setting of each system's own navigation file (``nav`` serves GPS and, mixed, the others).
-NAV_SETTINGS: dict[str, str] = {"G": "nav", "R": "nav_glo", "E": "nav_gal", "C": "nav_bds"}
-_OBS_FIX = "pass a RINEX 3 observation file (.obs, .yyo, .rnx; also gzip or Hatanaka compressed)"
+F_L5 = 1_176.45e6  #: GPS / QZSS L5 and Galileo E5a carrier [Hz]
+F_E5B = 1_207.14e6  #: Galileo E5b and BeiDou B2I carrier [Hz]
+F_B3I = 1_268.52e6  #: BeiDou B3I carrier [Hz]
+#: GLONASS G2 / G1 of every FDMA channel k: (1246 + 0.4375 k) / (1602 + 0.5625 k) MHz = 7/9.
+GLO_F2_OVER_F1 = 7.0 / 9.0
+#: Second-frequency signals per system, in order of preference: RINEX codes of one band and the
+#: carrier [Hz] (GLONASS: of channel 0; each satellite's own is 7/9 of its L1 carrier).
+SECOND_SIGNALS: dict[str, tuple[tuple[tuple[str, ...], float], ...]] = {
+    "G": ((("2W", "2X", "2L", "2S", "2P"), F_L2), (("5Q", "5X", "5I"), F_L5)),
+    "J": ((("2L", "2X", "2S"), F_L2), (("5Q", "5X", "5I"), F_L5)),
+    "E": ((("5Q", "5X", "5I"), F_L5), (("7Q", "7X", "7I"), F_E5B)),
+    "C": ((("6I", "6X"), F_B3I), (("7I", "7X"), F_E5B)),
+    "R": ((("2C", "2P"), GLO_F1_BASE_HZ * GLO_F2_OVER_F1),),
+}
+#: Config setting of each system's own navigation file (``nav`` serves GPS and, mixed, the others;
+#: QZSS records always come from ``nav``).
+NAV_SETTINGS: dict[str, str] = {"G": "nav", "R": "nav_glo", "E": "nav_gal", "C": "nav_bds", "J": "nav"}
+_OBS_FIX = "pass a RINEX 3 or 2.1x observation file (.obs, .yyo, .rnx; also gzip or Hatanaka compressed)"
 _CUT_FIX = "re-export the log, or delete the incomplete epoch record at the end"
 _LINE_FIX = "make each epoch header's satellite count match its lines, or re-export the log"
 #: Epoch time tags closer than this are one epoch (RINEX 3 writes 0.1 us) [s].
@@ -85,9 +121,38 @@ _SAME_EPOCH_S = 1e-7
 _TAU_NOMINAL_S = 0.075
 
 
+def first_signals(system: str, version: float) -> tuple[str, ...]:
+    """RINEX codes (band + attribute) of the first-frequency signal of ``system``, in order of preference.
+
+    BeiDou B1I (1561.098 MHz) is band 1 in RINEX 3.02 (``C1I``) and band 2 in 3.01 and
+    3.03+ (``C2I``; from 3.04 band 1 is B1C at 1575.42 MHz, another signal). Galileo E1 is
+    written ``1C`` (pilot) or ``1X`` (data + pilot) by most receivers, ``1B`` (data) by some.
+
+    Parameters
+    ----------
+    system : str
+        System letter.
+    version : float
+        RINEX version of the observation file (``3.02``).
+    """
+    if system == "C":
+        return ("1I", "2I") if round(version, 2) == 3.02 else ("2I",)
+    if system == "E":
+        return ("1C", "1X", "1B")
+    return ("1C",)
+
+
+def second_frequency(system: str, code: str) -> float:
+    """Carrier frequency [Hz] of second-frequency signal ``code`` of ``system`` (:data:`SECOND_SIGNALS`).
+
+    GLONASS: of channel 0 (each satellite's own carrier is 7/9 of its L1 carrier); NaN for an unknown code.
+    """
+    return next((f for codes, f in SECOND_SIGNALS.get(system, ()) if code in codes), np.nan)
+
+
 @dataclass(frozen=True)
 class RinexObs:
-    """One signal per satellite from a RINEX 3 observation file, as flat rows.
+    """Two signals per satellite from a RINEX 3 observation file, as flat rows.
 
     Attributes
     ----------
@@ -100,19 +165,32 @@ class RinexObs:
     sat : np.ndarray of str, shape (N,)
         Satellite ids, RINEX system letter kept (``'G05'``).
     code, phase_cycles, doppler_hz, cn0_dbhz : np.ndarray, shape (N,)
-        Pseudorange [m], carrier phase [cycles], Doppler [Hz], C/N0 [dB-Hz]; NaN when blank.
+        First-frequency pseudorange [m], carrier phase [cycles], Doppler [Hz], C/N0 [dB-Hz]; NaN when blank.
     lli : np.ndarray of bool, shape (N,)
         Bit 0 of the phase observation's loss-of-lock digit.
-    code_l2, phase_l2_cycles : np.ndarray, shape (N,)
-        GPS L2 pseudorange [m] and carrier phase [cycles] (first of :data:`L2_SIGNALS` in the file);
-        NaN when blank, for other systems or when the file has no L2.
-    lli_l2 : np.ndarray of bool, shape (N,)
-        Bit 0 of the L2 phase's loss-of-lock digit.
     approx_position : np.ndarray, shape (3,)
         ``APPROX POSITION XYZ`` of the header (zeros when absent) [m].
     interval_s : float
         Nominal epoch interval (header ``INTERVAL`` or the median spacing) [s].
     path : str
+    code_l2, phase_l2_cycles : np.ndarray, shape (N,)
+        Second-frequency pseudorange [m] and carrier phase [cycles] of the satellite's one
+        second signal (``signal_l2``); NaN when blank or when the satellite has none.
+    lli_l2 : np.ndarray of bool, shape (N,)
+        Bit 0 of the second phase's loss-of-lock digit.
+    signal_l2 : np.ndarray of str, shape (N,)
+        RINEX code of each row's second signal (``'2W'``), ``''`` without one. One per
+        satellite for the whole log (constant biases): the candidate of
+        :data:`SECOND_SIGNALS` with the most code values, ties to the preferred one.
+    signals : dict of str -> str
+        First-frequency code used per system kept (``{'C': '1I'}``).
+    version : float
+        RINEX version of the file.
+    header_codes : dict of str -> list of str
+        Observation codes of the header per system (``SYS / # / OBS TYPES``).
+    system_notes : list of str
+        Why a requested system has no rows (one sentence each, e.g.
+        ``'no BeiDou rows with a known code (codes in the file: C1X L1X)'``).
     """
 
     epoch_t_int: np.ndarray
@@ -130,6 +208,11 @@ class RinexObs:
     code_l2: np.ndarray | None = None
     phase_l2_cycles: np.ndarray | None = None
     lli_l2: np.ndarray | None = None
+    signal_l2: np.ndarray | None = None
+    signals: dict[str, str] = field(default_factory=dict)
+    version: float = 3.0
+    header_codes: dict[str, list[str]] = field(default_factory=dict)
+    system_notes: list[str] = field(default_factory=list)
 
 
 def _obs_error(path: str, problem: str, fix: str = _OBS_FIX) -> SimbenchError:
@@ -141,16 +224,28 @@ def _float(text: str) -> float:
     return float(text) if text else np.nan
 
 
+def _codes_note(system: str, have: list[str]) -> str:
+    """Why ``system`` gives no rows: the file's header has none of its codes we know."""
+    name = SYSTEM_NAMES[system]
+    if not have:
+        return f"no {name} observations in the file"
+    return f"no {name} rows with a known code (codes in the file: {' '.join(have)})"
+
+
 def read_rinex_obs(path: str | os.PathLike[str], systems: str = "G") -> RinexObs:
-    """Read the signals of :data:`SIGNALS` from a RINEX 3 observation file.
+    """Read a first and a second signal per satellite of ``systems`` from a RINEX 3 observation file.
 
     Parameters
     ----------
     path : str or PathLike
-        RINEX 3.0x observation file, time system GPS: plain text with any line
-        ending, or gzip / Hatanaka compressed (:func:`~simbench.gnss.navigation.read_rinex_lines`).
+        RINEX 3.0x (or 2.1x, read as its RINEX 3 codes) observation file, time system GPS: plain
+        text with any line ending, or gzip / Hatanaka compressed
+        (:func:`~simbench.gnss.navigation.read_rinex_lines`).
     systems : str
-        System letters to keep; each needs an entry in :data:`SIGNALS`.
+        System letters to keep; each needs an entry in :data:`SIGNALS`. The first
+        signal of a system is the first of :func:`first_signals` that the header lists
+        (RINEX version aware); a system without one, or without code values, is left
+        out and said why in ``system_notes``.
 
     Returns
     -------
@@ -159,10 +254,10 @@ def read_rinex_obs(path: str | os.PathLike[str], systems: str = "G") -> RinexObs
     Raises
     ------
     SimbenchError
-        Missing file, not RINEX 3 observation data, a time system other than
-        GPS, no pseudorange observable for the requested systems, or no data;
-        a cut file (an epoch with fewer satellite lines than its header
-        announces, a line ending inside a number), a satellite count that does
+        Missing file, not RINEX 2/3 observation data, a time system other than
+        GPS, no pseudorange observable for any requested system (naming the codes
+        found), or no data; a cut file (an epoch with fewer satellite lines than its
+        header announces, a line ending inside a number), a satellite count that does
         not match the lines, epochs out of time order. The message names the line.
 
     Warns
@@ -184,9 +279,12 @@ def read_rinex_obs(path: str | os.PathLike[str], systems: str = "G") -> RinexObs
         raise _obs_error(p, "is empty")
     if "RINEX VERSION / TYPE" not in lines[0]:
         raise _obs_error(p, "has no RINEX header")
-    version, kind = lines[0][:9].strip(), lines[0][20:21]
-    if kind != "O" or not version.startswith("3"):
-        raise _obs_error(p, f"is RINEX {version} type '{kind}', not RINEX 3 observation data")
+    version_text, kind = lines[0][:9].strip(), lines[0][20:21]
+    if kind != "O" or not version_text.startswith(("2", "3")):
+        raise _obs_error(p, f"is RINEX {version_text} type '{kind}', not RINEX 2/3 observation data")
+    version = _float(version_text)
+    if version_text.startswith("2"):
+        lines = _rinex2_as_rinex3(p, lines)
 
     types: dict[str, list[str]] = {}
     approx = np.zeros(3)
@@ -214,33 +312,40 @@ def read_rinex_obs(path: str | os.PathLike[str], systems: str = "G") -> RinexObs
     if body is None:
         raise _obs_error(p, "has no END OF HEADER line")
 
-    # Column of each wanted observable per system (16 characters per field after the 3-char sat id).
-    cols: dict[str, tuple[int, int, int, int, int, int]] = {}
-    for s in systems:
-        band = SIGNALS[s][0]
+    # Column of each wanted observable per system (16 characters per field after the 3-char sat id):
+    # first signal C, L, D, S, then C and L of each second-signal candidate the header lists.
+    cols: dict[str, list[int]] = {}
+    second: dict[str, list[str]] = {}
+    signals: dict[str, str] = {}
+    notes: dict[str, str] = {}
+    for s in dict.fromkeys(systems):
         have = types.get(s, [])
-        if f"C{band}" not in have:
+        band = next((b for b in first_signals(s, version) if f"C{b}" in have), None)
+        if band is None:
+            notes[s] = _codes_note(s, have)
             continue
-        l2 = next((b for b in L2_SIGNALS if f"C{b}" in have), None) if s == "G" else None
-        cols[s] = tuple(
-            have.index(f"{o}{b}") if b is not None and f"{o}{b}" in have else -1  # type: ignore[assignment]
-            for o, b in (("C", band), ("L", band), ("D", band), ("S", band), ("C", l2), ("L", l2))
-        )
+        signals[s] = band
+        second[s] = [b for codes, _ in SECOND_SIGNALS.get(s, ()) for b in codes if f"C{b}" in have]
+        cols[s] = [have.index(f"{o}{band}") if f"{o}{band}" in have else -1 for o in "CLDS"]
+        cols[s] += [have.index(f"{o}{b}") if f"{o}{b}" in have else -1 for b in second[s] for o in "CL"]
     if not cols:
-        wanted = ", ".join(f"{s}: C{SIGNALS[s][0]}" for s in systems)
+        wanted = "; ".join(f"{SYSTEM_NAMES[s]}: C{' or C'.join(first_signals(s, version))}" for s in systems)
+        found = "; ".join(f"{s}: {' '.join(types[s])}" for s in dict.fromkeys(systems) if types.get(s)) or "none"
         raise _obs_error(
             p,
-            f"has no pseudorange observable for the requested systems ({wanted})",
+            f"has no pseudorange observable for the requested systems (RINEX {version_text}; known: {wanted}; "
+            f"codes in the file: {found})",
             "pass a file with code observations, or other scenario.systems",
         )
+    width = max(len(c) for c in cols.values())
 
     stamps: list[str] = []
     fracs: list[float] = []
     e_line: list[int] = []  #: 1-based line number of each epoch header
     r_epoch: list[int] = []
     r_sat: list[str] = []
-    r_num: list[list[float]] = []  #: code, phase, Doppler, C/N0, L2 code, L2 phase per row
-    r_lli: list[tuple[bool, bool]] = []  #: L1 and L2 loss-of-lock flags per row
+    r_num: list[list[float]] = []  #: first code, phase, Doppler, C/N0, then code, phase per second candidate
+    r_lli: list[list[bool]] = []  #: first and each second candidate's loss-of-lock flag per row
     i, n_lines = body, len(lines)
     while i < n_lines:  # text parsing: one Python step per line is unavoidable
         ln = lines[i]
@@ -292,13 +397,14 @@ def read_rinex_obs(path: str | os.PathLike[str], systems: str = "G") -> RinexObs
             if 0 < (len(ln) - 3) % 16 < 14:
                 raise _obs_error(p, f"line {row} ends inside an observation field (cut line)", _CUT_FIX)
             try:
-                r_num.append([_float(ln[3 + 16 * k : 17 + 16 * k]) if k >= 0 else np.nan for k in c])
+                nums = [_float(ln[3 + 16 * k : 17 + 16 * k]) if k >= 0 else np.nan for k in c]
             except ValueError:
                 raise _obs_error(p, f"line {row} has a malformed observation: '{ln[:40].strip()}'", _LINE_FIX) from None
-            l1, l2 = (ln[17 + 16 * j : 18 + 16 * j].strip() if j >= 0 else "" for j in (c[1], c[5]))
+            digits = (ln[17 + 16 * j : 18 + 16 * j].strip() if j >= 0 else "" for j in (c[1], *c[5::2]))
+            r_num.append(nums + [np.nan] * (width - len(c)))
+            r_lli.append([d.isdigit() and bool(int(d) & 1) for d in digits] + [False] * ((width - len(c)) // 2))
             r_epoch.append(e)
             r_sat.append(ln[:3].replace(" ", "0"))
-            r_lli.append((bool(int(l1) & 1) if l1.isdigit() else False, bool(int(l2) & 1) if l2.isdigit() else False))
         i += count
     if not r_epoch:
         raise _obs_error(p, f"contains no observations of systems '{systems}'")
@@ -313,10 +419,15 @@ def read_rinex_obs(path: str | os.PathLike[str], systems: str = "G") -> RinexObs
     vals = np.array(r_num, dtype=float)[rows]
     flags = np.array(r_lli, dtype=bool)[rows]
     code = vals[:, 0]
-    if not np.isfinite(code).any():
+    letters = np.array([x[:1] for x in sat.tolist()])
+    for s in list(signals):
+        if not np.isfinite(code[letters == s]).any():
+            notes[s] = f"no {SYSTEM_NAMES[s]} rows with a C{signals.pop(s)} pseudorange"
+    if not signals:
         raise _obs_error(
             p, "has no pseudorange values (all code fields are blank)", "pass a file with code observations"
         )
+    code_l2, phase_l2, lli_l2, signal_l2 = _second_signal(sat, vals, flags, second)
     if not np.isfinite(interval) or interval <= 0:
         d = np.diff(t_int) + np.diff(t_frac)
         interval = float(np.median(d)) if d.size else 1.0
@@ -333,10 +444,116 @@ def read_rinex_obs(path: str | os.PathLike[str], systems: str = "G") -> RinexObs
         approx_position=approx,
         interval_s=float(interval),
         path=p,
-        code_l2=vals[:, 4],
-        phase_l2_cycles=vals[:, 5],
-        lli_l2=flags[:, 1],
+        code_l2=code_l2,
+        phase_l2_cycles=phase_l2,
+        lli_l2=lli_l2,
+        signal_l2=signal_l2,
+        signals=signals,
+        version=version,
+        header_codes=types,
+        system_notes=[notes[s] for s in dict.fromkeys(systems) if s in notes],
     )
+
+
+def _rinex3_code(kind: str, system: str, types: list[str]) -> str:
+    """The RINEX 3 code of RINEX 2 observation type ``kind`` (``'P2'``) of ``system``, given the file's ``types``.
+
+    RINEX 2 names no tracking mode: ``C1`` is C/A (``1C``), ``P1``/``P2`` the P(Y) code (GPS ``W``,
+    GLONASS ``P``), GPS ``C2`` the civil L2C (``X``), GLONASS ``C2`` its C/A on G2 (``C``); phase,
+    Doppler and strength of band 2 take the mode of the band's code (P2 when the file has it).
+    Bands 5, 6, 7, 8 take ``X``; ``''`` for a type without a RINEX 3 code.
+    """
+    obs, band = kind[:1], kind[1:]
+    if obs not in "CLDSP" or not band.isdigit():
+        return ""
+    if band == "1":
+        mode = "W" if obs == "P" else "C"
+    elif band == "2":
+        p_code = "P" if system == "R" else "W"
+        mode = p_code if obs == "P" or (obs != "C" and "P2" in types) else ("C" if system == "R" else "X")
+    else:
+        mode = "X"
+    return f"{'C' if obs == 'P' else obs}{band}{mode}"
+
+
+def _rinex2_as_rinex3(path: str, lines: list[str]) -> list[str]:
+    """The lines of a RINEX 2.1x observation file rewritten in RINEX 3 layout (one shared reader).
+
+    The header's ``# / TYPES OF OBSERV`` becomes one ``SYS / # / OBS TYPES`` list per system
+    (:func:`_rinex3_code`), each epoch header a ``>`` line, each satellite's records of up to 5
+    fields per 80-column line one line after its id (blank system letter: GPS). Error
+    messages then count lines of this rewritten text.
+    """
+    end = next((i for i, ln in enumerate(lines) if ln[60:].strip() == "END OF HEADER"), None)
+    if end is None:
+        raise _obs_error(path, "has no END OF HEADER line")
+    kinds = [k for ln in lines[:end] if ln[60:].strip() == "# / TYPES OF OBSERV" for k in ln[6:60].split()]
+    if not kinds:
+        raise _obs_error(path, f"is RINEX {lines[0][:9].strip()} without a '# / TYPES OF OBSERV' header line")
+    header = [ln for ln in lines[:end] if ln[60:].strip() != "# / TYPES OF OBSERV"]
+    for system in SIGNALS:
+        codes = [_rinex3_code(k, system, kinds) or "X0X" for k in kinds]  # X0X: a column no signal reads
+        for k in range(0, len(codes), 13):
+            lead = f"{system}  {len(codes):3d}" if k == 0 else " " * 6
+            header.append(f"{lead + ''.join(f' {c}' for c in codes[k : k + 13]):60s}SYS / # / OBS TYPES")
+    out = [*header, lines[end]]
+    per_sat = -(-len(kinds) // 5)
+    i, n_lines = end + 1, len(lines)
+    while i < n_lines:  # text parsing: one Python step per line is unavoidable
+        ln = lines[i]
+        i += 1
+        if not ln.strip():
+            continue
+        try:
+            yy, flag, count = int(ln[1:3]), int(ln[28:29].strip() or 0), int(ln[29:32])
+            stamp = f"{yy + (1900 if yy >= 80 else 2000):04d}{ln[3:26]}"  # ' mm dd hh mi ss.sssssss' as RINEX 3
+        except ValueError:
+            raise _obs_error(path, f"has a malformed RINEX 2 epoch line {i}: '{ln[:32].strip()}'", _LINE_FIX) from None
+        out.append(f"> {stamp}  {flag:1d}{count:3d}")
+        if flag > 1:  # event records carry header lines, not observations
+            out += lines[i : i + count]
+            i += count
+            continue
+        chunks = [ln[32:68].ljust(36)]  # 12 satellite ids per line, continued on the next lines
+        while 12 * len(chunks) < count and i < n_lines:
+            chunks.append(lines[i][32:68].ljust(36))
+            i += 1
+        sats = "".join(chunks)
+        for k in range(count):
+            sat = sats[3 * k : 3 * k + 3]
+            rows = lines[i : i + per_sat]
+            i += per_sat
+            text = "".join(r.ljust(80) for r in rows[:-1]) + (rows[-1] if rows else "")
+            out.append((sat[0].strip() or "G") + sat[1:] + text)
+    return out
+
+
+def _second_signal(
+    sat: np.ndarray, vals: np.ndarray, flags: np.ndarray, second: dict[str, list[str]]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Each satellite's one second signal: code [m], phase [cycles], loss of lock and code per row.
+
+    ``vals`` holds per row the first signal's four numbers, then code and phase of each candidate
+    of ``second[system]``; ``flags`` the first and each candidate's loss-of-lock flag. A satellite
+    keeps the candidate with the most code values over the whole log (a change of signal would
+    change its inter-frequency bias), ties to the earlier (preferred) one.
+    """
+    n = sat.size
+    code_l2, phase_l2 = np.full(n, np.nan), np.full(n, np.nan)
+    lli_l2, signal_l2 = np.zeros(n, bool), np.full(n, "", dtype="<U2")
+    sat_ids, sat_of_row = np.unique(sat, return_inverse=True)
+    for j, name in enumerate(sat_ids.tolist()):
+        candidates = second.get(name[:1], [])
+        if not candidates:
+            continue
+        rows = np.flatnonzero(sat_of_row == j)
+        counts = np.isfinite(vals[np.ix_(rows, 4 + 2 * np.arange(len(candidates)))]).sum(axis=0)
+        if not counts.max():
+            continue
+        k = int(np.argmax(counts))
+        code_l2[rows], phase_l2[rows] = vals[rows, 4 + 2 * k], vals[rows, 5 + 2 * k]
+        lli_l2[rows], signal_l2[rows] = flags[rows, 1 + k], candidates[k]
+    return code_l2, phase_l2, lli_l2, signal_l2
 
 
 def _first_records(
@@ -396,41 +613,36 @@ def _first_records(
 
 
 Ephemeris = BroadcastEphemeris | GlonassEphemeris
-#: Navigation reader of each system but GPS, called with ``(path, setting=...)``.
+#: Navigation reader of each system but GPS, called with ``(paths, setting=..., span=...)``.
 _READERS: dict[str, Callable[..., Ephemeris]] = {
     "R": read_glonass_navigation,
     "E": read_galileo_navigation,
     "C": read_beidou_navigation,
+    "J": read_qzss_navigation,
 }
 
 
-def _load_ephemeris(nav_path: str, own_file: bool, obs: RinexObs, system: str) -> Ephemeris:
-    """Ephemeris of one system from ``nav_path``, checked to cover the whole observation span.
+def _load_ephemeris(paths: tuple[str, ...], own_files: bool, obs: RinexObs, system: str) -> Ephemeris:
+    """Ephemeris of one system from ``paths`` (records merged), checked to cover the whole observation span.
 
-    ``own_file`` says whether ``nav_path`` is the system's own setting or ``scenario.nav`` standing in for it.
+    ``own_files`` says whether ``paths`` are the system's own setting or ``scenario.nav`` standing in for it.
     """
     key = f"scenario.{NAV_SETTINGS[system]}"
-    if not nav_path:
+    if not paths:
         raise SimbenchError(
             key,
             f"no {SYSTEM_NAMES[system]} navigation file given",
             f"set {key} to a RINEX navigation file holding {SYSTEM_NAMES[system]} records, "
             "or scenario.nav to a mixed RINEX 3 navigation file",
         )
-    setting = key if own_file else f"scenario.nav (no {key} given)"
-    eph = read_gps_navigation(nav_path) if system == "G" else _READERS[system](nav_path, setting=setting)
-    t0 = float(obs.epoch_t_int[0]) + obs.epoch_t_frac[0]
-    t1 = float(obs.epoch_t_int[-1]) + obs.epoch_t_frac[-1]
-    lo, hi = eph.t_coverage
-    if t0 < lo or t1 > hi:
-        raise SimbenchError(
-            f"{setting} '{nav_path}'",
-            f"covers {format_gps_time(lo)} .. {format_gps_time(hi)} GPS with its "
-            f"{SYSTEM_NAMES[system]} records, the observations span {format_gps_time(t0)} .. "
-            f"{format_gps_time(t1)} GPS",
-            "pass the navigation file of the observation day",
-        )
-    return eph
+    setting = key if own_files else f"scenario.nav (no {key} given)"
+    span = (
+        float(obs.epoch_t_int[0]) + obs.epoch_t_frac[0],
+        float(obs.epoch_t_int[-1]) + obs.epoch_t_frac[-1],
+    )
+    if system == "G":
+        return read_gps_navigation(paths, span=span, setting=setting)
+    return _READERS[system](paths, setting=setting, span=span)
 
 
 def satellite_states(obs: RinexObs, ephs: dict[str, Ephemeris]) -> dict[str, np.ndarray]:
@@ -464,79 +676,113 @@ def satellite_states(obs: RinexObs, ephs: dict[str, Ephemeris]) -> dict[str, np.
 
 def load_rinex(
     obs_path: str | os.PathLike[str],
-    nav_path: str | os.PathLike[str],
+    nav_path: NavPaths,
     truth_path: str | os.PathLike[str] | None = None,
     *,
     systems: str = "G",
-    nav_bds_path: str | os.PathLike[str] | None = None,
-    nav_glo_path: str | os.PathLike[str] | None = None,
-    nav_gal_path: str | os.PathLike[str] | None = None,
-    name: str = "rinex",
+    nav_bds_path: NavPaths | None = None,
+    nav_glo_path: NavPaths | None = None,
+    nav_gal_path: NavPaths | None = None,
+    name: str = "",
     truth_max_gap_s: float = 2.0,
 ) -> Scenario:
-    """Ingest a RINEX 3 observation file, its navigation file and a reference trajectory.
+    """Ingest a RINEX 3 observation file, its navigation files and a reference trajectory or point.
 
     Parameters
     ----------
     obs_path : str or PathLike
         RINEX 3 observation file.
-    nav_path : str or PathLike
-        RINEX 2/3 GPS navigation file covering the observation span, or a mixed
-        RINEX 3 file that also serves the systems without a file of their own.
+    nav_path : str, PathLike or sequence of them
+        RINEX 2/3 GPS navigation file(s) covering the observation span, or mixed
+        RINEX 3 files that also serve the systems without files of their own (QZSS
+        always comes from here); several files have their records merged.
     truth_path : str or PathLike, optional
-        Reference trajectory (``week,TOW,lat,lon,h`` CSV or ``SOW X Y Z``); see
+        Reference trajectory (``week,TOW,lat,lon,h`` CSV or ``SOW X Y Z``) or a static
+        antenna's one point (``lat,lon,h`` or ``x,y,z``, or a file of it); see
         :func:`simbench.data.reference.read_reference`. Without it the truth
         table is empty (nothing can be scored).
     systems : str
-        Systems to ingest, letters of ``'GREC'`` (GPS, GLONASS, Galileo, BeiDou).
-    nav_bds_path, nav_glo_path, nav_gal_path : str or PathLike, optional
-        RINEX 3 BeiDou, GLONASS, Galileo navigation files; when one is not
+        Systems to ingest, letters of ``'GRECJ'`` (GPS, GLONASS, Galileo, BeiDou, QZSS).
+        A system without usable rows is left out with a warning
+        (:class:`~simbench.errors.SimbenchWarning`) and a line in ``meta['system_notes']``.
+    nav_bds_path, nav_glo_path, nav_gal_path : str, PathLike or sequence of them, optional
+        RINEX 3 BeiDou, GLONASS, Galileo navigation files; when not
         given, the records of that system come from ``nav_path``.
     name : str
-        Scenario name for the result tables.
+        Scenario name for the result tables; ``''``: the observation file's stem.
     truth_max_gap_s : float
         Reference samples further apart than this are not interpolated [s].
 
     Returns
     -------
     Scenario
-        Observations in the simulator's columns, ``truth`` with one row per
-        epoch that the reference covers (epochs on the nominal grid of the
-        log's interval), ``labels=None`` and an empty IMU table.
+        Observations in the simulator's columns (the second frequency, where a
+        satellite has one, in ``code_l2``/``phase_l2``/``lli_l2`` with its ``f1_f2_ratio``),
+        ``truth`` with one row per epoch that the reference covers (epochs on the
+        nominal grid of the log's interval), ``labels=None`` and an empty IMU table.
+
+    Raises
+    ------
+    SimbenchError
+        Unreadable files, navigation records that leave part of the observation span
+        uncovered, a reference far from the log's own fixes (> 100 km), and the
+        errors of :func:`read_rinex_obs`.
     """
     obs = read_rinex_obs(obs_path, systems)
     own = {
-        "G": os.fspath(nav_path or ""),
-        "C": os.fspath(nav_bds_path or ""),
-        "R": os.fspath(nav_glo_path or ""),
-        "E": os.fspath(nav_gal_path or ""),
+        "G": nav_paths(nav_path),
+        "C": nav_paths(nav_bds_path),
+        "R": nav_paths(nav_glo_path),
+        "E": nav_paths(nav_gal_path),
+        "J": (),
     }
-    # the navigation file actually read for each system
+    # the navigation files actually read for each system
     paths = {s: own[s] or own["G"] for s in own}
-    ephs = {s: _load_ephemeris(paths[s], bool(own[s]), obs, s) for s in systems}
+    used = [s for s in dict.fromkeys(systems) if s in obs.signals]
+    ephs = {s: _load_ephemeris(paths[s], bool(own[s]), obs, s) for s in used}
     st = satellite_states(obs, ephs)
     keep = np.isfinite(st["x"])
     n_dropped = int((~keep).sum())
+    all_letters = np.array([s[:1] for s in obs.sat.tolist()])
+    notes = list(obs.system_notes)
+    for s in list(used):
+        if not keep[all_letters == s].any():
+            used.remove(s)
+            notes.append(f"no {SYSTEM_NAMES[s]} row has a broadcast ephemeris in {list(paths[s])}")
+    if not used:
+        raise SimbenchError(
+            f"scenario.obs '{obs.path}'",
+            f"no row of systems '{systems}' can be used: " + "; ".join(notes),
+            "pass the navigation files of the observation day, or other scenario.systems",
+        )
+    asked, used_text = "".join(dict.fromkeys(systems)), "".join(used)
+    notes = [f"asked {asked}, used {used_text}: {note}" for note in notes]
+    for note in notes:
+        warn("scenario.systems", note, "the run goes on without that system")
 
     t_rel_epoch = (obs.epoch_t_int - obs.epoch_t_int[0]) + (obs.epoch_t_frac - obs.epoch_t_frac[0])
     grid = epoch_grid_of(t_rel_epoch, obs.interval_s)
     re = obs.row_epoch[keep]
     sat_pos = np.stack([st[k][keep] for k in "xyz"], axis=1)
     corrected = obs.code[keep] + st["clock"][keep]
-    letters = np.array([s[:1] for s in obs.sat[keep].tolist()])
-    system_index = np.searchsorted(np.array(sorted(set(systems))), letters)
+    letters = all_letters[keep]
+    system_index = np.searchsorted(np.array(sorted(used)), letters)
     x0 = obs.approx_position if obs.approx_position is not None and np.any(obs.approx_position) else None
     rough = rough_fix(re, sat_pos, corrected, n_epochs=obs.epoch_t_int.size, system_index=system_index, x0=x0)
     no_l2 = np.full(obs.sat.size, np.nan)
-    code_l2 = obs.code_l2 if obs.code_l2 is not None else no_l2
-    phase_l2 = obs.phase_l2_cycles if obs.phase_l2_cycles is not None else no_l2
-    lli_l2 = obs.lli_l2 if obs.lli_l2 is not None else np.zeros(obs.sat.size, bool)
-    freq = np.array([SIGNALS[s[0]][1] for s in obs.sat[keep].tolist()])
+    code_l2 = (obs.code_l2 if obs.code_l2 is not None else no_l2)[keep]
+    phase_l2 = (obs.phase_l2_cycles if obs.phase_l2_cycles is not None else no_l2)[keep]
+    lli_l2 = obs.lli_l2[keep] if obs.lli_l2 is not None else np.zeros(letters.size, bool)
+    signal_l2 = obs.signal_l2[keep] if obs.signal_l2 is not None else np.full(letters.size, "")
+    freq = np.array([SIGNALS[s][1] for s in letters.tolist()])
     glo = ephs.get("R")
+    is_r = letters == "R"
     if isinstance(glo, GlonassEphemeris):  # FDMA: each satellite's own L1 carrier
-        is_r = letters == "R"
         channel = dict(zip(glo.sats.tolist(), glo.freq_number.tolist()))
         freq[is_r] = glonass_l1_frequency(np.array([channel[s] for s in obs.sat[keep][is_r].tolist()]))
+    freq2 = np.array([second_frequency(s, c) for s, c in zip(letters.tolist(), signal_l2.tolist())])
+    freq2[is_r] = np.where(signal_l2[is_r] != "", freq[is_r] * GLO_F2_OVER_F1, np.nan)
+    has_l2 = np.isfinite(code_l2) & np.isfinite(freq2)
     observations = observation_table(
         {
             "epoch": grid.index[re],
@@ -547,10 +793,10 @@ def load_rinex(
             "doppler_l1": obs.doppler_hz[keep],
             "cn0_l1": obs.cn0_dbhz[keep],
             "lli_l1": obs.lli[keep],
-            "code_l2": code_l2[keep],
-            "phase_l2": phase_l2[keep] * LAMBDA_L2,
-            "lli_l2": lli_l2[keep],
-            "f1_f2_ratio": np.where(np.isfinite(code_l2[keep]), F_L1 / F_L2, np.nan),
+            "code_l2": np.where(has_l2, code_l2, np.nan),
+            "phase_l2": np.where(has_l2, phase_l2 * (C_LIGHT / freq2), np.nan),
+            "lli_l2": lli_l2 & has_l2,
+            "f1_f2_ratio": np.where(has_l2, freq / freq2, np.nan),
             "sat_x": sat_pos[:, 0],
             "sat_y": sat_pos[:, 1],
             "sat_z": sat_pos[:, 2],
@@ -579,31 +825,38 @@ def load_rinex(
         start_sow_s=t0_gps - week * SECONDS_PER_WEEK,
         iono_alpha=tuple(map(float, alpha)),
         iono_beta=tuple(map(float, beta)),
-        dual_frequency=bool(np.isfinite(code_l2[keep]).any()),
+        dual_frequency=bool(has_l2.any()),
     )
+    second_used = {s: sorted(set(signal_l2[(letters == s) & has_l2].tolist())) for s in used}
     meta = {
-        "name": name,
+        "name": name or Path(obs_path).stem,
         "seed": 0,
         "source": "rinex",
         "files": {
             "obs": str(Path(obs_path)),
-            "nav": paths["G"],
-            "nav_bds": paths["C"],
-            "nav_glo": paths["R"],
-            "nav_gal": paths["E"],
+            "nav": ", ".join(paths["G"]),
+            "nav_bds": ", ".join(paths["C"]),
+            "nav_glo": ", ".join(paths["R"]),
+            "nav_gal": ", ".join(paths["E"]),
             "truth": str(truth_path or ""),
         },
-        "systems": systems,
-        "signals": {s: SIGNALS[s][0] for s in systems},
+        "rinex_version": obs.version,
+        "systems": used_text,
+        "systems_asked": asked,
+        "systems_used": used_text,
+        "system_notes": notes,
+        "signals": {s: obs.signals[s] for s in used},
+        "second_signals": {s: codes for s, codes in second_used.items() if codes},
         "rows_without_ephemeris_or_code": n_dropped,
         "epochs_with_truth": len(truth),
         "epochs": grid.n,
+        "static_truth": bool(ref is not None and ref.static),
         "corrections": "raw observables; Klobuchar (NavInfo) and Saastamoinen applied by the estimator model",
     }
     # absolute paths: tools run in their own working directory, and a cached scenario outlives the cwd
     rinex = RinexFiles(
         obs=os.path.abspath(obs_path),
-        nav=tuple(dict.fromkeys(os.path.abspath(paths[s]) for s in systems if paths.get(s))),
-        systems=systems,
+        nav=tuple(dict.fromkeys(os.path.abspath(f) for s in used for f in paths[s])),
+        systems=used_text,
     )
     return log_scenario(observations, truth, nav, meta, rinex=rinex)

@@ -1,40 +1,52 @@
 """Real logs as scenario sources: ``scenario.source=rinex`` and ``librsf``.
 
 Each has its own ``Config`` (the typed ``scenario`` node of
-``conf/scenario/rinex.yaml`` and ``librsf.yaml``) and checks the files it needs
-before any is read: the observation file, for RINEX the reference trajectory and
-a navigation file for every system of ``systems``.
+``conf/scenario/rinex.yaml`` and ``librsf.yaml``; named logs such as
+``hk_tst_2019.yaml`` are presets of the same node) and checks the files it needs
+before any is read: the observation file, for RINEX the navigation files, the
+reference trajectory (or point), and navigation data for every system of ``systems``.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 from simbench.contract import Scenario
 from simbench.data.librsf import load_librsf
 from simbench.data.rinex import NAV_SETTINGS, load_rinex
 from simbench.errors import SimbenchError
-from simbench.gnss.navigation import SYSTEM_NAMES, read_rinex_lines
+from simbench.gnss.navigation import SYSTEM_NAMES, nav_header_system, nav_paths
 from simbench.source import DataConfig, Source, SourceConfig, scenario_config
 
-__all__ = ["RinexConfig", "LibrsfConfig", "RinexSource", "LibrsfSource", "nav_header_system"]
+__all__ = ["RinexConfig", "LibrsfConfig", "RinexSource", "LibrsfSource"]
 
 
 @dataclass
 class RinexConfig(SourceConfig):
-    """A RINEX 3 log with broadcast ephemeris and a reference trajectory (:func:`simbench.data.rinex.load_rinex`)."""
+    """A RINEX 3 log with broadcast ephemeris and a reference trajectory (:func:`simbench.data.rinex.load_rinex`).
 
-    name: str = "rinex"
+    Each navigation setting takes one file or a list of files (``scenario.nav=[a.20n,b.20n]``,
+    a YAML list), mixed or per system; their records are merged (typed ``Any``: OmegaConf
+    has no ``str | list[str]``; :func:`~simbench.gnss.navigation.nav_paths` reads both).
+    """
+
+    #: the scenario's name in result tables; '' names it after the observation file (its stem)
+    name: str = ""
     source: str = "rinex"
     obs: str = ""  #: RINEX 3 observation file
-    #: RINEX GPS navigation file covering the observations, or a mixed RINEX 3
-    #: file (type M) that also serves the systems below without a file of their own
-    nav: str = ""
-    nav_bds: str = ""  #: RINEX 3 BeiDou navigation file (when ``systems`` has C)
-    nav_glo: str = ""  #: RINEX 3 GLONASS navigation file (when ``systems`` has R)
-    nav_gal: str = ""  #: RINEX 3 Galileo navigation file (when ``systems`` has E)
-    truth: str = ""  #: reference trajectory: 'week,TOW,lat,lon,h' CSV or 'SOW X Y Z' (GPS time)
-    #: systems to ingest, letters of GREC: G (GPS L1 C/A), R (GLONASS L1 C/A), E (Galileo E1), C (BeiDou B1I)
+    #: RINEX GPS navigation file(s) covering the observations, or mixed RINEX 3
+    #: file(s) (type M) that also serve the systems below without files of their own, and QZSS
+    nav: Any = ""
+    nav_bds: Any = ""  #: RINEX 3 BeiDou navigation file(s) (when ``systems`` has C)
+    nav_glo: Any = ""  #: RINEX 3 GLONASS navigation file(s) (when ``systems`` has R)
+    nav_gal: Any = ""  #: RINEX 3 Galileo navigation file(s) (when ``systems`` has E)
+    #: reference: a trajectory ('week,TOW,lat,lon,h' CSV or 'SOW X Y Z', GPS time), or a static
+    #: antenna's one point 'lat,lon,h' (deg, deg, ellipsoidal m) or 'x,y,z' (ECEF m), or a file of that point
+    truth: str = ""
+    #: systems to ingest, letters of GRECJ: G (GPS L1 C/A), R (GLONASS L1 C/A), E (Galileo E1),
+    #: C (BeiDou B1I: C1I in RINEX 3.02, C2I in 3.03+), J (QZSS L1 C/A, GPS-like navigation from ``nav``);
+    #: each with its second frequency where the file has one (:data:`simbench.data.rinex.SECOND_SIGNALS`)
     systems: str = "G"
     truth_max_gap_s: float = 2.0  #: reference samples further apart are not interpolated [s]
 
@@ -62,7 +74,7 @@ class RinexSource(Source):
     def check(self, cfg: DataConfig) -> None:
         s = scenario_config(cfg, RinexConfig)
         super().check(cfg)
-        require_files(s, ("obs", "truth"))
+        require_files(s, ("obs", "nav", "truth"))
         check_systems(s)
 
     def load(self, cfg: DataConfig) -> Scenario:
@@ -103,50 +115,45 @@ class LibrsfSource(Source):
         )
 
 
+#: An example value of each file setting, for the error that asks for it.
+_EXAMPLES = {"obs": "a.obs", "nav": "a.20n (or [a.20n,b.20n])", "truth": "ref.csv (or lat,lon,h)"}
+
+
 def require_files(s: SourceConfig, keys: tuple[str, ...]) -> None:
-    """Raise a one-line error for each of ``keys`` (file settings of ``s``) left empty."""
-    for key in keys:
-        if not getattr(s, key):
-            raise SimbenchError(
-                f"scenario.{key}",
-                f"no file given for a {s.source} scenario",
-                f"set it on the command line, e.g. scenario.{key}=path/to/file",
-            )
-
-
-def nav_header_system(path: str) -> str:
-    """System letter of a RINEX navigation file's header ('M' mixed, 'G', 'R', ...), '' if unreadable.
-
-    The file may be compressed (:func:`~simbench.gnss.navigation.read_rinex_lines`); an unreadable one
-    is left to the navigation reader, whose error names the problem.
-    """
-    try:
-        lines = read_rinex_lines(path, f"scenario.nav '{path}'", "pass a RINEX navigation file")
-    except (OSError, SimbenchError):
-        return ""
-    first = lines[0] if lines else ""
-    if first[:9].strip().startswith("3") and first[20:21] == "N":
-        return first[40:41]
-    return {"N": "G", "G": "R"}.get(first[20:21], "")  # RINEX 2: N is GPS, G is GLONASS
+    """Raise a one-line error naming the first of ``keys`` (file settings of ``s``) left empty, with an example
+    command that sets every missing one."""
+    missing = [key for key in keys if not getattr(s, key)]
+    if missing:
+        example = " ".join(f"scenario.{k}={_EXAMPLES.get(k, 'path/to/file').split(' ')[0]}" for k in missing)
+        raise SimbenchError(
+            f"scenario.{missing[0]}",
+            f"no file given for a {s.source} scenario (missing: {', '.join(missing)})",
+            f"set it on the command line, e.g. python -m simbench scenario={s.source} {example}",
+        )
 
 
 def check_systems(s: RinexConfig) -> None:
-    """Known system letters, and navigation data named for each: its own file or a mixed ``nav``."""
+    """Known system letters, and navigation data named for each: its own files or a mixed ``nav``."""
     letters = "".join(NAV_SETTINGS)
     unknown = sorted(set(s.systems) - set(letters))
     if unknown or not s.systems:
         raise SimbenchError(
             "scenario.systems",
             f"'{s.systems}' has " + (f"unknown letters {''.join(unknown)}" if unknown else "no letters"),
-            f"use letters of {letters} (GPS, GLONASS, Galileo, BeiDou), e.g. scenario.systems=GE",
+            f"use letters of {letters} (GPS, GLONASS, Galileo, BeiDou, QZSS), e.g. scenario.systems=GE",
         )
-    nav_kind = nav_header_system(s.nav) if s.nav else ""
+    nav_kinds = {nav_header_system(p) for p in nav_paths(s.nav)}
     for letter in dict.fromkeys(s.systems):
         key = NAV_SETTINGS[letter]
-        if getattr(s, key) or (letter != "G" and nav_kind in ("M", letter)):
+        # GPS reads scenario.nav itself; the others their own files, else a mixed (or their own) nav file
+        served = bool(nav_paths(s.nav)) if letter == "G" else bool(nav_kinds & {"M", letter})
+        if served or (key != "nav" and nav_paths(getattr(s, key))):
             continue
         raise SimbenchError(
             f"scenario.{key}",
             f"no {SYSTEM_NAMES[letter]} navigation file for scenario.systems='{s.systems}'",
-            f"set scenario.{key}=path/to/file" + ("" if letter == "G" else ", or scenario.nav to a mixed RINEX 3 file"),
+            {
+                "G": "set scenario.nav=path/to/file",
+                "J": "add a QZSS or mixed RINEX 3 file to scenario.nav, e.g. scenario.nav=[a.20n,a.20q]",
+            }.get(letter, f"set scenario.{key}=path/to/file, or scenario.nav to a mixed RINEX 3 file"),
         )

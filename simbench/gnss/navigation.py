@@ -17,6 +17,7 @@ from __future__ import annotations
 import io
 import os
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import hatanaka
@@ -24,19 +25,33 @@ import lazy_loader
 import numpy as np
 
 from simbench.core.constants import SECONDS_PER_WEEK
-from simbench.core.gpstime import datetime64_to_gps
+from simbench.core.gpstime import datetime64_to_gps, format_gps_time
 from simbench.core.orbits import FIT_HALF_WINDOW_S, BroadcastEphemeris
 from simbench.errors import SimbenchError
 
 # xarray and georinex cost ~1 s to import: loaded on first use
 georinex = lazy_loader.load("georinex")
 
-__all__ = ["read_gps_navigation", "read_rinex3_records", "read_rinex_lines", "NavRecords", "SYSTEM_NAMES"]
+__all__ = [
+    "read_gps_navigation",
+    "read_rinex3_records",
+    "read_rinex_lines",
+    "NavRecords",
+    "NavPaths",
+    "SYSTEM_NAMES",
+    "nav_paths",
+    "nav_header_system",
+    "files_field",
+    "check_coverage",
+    "unique_rows",
+]
 
 #: Leading bytes of gzip, Unix compress, bzip2 and zip files.
 _PACKED = (b"\x1f\x8b", b"\x1f\x9d", b"BZh", b"PK\x03\x04")
 #: RINEX system letter -> name used in messages.
-SYSTEM_NAMES = {"G": "GPS", "R": "GLONASS", "E": "Galileo", "C": "BeiDou"}
+SYSTEM_NAMES = {"G": "GPS", "R": "GLONASS", "E": "Galileo", "C": "BeiDou", "J": "QZSS"}
+#: One navigation file or several (records merged): what ``scenario.nav`` and the per-system settings hold.
+NavPaths = str | os.PathLike[str] | Sequence[str | os.PathLike[str]]
 
 #: georinex variable of each record quantity that :class:`BroadcastEphemeris` takes.
 _RECORD_SOURCE = {
@@ -71,29 +86,101 @@ def _nav_error(path: str, problem: str) -> SimbenchError:
     return SimbenchError(f"nav_file '{path}'", problem, _NAV_FIX)
 
 
-def read_gps_navigation(path: str | os.PathLike[str], max_age_s: float = FIT_HALF_WINDOW_S) -> BroadcastEphemeris:
-    """Read GPS ephemerides from a RINEX 2 or 3 navigation file (via georinex).
+def nav_paths(value: NavPaths | None) -> tuple[str, ...]:
+    """The navigation files of a setting: one path or a list of paths, empty entries dropped, in order."""
+    if value is None:
+        return ()
+    items = [value] if isinstance(value, (str, os.PathLike)) else list(value)
+    return tuple(dict.fromkeys(os.fspath(v) for v in items if os.fspath(v)))
+
+
+def files_field(setting: str, paths: Sequence[str]) -> str:
+    """The field of an error about ``setting``'s files: ``"scenario.nav 'a.19n'"`` or ``"scenario.nav ['a', 'b']"``."""
+    return f"{setting} '{paths[0]}'" if len(paths) == 1 else f"{setting} {list(paths)}"
+
+
+def nav_header_system(path: str) -> str:
+    """System letter of a RINEX navigation file's header ('M' mixed, 'G', 'R', ...), '' if unreadable.
+
+    The file may be compressed (:func:`read_rinex_lines`); an unreadable one is left to the
+    navigation reader, whose error names the problem.
+    """
+    try:
+        lines = read_rinex_lines(path, f"nav_file '{path}'", "pass a RINEX navigation file")
+    except (OSError, SimbenchError):
+        return ""
+    first = lines[0] if lines else ""
+    if first[:9].strip().startswith("3") and first[20:21] == "N":
+        return first[40:41]
+    return {"N": "G", "G": "R"}.get(first[20:21], "")  # RINEX 2: N is GPS, G is GLONASS
+
+
+def _serves(path: str, system: str) -> bool:
+    """Whether file ``path`` may hold records of ``system``: mixed, that system's own, or of unknown kind."""
+    return nav_header_system(path) in ("", "M", system)
+
+
+def unique_rows(matrix: np.ndarray) -> np.ndarray:
+    """Indices of the first occurrence of each distinct row of ``matrix`` (NaN equal to NaN), increasing.
+
+    Merging navigation files: a record broadcast in two files is kept once.
+    """
+    keys = [row.tobytes() for row in np.ascontiguousarray(matrix, dtype=float)]
+    first: dict[bytes, int] = {}
+    for k, key in enumerate(keys):
+        first.setdefault(key, k)
+    return np.array(sorted(first.values()), dtype=np.intp)
+
+
+def check_coverage(
+    record_t: np.ndarray, max_age_s: float, span: tuple[float, float] | None, field: str, system: str
+) -> None:
+    """Raise a one-line error when records valid ``max_age_s`` around ``record_t`` leave part of ``span`` uncovered.
 
     Parameters
     ----------
-    path : str or PathLike
-        RINEX navigation file (``.yyn``, ``.rnx``; compressed and any line
-        ending allowed, :func:`read_rinex_lines`). Only GPS
-        records are kept; unhealthy or incomplete records are dropped.
+    record_t : np.ndarray, shape (R,)
+        Reference time (Toe, tb) of each usable record of one system, continuous GPS seconds [s].
     max_age_s : float
-        Largest |t - Toe| at which a record may be used [s]; default 7200.
-
-    Returns
-    -------
-    BroadcastEphemeris
-        With the Klobuchar coefficients of the header when it has them.
+        A record serves |t - record_t| <= ``max_age_s`` [s].
+    span : tuple of float or None
+        First and last observation epoch [s, continuous GPS]; None checks nothing.
+    field : str
+        The setting and its files (:func:`files_field`).
+    system : str
+        System letter, for the message.
 
     Raises
     ------
     SimbenchError
-        Missing file, not a navigation file, or no healthy GPS record.
+        Naming the first uncovered stretch of the span in GPS time.
     """
-    p = os.fspath(path)
+    if span is None:
+        return
+    t0, t1 = span
+    t = np.sort(np.asarray(record_t, dtype=float))
+    starts, stops = t - max_age_s, t + max_age_s
+    covered_to = t0
+    for a, b in zip(starts, stops):  # sweep over the union of the (equally long) validity windows
+        if a > covered_to:
+            break
+        covered_to = max(covered_to, b)
+    if covered_to >= t1:
+        return
+    resume = starts[starts > covered_to]
+    gap_end = min(t1, float(resume[0])) if resume.size else t1
+    raise SimbenchError(
+        field,
+        f"covers {format_gps_time(float(starts[0]))} .. {format_gps_time(float(stops[-1]))} GPS with its "
+        f"{SYSTEM_NAMES.get(system, system)} records, leaving {format_gps_time(covered_to)} .. "
+        f"{format_gps_time(gap_end)} GPS of the observations ({format_gps_time(t0)} .. {format_gps_time(t1)} GPS) "
+        "uncovered",
+        "add the navigation file(s) of that time, e.g. scenario.nav=[a.rnx,b.rnx]",
+    )
+
+
+def _gps_records(p: str) -> tuple[dict[str, np.ndarray] | None, np.ndarray | None]:
+    """The healthy complete GPS records of one file as flat arrays (None when it has none), and its Klobuchar."""
     if not os.path.isfile(p):
         raise _nav_error(p, "file does not exist")
     # georinex reads the unpacked, line-ending-normalized text: it misreads CR CR LF files
@@ -117,10 +204,10 @@ def read_gps_navigation(path: str | os.PathLike[str], max_age_s: float = FIT_HAL
         msg = msg if len(msg) <= 60 else msg[:57] + "..."
         raise _nav_error(p, f"cannot be parsed as RINEX navigation data (georinex: {msg})") from None
     if "sv" not in ds.coords or not all(k in ds for k in _NAV_FIELDS):
-        raise _nav_error(p, "contains no GPS ephemerides (e.g. GLONASS/BeiDou-only file)")
+        return None, None
     is_gps = np.char.startswith(ds.sv.values.astype(str), "G")
     if not is_gps.any():
-        raise _nav_error(p, "contains no GPS ephemerides")
+        return None, None
     ds = ds.isel(sv=np.flatnonzero(is_gps))
 
     # (time, sv) grid -> flat record list; georinex leaves NaN where a sat has no record.
@@ -130,21 +217,77 @@ def read_gps_navigation(path: str | os.PathLike[str], max_age_s: float = FIT_HAL
     sv_all = np.tile(ds.sv.values.astype(str), n_t)
     complete = np.all(np.isfinite(np.stack(list(v.values()))), axis=0)
     keep = complete & (v["health"] == 0) & (v["sqrtA"] > 1000.0)
-    if not keep.any():
-        raise _nav_error(p, "has no complete healthy GPS ephemeris record")
     toe = v["GPSWeek"][keep] * SECONDS_PER_WEEK + v["Toe"][keep]
     toc = toc[keep]
     # GPSWeek belongs to Toe, but some writers use Toc's week; Toe and Toc are
     # within hours of each other, so fix a one-week mismatch from Toc.
     toe += SECONDS_PER_WEEK * np.round((toc - toe) / SECONDS_PER_WEEK)
-    sats, sat_idx = np.unique(sv_all[keep], return_inverse=True)
     records = {k: v[src][keep] for k, src in _RECORD_SOURCE.items()}
-    records.update(sat=sat_idx, toe=toe, toc=toc)
+    records.update(sv=sv_all[keep], toe=toe, toc=toc)
     iono = ds.attrs.get("ionospheric_corr_GPS")
-    alpha = beta = None
+    klobuchar = None
     if iono is not None and np.size(iono) == 8 and np.all(np.isfinite(iono)):
-        alpha, beta = np.asarray(iono[:4], float), np.asarray(iono[4:], float)
-    return BroadcastEphemeris(sats, records, alpha, beta, source=os.path.basename(p), max_age_s=max_age_s)
+        klobuchar = np.asarray(iono, float)
+    return records, klobuchar
+
+
+def read_gps_navigation(
+    path: NavPaths,
+    max_age_s: float = FIT_HALF_WINDOW_S,
+    *,
+    span: tuple[float, float] | None = None,
+    setting: str = "nav_file",
+) -> BroadcastEphemeris:
+    """Read GPS ephemerides from RINEX 2 or 3 navigation files (via georinex), records merged.
+
+    Parameters
+    ----------
+    path : str, PathLike or sequence of them
+        RINEX navigation file(s) (``.yyn``, ``.rnx``; compressed and any line
+        ending allowed, :func:`read_rinex_lines`). Only GPS records are kept;
+        unhealthy or incomplete records are dropped, and a record found in several
+        files is kept once; files whose header names another system are skipped.
+    max_age_s : float
+        Largest |t - Toe| at which a record may be used [s]; default 7200.
+    span : tuple of float, optional
+        First and last observation epoch [s, continuous GPS]: every instant of it
+        must have a record within ``max_age_s`` (:func:`check_coverage`).
+    setting : str
+        Config setting that named the files, for error messages.
+
+    Returns
+    -------
+    BroadcastEphemeris
+        With the Klobuchar coefficients of the first header that has them.
+
+    Raises
+    ------
+    SimbenchError
+        Missing file, not a navigation file, no healthy GPS record, or records
+        that leave part of ``span`` uncovered.
+    """
+    paths = nav_paths(path)
+    if not paths:
+        raise SimbenchError(setting, "no navigation file given", _NAV_FIX)
+    single = len(paths) == 1
+    found = [_gps_records(p) for p in paths if single or _serves(p, "G")]
+    parts = [r for r, _ in found if r is not None]
+    field = files_field(setting, paths)
+    if not parts:
+        raise SimbenchError(field, "contains no GPS ephemerides (e.g. GLONASS/BeiDou-only file)", _NAV_FIX)
+    merged = {k: np.concatenate([r[k] for r in parts]) for k in parts[0]}
+    if not merged["sv"].size:
+        raise SimbenchError(field, "has no complete healthy GPS ephemeris record", _NAV_FIX)
+    sats, sat_idx = np.unique(merged.pop("sv"), return_inverse=True)
+    numbers = np.column_stack([sat_idx, *merged.values()])
+    rows = unique_rows(numbers)
+    records = {k: x[rows] for k, x in merged.items()}
+    records["sat"] = sat_idx[rows]
+    check_coverage(records["toe"], max_age_s, span, field, "G")
+    klobuchar = next((k for _, k in found if k is not None), None)
+    alpha, beta = (klobuchar[:4], klobuchar[4:]) if klobuchar is not None else (None, None)
+    source = ", ".join(os.path.basename(p) for p in paths)
+    return BroadcastEphemeris(sats, records, alpha, beta, source=source, max_age_s=max_age_s)
 
 
 @dataclass(frozen=True)
@@ -218,21 +361,22 @@ def read_rinex_lines(path: str, field: str, fix: str) -> list[str]:
     return lines
 
 
-def read_rinex3_records(path: str | os.PathLike[str], system: str, setting: str, fix: str) -> NavRecords:
-    """Read the records of one system from a RINEX 3 navigation file (single-system or mixed).
+def read_rinex3_records(path: NavPaths, system: str, setting: str, fix: str) -> NavRecords:
+    """Read the records of one system from RINEX 3 navigation files (single-system or mixed), merged.
 
     A record is a line starting with the satellite id (``'E11 2019 04 28 ...'``)
     and the indented lines after it, so records of every system and of any
-    RINEX 3.0x length are skipped correctly.
+    RINEX 3.0x length are skipped correctly. Of several files, those whose header
+    names another system are skipped, and a record found in several files is kept once.
 
     Parameters
     ----------
-    path : str or PathLike
-        RINEX 3 navigation file (plain text or compressed, :func:`read_rinex_lines`).
+    path : str, PathLike or sequence of them
+        RINEX 3 navigation file(s) (plain text or compressed, :func:`read_rinex_lines`).
     system : str
-        System letter to keep (``'C'``, ``'E'``, ``'R'``).
+        System letter to keep (``'C'``, ``'E'``, ``'R'``, ``'J'``).
     setting : str
-        Config setting that named the file, for error messages (``'scenario.nav_gal'``).
+        Config setting that named the files, for error messages (``'scenario.nav_gal'``).
     fix : str
         What the user should pass instead, for error messages.
 
@@ -245,7 +389,24 @@ def read_rinex3_records(path: str | os.PathLike[str], system: str, setting: str,
     SimbenchError
         Missing file, not RINEX 3 navigation data, a malformed epoch or number, or no record of ``system``.
     """
-    p = os.fspath(path)
+    paths = nav_paths(path)
+    if not paths:
+        raise SimbenchError(setting, "no navigation file given", fix)
+    single = len(paths) == 1
+    parts = [_rinex3_records(p, system, setting, fix) for p in paths if single or _serves(p, system)]
+    sv = np.concatenate([pt[0] for pt in parts]) if parts else np.zeros(0, str)
+    if not sv.size:
+        raise SimbenchError(files_field(setting, paths), f"contains no {SYSTEM_NAMES.get(system, system)} records", fix)
+    width = max(len(r) for pt in parts for r in pt[2])
+    values = np.array([r + [np.nan] * (width - len(r)) for pt in parts for r in pt[2]], dtype=float)
+    epoch = np.concatenate([np.array(pt[1], dtype="datetime64[s]") for pt in parts])
+    sat_code = np.unique(sv, return_inverse=True)[1]
+    keep = unique_rows(np.column_stack([sat_code, epoch.astype(np.int64), values]))
+    return NavRecords(sv=sv[keep], epoch=epoch[keep], values=values[keep])
+
+
+def _rinex3_records(p: str, system: str, setting: str, fix: str) -> tuple[np.ndarray, list[str], list[list[float]]]:
+    """Satellite ids, epoch stamps and numbers of the ``system`` records of one RINEX 3 navigation file."""
     field = f"{setting} '{p}'"
     if not os.path.isfile(p):
         raise SimbenchError(field, "file does not exist", fix)
@@ -281,8 +442,4 @@ def read_rinex3_records(path: str | os.PathLike[str], system: str, setting: str,
         sv.append(head[:3].replace(" ", "0"))
         rows.append(rec)
         i = stop
-    if not rows:
-        raise SimbenchError(field, f"contains no {SYSTEM_NAMES.get(system, system)} records", fix)
-    width = max(len(r) for r in rows)
-    values = np.array([r + [np.nan] * (width - len(r)) for r in rows], dtype=float)
-    return NavRecords(sv=np.array(sv), epoch=np.array(stamps, dtype="datetime64[s]"), values=values)
+    return np.array(sv, dtype=str), stamps, rows

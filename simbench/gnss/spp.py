@@ -5,7 +5,9 @@ One Gauss-Newton iteration updates every epoch in parallel: the rows
 with :func:`numpy.add.reduceat` and solved as a stack. The unknowns of an
 epoch are the receiver position and one clock offset per GNSS system present
 (the first system's clock is the receiver clock, the others absorb the
-inter-system biases). The hydrostatic troposphere (Saastamoinen + Niell) joins
+inter-system biases; up to five systems, e.g. GPS, GLONASS, Galileo, BeiDou and
+QZSS). Optionally the code residuals are Huber-weighted by iterative
+reweighting (a robust per-epoch fix). The hydrostatic troposphere (Saastamoinen + Niell) joins
 as soon as an epoch's iterate lies near the Earth's surface; the wet delay is
 left in the clock.
 
@@ -59,6 +61,15 @@ class SppSolution:
         (NaN where there was nothing to fit).
     n_rows : np.ndarray of int, shape (n_epochs,)
         Rows (satellites) used by each epoch.
+    residual_m : np.ndarray, shape (N,)
+        Per input row: code minus the prediction of its epoch's own fit [m]; NaN for rows
+        that were ignored or whose epoch is not trusted.
+    redundancy : np.ndarray, shape (N,)
+        Per input row: its redundancy number ``1 - h_ii`` (``h_ii`` the diagonal of the
+        weighted hat matrix of its epoch), so ``residual / (sigma sqrt(redundancy))`` has
+        unit variance when ``sigma`` is right; NaN where ``residual_m`` is.
+    weight : np.ndarray, shape (N,)
+        Per input row: the final Huber weight factor (1 without ``huber_k``, and for inliers).
     """
 
     pos: np.ndarray
@@ -66,6 +77,9 @@ class SppSolution:
     trusted: np.ndarray
     rms_m: np.ndarray
     n_rows: np.ndarray
+    residual_m: np.ndarray
+    redundancy: np.ndarray
+    weight: np.ndarray
 
 
 def solve_epochs(
@@ -83,6 +97,8 @@ def solve_epochs(
     tol_m: float = 1e-4,
     max_rms_m: float = np.inf,
     fill_untrusted: bool = False,
+    huber_k: float | None = None,
+    reweightings: int = 5,
 ) -> SppSolution:
     """Code-only iterative weighted least squares position and clocks of every epoch.
 
@@ -117,6 +133,12 @@ def solve_epochs(
         Give every untrusted epoch the position of the nearest trusted epoch
         (the later one on a tie) and clocks refitted there, so callers get a
         usable rough position everywhere.
+    huber_k : float, optional
+        Huber threshold [standard deviations]: after the plain fit, ``reweightings``
+        passes weight each row by ``min(1, huber_k / |residual / sigma|)``
+        (iteratively reweighted least squares). None: plain weighted least squares.
+    reweightings : int
+        Reweighting passes with ``huber_k``.
 
     Returns
     -------
@@ -166,28 +188,32 @@ def solve_epochs(
     A = np.zeros((len(rows), p))
     A[np.arange(len(rows)), 3 + sy] = 1.0
     step = np.full(nk, np.inf)
-    hydro = np.zeros(len(rows))
-    for _ in range(iterations):
-        rx = pos[e]
-        rho, grad = sagnac_range_gradient(s, rx)
-        hydro = _hydrostatic(pos, e, el_r, doy) if el_r is not None and doy is not None else hydro
-        res = c - rho - clock[e, sy] - hydro
-        A[:, :3] = grad
-        N = np.add.reduceat((A[:, :, None] * A[:, None, :]) * wr[:, None, None], starts, axis=0)
-        b = np.add.reduceat(A * (wr * res)[:, None], starts, axis=0)
-        # pinv: an absent system's clock column is zero and stays 0; a degenerate geometry
-        # must not stop the other epochs
-        dx = np.einsum("kij,kj->ki", np.linalg.pinv(N), b)
-        dx[~solvable[present]] = 0.0
-        pos[present] += dx[:, :3]
-        clock[present] += dx[:, 3:]
-        step[present] = np.linalg.norm(dx[:, :3], axis=1)
-        if not np.any(step[present] >= tol_m):
-            break
+    robust = np.ones(len(rows))
+    passes = 1 + (max(int(reweightings), 0) if huber_k is not None else 0)
+    for done in range(passes):
+        for _ in range(iterations):
+            res = c - _predicted(s, pos, clock, e, sy, el_r, doy, A)
+            N = _normal_matrices(A, wr * robust, starts)
+            b = np.add.reduceat(A * (wr * robust * res)[:, None], starts, axis=0)
+            # pinv: an absent system's clock column is zero and stays 0; a degenerate geometry
+            # must not stop the other epochs
+            dx = np.einsum("kij,kj->ki", np.linalg.pinv(N), b)
+            dx[~solvable[present]] = 0.0
+            pos[present] += dx[:, :3]
+            clock[present] += dx[:, 3:]
+            step[present] = np.linalg.norm(dx[:, :3], axis=1)
+            if not np.any(step[present] >= tol_m):
+                break
+        if huber_k is not None and done < passes - 1:
+            z = np.abs(c - _predicted(s, pos, clock, e, sy, el_r, doy, A)) * np.sqrt(wr)
+            robust = np.minimum(1.0, huber_k / np.maximum(z, 1e-12))
+    res = c - _predicted(s, pos, clock, e, sy, el_r, doy, A)
     rms = np.full(nk, np.nan)
-    hydro = _hydrostatic(pos, e, el_r, doy) if el_r is not None and doy is not None else hydro
-    res = c - sagnac_range_gradient(s, pos[e])[0] - clock[e, sy] - hydro
     rms[present] = np.sqrt(np.add.reduceat(res * res, starts) / n_rows_present)
+    # redundancy numbers 1 - w_i a_i^T N^-1 a_i of the final weighted fit
+    n_inv = np.linalg.pinv(_normal_matrices(A, wr * robust, starts))
+    index = np.repeat(np.arange(len(present)), n_rows_present)
+    leverage = wr * robust * np.einsum("ri,rij,rj->r", A, n_inv[index], A)
     height = _lat_height(pos)[1]
     trusted = (
         solvable
@@ -197,10 +223,18 @@ def solve_epochs(
         & (height < _MAX_HEIGHT_M)
         & (rms < max_rms_m)
     )
+    own = trusted[e]
+    residual = np.full(n, np.nan)
+    redundancy = np.full(n, np.nan)
+    weight = np.ones(n)
+    residual[rows[own]] = res[own]
+    redundancy[rows[own]] = 1.0 - leverage[own]
+    weight[rows] = robust
+    per_row = {"residual_m": residual, "redundancy": redundancy, "weight": weight}
     if not fill_untrusted:
         pos[~trusted] = np.nan
         clock[~trusted] = np.nan
-        return SppSolution(pos=pos, clock_m=clock, trusted=trusted, rms_m=rms, n_rows=n_rows)
+        return SppSolution(pos=pos, clock_m=clock, trusted=trusted, rms_m=rms, n_rows=n_rows, **per_row)
 
     good = np.flatnonzero(trusted)
     if good.size == 0:
@@ -224,7 +258,7 @@ def solve_epochs(
         count = np.bincount(flat, minlength=nk * n_sys).reshape(nk, n_sys)
         refit = np.divide(total, count, out=np.zeros_like(total), where=count > 0)
         clock[bad] = refit[bad]
-    return SppSolution(pos=pos, clock_m=clock, trusted=trusted, rms_m=rms, n_rows=n_rows)
+    return SppSolution(pos=pos, clock_m=clock, trusted=trusted, rms_m=rms, n_rows=n_rows, **per_row)
 
 
 def system_clock_offsets(sol: SppSolution, epoch: np.ndarray, system_index: np.ndarray) -> np.ndarray:
@@ -252,6 +286,27 @@ def system_clock_offsets(sol: SppSolution, epoch: np.ndarray, system_index: np.n
         if seen.size:
             out[s - 1] = float(np.median(sol.clock_m[seen, s] - sol.clock_m[seen, 0]))
     return out
+
+
+def _predicted(
+    sat_pos: np.ndarray,
+    pos: np.ndarray,
+    clock: np.ndarray,
+    e: np.ndarray,
+    sy: np.ndarray,
+    el: np.ndarray | None,
+    doy: float | None,
+    A: np.ndarray,
+) -> np.ndarray:
+    """Predicted code per row at the epochs' iterates [m]; writes the position partials into ``A``."""
+    rho, A[:, :3] = sagnac_range_gradient(sat_pos, pos[e])
+    hydro = _hydrostatic(pos, e, el, doy) if el is not None and doy is not None else 0.0
+    return rho + clock[e, sy] + hydro
+
+
+def _normal_matrices(A: np.ndarray, w: np.ndarray, starts: np.ndarray) -> np.ndarray:
+    """Per-epoch normal matrices ``sum_i w_i a_i a_i^T`` of rows sorted by epoch, shape (epochs, p, p)."""
+    return np.add.reduceat((A[:, :, None] * A[:, None, :]) * w[:, None, None], starts, axis=0)
 
 
 def _hydrostatic(pos: np.ndarray, e: np.ndarray, el: np.ndarray, doy: float) -> np.ndarray:

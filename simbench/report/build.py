@@ -1,34 +1,49 @@
-"""Build a run's aggregate, ``claims.csv`` and ``report/`` (index.html, README.md, PNG figures).
+"""Build a run's aggregate, ``claims.csv`` and ``report/`` (index.html, README.md, figures, figures.json).
 
-The measured claims come first: they are what a reader wants to know; a run
-that measures none (a single run, a real log) names them in one line at the
-end instead. Then one section per (sweep, scenario, receiver) group -- a real
-log titled by its source, not by the receiver preset -- with its figures,
-statistics with bootstrap confidence intervals over seeds, paired comparisons
-and the gap to the oracle, then run time and estimator diagnostics.
+The page opens with what a reader wants first: a provenance box (what ran,
+on what, with which code) and the leaderboard -- every estimator and variant
+that ran, sorted by its median error, with seed CIs, availability and time
+per epoch. Then the published claims the run measured (a run that measures
+none names them in one line at the end instead), then one section per
+(sweep, scenario, receiver) group -- a real log titled by its source, not by
+the receiver preset -- with its figures: error ECDFs, box plot, the
+trajectory, east/north/up error and the receiver's signal against time, the
+covariance consistency where estimators give covariances, and run time. The
+detailed tables (statistics over seeds, paired comparisons, gap to the
+oracle) and the estimator diagnostics are collapsed (``<details>``).
 
+Nothing is dropped: every estimator variant that ran is in every figure and
+table, named by :func:`simbench.analysis.variants.display_names`. "Median" is
+one number everywhere, legends included: the mean over seeds of each seed's
+median over its reference epochs (:func:`simbench.analysis.tables.seed_statistics`).
 Every statistic is read with the availability beside it; distributions and
 percentiles are over all reference epochs (an unsolved epoch counts as missed,
 :mod:`simbench.analysis.metrics`), and a percentile the availability does not reach is
-shown as '—'.
+shown as '—'. A blank cell is printed as ``n/a`` with the reason under its table.
 """
 
 from __future__ import annotations
 
 import html
+import json
 import re
+import time
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
+from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import pandas as pd
 
 from estimators import registered
-from simbench.analysis.claims import CLAIMS, NOT_RUN, claims_by_world, claims_table
+from simbench.analysis.claims import CLAIMS, NOT_MEASURED, NOT_RUN, claims_by_world, claims_table
+from simbench.analysis.metrics import local_enu
 from simbench.analysis.tables import (
     CONVERGENCE_S,
     GROUP,
+    WILCOXON_MIN_SEEDS,
     convergence_statistics,
     data_label,
     data_source,
@@ -36,23 +51,35 @@ from simbench.analysis.tables import (
     oracle_gap,
     paired_comparisons,
     seed_statistics,
+    with_variant_columns,
 )
 from simbench.analysis.validation import MIN_ROWS_PER_CLOCK, comparison_table, residual_sample
-from simbench.analysis.variants import NO_OVERRIDES, config_defaults, is_default, override_value
-from simbench.contract import Scenario, write_bytes
+from simbench.analysis.variants import NO_OVERRIDES, config_defaults, display_names, override_value
+from simbench.contract import Scenario, read_parquet_metadata, write_bytes
 from simbench.errors import SimbenchError
 from simbench.report.figures import (
+    FORMATS,
+    LABELS_MARK,
+    FigureFile,
+    Format,
     box_figure,
     ecdf_figure,
-    error_timeseries_figure,
     mixture_evolution_figure,
     runtime_figure,
     sensitivity_figure,
     validation_figure,
 )
+from simbench.report.style import UNDEFINED, family, sig3, with_ci
+from simbench.report.time_views import (
+    consistency_figure,
+    enu_error_figure,
+    signal_figure,
+    signal_per_epoch,
+    trajectory_figure,
+)
 from simbench.runs.provenance import provenance
 from simbench.runs.runner import SUMMARY_COLUMNS
-from simbench.runs.store import aggregate, cached_scenarios, diagnostics
+from simbench.runs.store import aggregate, cached_scenarios, diagnostics, job_stems
 from simbench.runs.studies import STUDY_TIMES, time_budget
 from simbench.runs.zero_baseline import TABLE_NAME as ZERO_BASELINE_TABLE
 from simbench.source import SIMULATED
@@ -60,19 +87,62 @@ from simbench.source import SIMULATED
 #: The comparison baseline when present (the a priori L2 estimator), else the first estimator.
 BASELINES = ("l2", "isam2_ppp", "ekf_ppp")
 LABEL_USERS_NOTE = "uses the true error labels: an accuracy floor, not an estimator one could deploy"
-#: How a percentile over reference epochs that the availability does not reach is shown.
-UNDEFINED = "—"
-NOT_MEASURED = "not measured"
+#: What a blank (NaN) cell shows; the reason is printed under its table.
+BLANK = "n/a"
+#: Why a column's cell can be blank, for the note under a table.
+BLANK_REASONS: dict[str, str] = {
+    "ci_low": "no bootstrap CI: fewer than 3 seeds, no spread between seeds, or an undefined (—) value",
+    "ci_high": "as ci_low",
+    "wilcoxon_p": f"no signed-rank test: fewer than {WILCOXON_MIN_SEEDS} seeds, or no difference on any seed",
+    "measured": "not measured: the claim's sweep did not run here",
+    "time_per_obs_s": "no run time: a solution scored from a file",
+    "update_median_s": "no update times: a solution scored from a file",
+    "ratio": "the published number is not defined for this drive",
+}
+#: Median definition, printed once under the leaderboard and used by every legend.
+MEDIAN_DEFINITION = (
+    "median = mean over seeds of each seed's median over its reference epochs (epochs with truth; an "
+    "unsolved epoch counts as an infinite error), the same number in every legend; [low, high] = 95 % "
+    "bootstrap CI over seeds (3 or more seeds). p95 likewise. "
+    f"{UNDEFINED} = the availability is below the percentile (below 50 % for a median, 95 % for p95)."
+)
 
-_CSS = """body{font-family:system-ui,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}
-table{border-collapse:collapse;font-size:13px;margin:0.5em 0 1.5em}td,th{border:1px solid #ccc;padding:3px 6px}
-th{background:#f0f0f0}td.num{text-align:right;font-variant-numeric:tabular-nums}
-.holds{background:#d8f5d0}.does{background:#f8d4d0}.not{background:#eee;color:#666}img{max-width:100%}
-h2{border-bottom:2px solid #ddd;padding-bottom:3px}.note{color:#555;font-size:13px}"""
+_CSS = """body{font-family:system-ui,sans-serif;max-width:1180px;margin:1.5em auto;padding:0 1em;color:#222}
+table{border-collapse:collapse;font-size:13px;margin:0.5em 0 1em}td,th{border:1px solid #ccc;padding:3px 6px}
+th{background:#f0f0f0;vertical-align:bottom}td.num{text-align:right;font-variant-numeric:tabular-nums}
+td small{color:#666}.holds{background:#d8f5d0}.does{background:#f8d4d0}.inconclusive{background:#fbf0c8}
+.not{background:#eee;color:#666}img{max-width:100%;height:auto}figure{margin:1em 0}
+figcaption{font-size:13px;color:#333}.scroll{overflow-x:auto;max-width:100%}
+h2{border-bottom:2px solid #ddd;padding-bottom:3px}.note{color:#555;font-size:13px}
+.provenance{display:grid;grid-template-columns:max-content 1fr;gap:1px 12px;background:#f6f8fa;
+border:1px solid #ddd;padding:0.5em 1em;font-size:13px}.provenance dt{font-weight:600}.provenance dd{margin:0}
+details{margin:0.8em 0}
+summary{cursor:pointer;font-weight:600}"""
 
 
-def finalize(run_dir: str | Path, config: dict[str, Any] | None) -> Path:
-    """Aggregate job files, write ``claims.csv`` and build ``report/``; return the report directory."""
+def finalize(run_dir: str | Path, config: dict[str, Any] | None, formats: Sequence[Format] | None = None) -> Path:
+    """Aggregate job files, write ``claims.csv`` and build ``report/``; return the report directory.
+
+    Parameters
+    ----------
+    run_dir : path-like
+        The run folder.
+    config : dict, optional
+        The run's resolved config (None: a rebuild; the page reads what it shows from the job files).
+    formats : sequence of str, optional
+        Figure formats; None: ``config['report']['formats']``, else PNG only.
+
+    Raises
+    ------
+    SimbenchError
+        For a figure format not in :data:`~simbench.report.figures.FORMATS`, before any file is written.
+    """
+    start = time.perf_counter()
+    if formats is None:
+        formats = cast(Sequence[Format], ((config or {}).get("report") or {}).get("formats") or ("png",))
+    unknown = sorted(set(formats) - set(FORMATS))
+    if unknown:
+        raise SimbenchError("report.formats", f"unknown {', '.join(unknown)}", f"choose from {', '.join(FORMATS)}")
     run_dir = Path(run_dir)
     summary, epochs = aggregate(run_dir, provenance(config or {"run_dir": str(run_dir)}))
     # results written before a column existed (e.g. source) are shown with it empty
@@ -81,7 +151,7 @@ def finalize(run_dir: str | Path, config: dict[str, Any] | None) -> Path:
     epochs = _ok_epochs(epochs, summary)  # figures and claims use the results the tables use
     claims = claims_table(summary, epochs, diag)
     write_bytes(run_dir / "claims.csv", claims.to_csv(index=False).encode())
-    return build_report(run_dir, summary, epochs, claims, diag)
+    return build_report(run_dir, summary, epochs, claims, diag, formats=formats, started=start)
 
 
 def _ok_epochs(epochs: pd.DataFrame, summary: pd.DataFrame) -> pd.DataFrame:
@@ -93,21 +163,73 @@ def _ok_epochs(epochs: pd.DataFrame, summary: pd.DataFrame) -> pd.DataFrame:
     return epochs[pd.MultiIndex.from_frame(epochs[keys].fillna(NO_OVERRIDES)).isin(pd.MultiIndex.from_frame(ok))]
 
 
+def _named(frame: pd.DataFrame, names: Mapping[tuple[str, str, str], str]) -> pd.DataFrame:
+    """``frame`` with ``name``: its variant's display name (:func:`variant_names`)."""
+    if frame.empty:
+        return frame.assign(name=pd.Series(dtype=object))
+    keys = with_variant_columns(frame)[["estimator", "gnss_model", "overrides"]].astype(str)
+    return frame.assign(name=[names[k] for k in keys.itertuples(index=False, name=None)])
+
+
+def variant_names(summary: pd.DataFrame, oracles: Sequence[str]) -> dict[tuple[str, str, str], str]:
+    """(estimator, gnss_model, overrides) -> display name for every variant of the run.
+
+    Names come from :func:`~simbench.analysis.variants.display_names` over the whole run, so a
+    variant has one name in every group; an estimator that reads truth labels is marked with
+    :data:`~simbench.report.figures.LABELS_MARK`.
+    """
+    keys = with_variant_columns(summary)[["estimator", "gnss_model", "overrides"]].astype(str).drop_duplicates()
+    names = display_names(keys)
+    marked = [n + LABELS_MARK if e in oracles else n for n, e in zip(names, keys["estimator"])]
+    return dict(zip(keys.itertuples(index=False, name=None), marked))
+
+
 def build_report(
-    run_dir: Path, summary: pd.DataFrame, epochs: pd.DataFrame, claims: pd.DataFrame, diag: dict[str, list[dict]]
+    run_dir: Path,
+    summary: pd.DataFrame,
+    epochs: pd.DataFrame,
+    claims: pd.DataFrame,
+    diag: dict[str, list[dict]],
+    formats: Sequence[Format] = ("png",),
+    started: float | None = None,
 ) -> Path:
+    """Write ``report/`` of a run from its tables; return the directory.
+
+    Parameters
+    ----------
+    run_dir : Path
+    summary, epochs, claims : pandas.DataFrame
+        The run's aggregate (:data:`~simbench.runs.runner.SUMMARY_COLUMNS`, ok epochs) and ``claims.csv``.
+    diag : dict
+        Diagnostics by estimator (:func:`simbench.runs.store.diagnostics`).
+    formats : sequence of str
+        Figure formats beside the PNG the page shows, e.g. ``("png", "pdf")``.
+    started : float, optional
+        ``time.perf_counter()`` when the build began (the page gives the build time).
+    """
+    started = time.perf_counter() if started is None else started
     out = run_dir / "report"
     out.mkdir(parents=True, exist_ok=True)
-    page = _Page()
+    page = _Page(formats)
     page.h1("simbench report")
-    page.p(
-        f"Run directory <code>{html.escape(str(run_dir.resolve()))}</code>: {len(summary)} result rows, "
-        f"{summary['estimator'].nunique() if len(summary) else 0} estimators, "
-        f"{summary['seed'].nunique() if len(summary) else 0} seeds."
-    )
+    oracles = sorted(summary.loc[summary["uses_labels"].fillna(False).astype(bool), "estimator"].unique())
+    names = variant_names(summary, oracles)
+    summary = _named(summary, names)
+    epochs = _named(epochs, names)
+    stats = _named(seed_statistics(summary), names) if len(summary) else pd.DataFrame()
+    scenarios = {d.name: d for d in cached_scenarios(run_dir)}
+    _provenance_box(page, run_dir, summary, scenarios)
+    if len(stats):
+        _leaderboard_section(page, summary, stats, oracles)
     measured = claims["holds"] != NOT_MEASURED
     if measured.any():
         page.h2("Published claims")
+        page.p(
+            "published = the paper's number (or why it gives none), rule = what our measured value must meet. "
+            "Verdicts: holds, does not hold, or inconclusive when the 95 % CI over seeds straddles the "
+            "rule's threshold; a pass that says nothing (e.g. no adaptation at all) is marked vacuous.",
+            cls="note",
+        )
         if claims.loc[measured, "world"].nunique() > 1:
             page.p(
                 "One column per world (the scenario preset each claim's sweep ran on): measured value, 95 % "
@@ -121,15 +243,16 @@ def build_report(
             page.p(_not_measured_line(claims), cls="note")
     if summary.empty:
         _unmeasured_claims_section(page, claims)
-        return page.write(out)
-    oracles = sorted(summary.loc[summary["uses_labels"].fillna(False).astype(bool), "estimator"].unique())
+        return page.write(out, started)
     if oracles:
-        page.p(f"<b>{', '.join(oracles)}</b> {LABEL_USERS_NOTE}.", cls="note")
+        page.p(f"<b>{', '.join(oracles)}</b> ({LABELS_MARK}) {LABEL_USERS_NOTE}.", cls="note")
     failed = summary[summary["status"] != "ok"]
     if len(failed):
         page.h2("Jobs not ok (left out of the figures and statistics)")
         page.table(
-            failed.assign(data=_labels(failed))[["sweep", "data", "seed", "estimator", "variant", "status", "message"]]
+            failed.assign(data=_labels(failed))[["sweep", "data", "seed", "name", "status", "message"]].rename(
+                columns={"name": "estimator"}
+            )
         )
     drives = drive_comparison(summary)
     if len(drives):
@@ -154,82 +277,323 @@ def build_report(
             cls="note",
         )
         page.table(pd.read_csv(zero))
-    stats = seed_statistics(summary)
     for keys, group in epochs.groupby(GROUP, dropna=False) if len(epochs) else []:
-        sweep, scenario, receiver = keys
-        in_group = summary[_in_group(summary, keys)]
-        source = in_group["source"].iloc[0]
-        name = data_label(scenario, receiver, source) + (f" (sweep {sweep})" if sweep else "")
-        # file names too say what the data are: the source of a real log, the receiver of a simulation
-        kind = receiver if data_source(source) == SIMULATED else data_source(source)
-        tag = re.sub(r"[^A-Za-z0-9_-]+", "_", "_".join(str(k) for k in (sweep, scenario, kind) if k))
-        page.h2(name)
-        default = group[is_default(group["overrides"])]
-        shown = (default if len(default) else group).copy()
-        n_reference = _reference_epochs(in_group, shown)
-        # figures mark the estimators that read truth labels, as the tables' note does
-        marked = {e: f"{e} (truth labels)" if e in oracles else e for e in shown["estimator"].unique()}
-        shown["estimator"] = shown["estimator"].map(marked)
-        n_reference = {marked[e]: n for e, n in n_reference.items()}
-        for metric, label in (("horizontal", "horizontal"), ("error_3d", "3-D")):
-            page.img(
-                ecdf_figure(
-                    shown, metric, out / f"ecdf_{metric}_{tag}.png", f"ECDF of {label} error: {name}", n_reference
-                )
-            )
-        page.img(box_figure(shown, out / f"box_{tag}.png", f"Horizontal error per estimator: {name}", n_reference))
-        if shown["seed"].nunique() == 1:
-            page.img(error_timeseries_figure(shown, out / f"error_time_{tag}.png", f"Horizontal error: {name}"))
-        group_stats = stats[_in_group(stats, keys)]
-        page.h3("Statistics over seeds (errors in m, availability beside them)")
-        page.p(
-            "availability = solved / reference epochs (epochs with truth). The <code>*_ref</code> percentiles "
-            "are over all reference epochs, an unsolved epoch counting as an infinite error: "
-            f"{UNDEFINED} when the availability is below the percentile (below 0.5 for a median, 0.95 for "
-            "p95). horizontal_median_ref is the mean of per-seed medians with its 95 % bootstrap CI; "
-            "<code>*_solved</code> and max are over the solved epochs only.",
-            cls="note",
-        )
-        page.table(group_stats.drop(columns=GROUP + ["overrides"]))
-        early = convergence_statistics(group)
-        if len(early):
-            page.h3(
-                f"Convergence: 3-D error over the first {CONVERGENCE_S / 60:.0f} minutes (mean over seeds of "
-                "each run's median, mean and max; 95 % bootstrap CI of the mean) [m]"
-            )
-            page.table(early.drop(columns=["overrides"]))
-        sensitivity = _sensitivity_curves(group_stats)
-        if sensitivity is not None:
-            page.img(
-                sensitivity_figure(
-                    sensitivity, out / f"sensitivity_{tag}.png", f"Sensitivity to the a priori covariance: {name}"
-                )
-            )
-        present = set(summary["estimator"])
-        baseline = next((b for b in BASELINES if b in present), None)
-        if baseline:
-            pairs = paired_comparisons(summary[_in_group(summary, keys)], baseline)
-            if len(pairs):
-                page.h3(
-                    f"Paired comparison with {baseline} on the same seeds (ratio of mean medians over the "
-                    "solved epochs; wins = share of seeds with a lower median; read with both availabilities)"
-                )
-                page.table(pairs.drop(columns=GROUP))
-        gap = oracle_gap(summary[_in_group(summary, keys)])
-        if len(gap):
-            page.h3(
-                "Gap to the oracle (mean per-seed median over the solved epochs minus the oracle's, with "
-                "both availabilities) [m]"
-            )
-            page.table(gap.drop(columns=GROUP))
-        if group_stats["time_per_obs_s"].notna().any():
-            page.img(runtime_figure(group_stats, out / f"runtime_{tag}.png", f"Run time: {name}"))
+        _group_section(page, out, keys, group, summary, stats, scenarios)
     _study_times_section(page, run_dir, summary)
-    _validation_section(page, run_dir, out)
+    _validation_section(page, run_dir, out, list(scenarios.values()))
     _diagnostics_section(page, diag, out)
     if not measured.any():
         _unmeasured_claims_section(page, claims)
-    return page.write(out)
+    return page.write(out, started)
+
+
+def _group_section(
+    page: _Page,
+    out: Path,
+    keys: tuple,
+    group: pd.DataFrame,
+    summary: pd.DataFrame,
+    stats: pd.DataFrame,
+    scenarios: Mapping[str, Path],
+) -> None:
+    """Figures of one (sweep, scenario, receiver) group, then its detailed tables collapsed."""
+    sweep, scenario, receiver = keys
+    in_group = summary[_in_group(summary, keys)]
+    source = in_group["source"].iloc[0]
+    name = data_label(scenario, receiver, source) + (f" (sweep {sweep})" if sweep else "")
+    # file names too say what the data are: the source of a real log, the receiver of a simulation
+    kind = receiver if data_source(source) == SIMULATED else data_source(source)
+    tag = re.sub(r"[^A-Za-z0-9_-]+", "_", "_".join(str(k) for k in (sweep, scenario, kind) if k))
+    page.h2(name)
+    shown = group.assign(estimator=group["name"])
+    n_reference = _reference_epochs(in_group, group)
+    group_stats = stats[_in_group(stats, keys)]
+    for metric, label in (("horizontal", "horizontal"), ("error_3d", "3-D")):
+        median_column = "horizontal_median_ref" if metric == "horizontal" else "error_3d_median_ref"
+        medians = dict(zip(group_stats["name"], group_stats[median_column]))
+        page.figure(
+            ecdf_figure(
+                shown,
+                metric,
+                out / f"ecdf_{metric}_{tag}.png",
+                f"ECDF of {label} error: {name}",
+                n_reference,
+                medians,
+                page.formats,
+            )
+        )
+    page.figure(
+        box_figure(shown, out / f"box_{tag}.png", f"Horizontal error per estimator: {name}", n_reference, **page.fmt)
+    )
+    _time_views(page, out, tag, name, shown, scenarios)
+    sensitivity = _sensitivity_curves(group_stats)
+    if sensitivity is not None:
+        page.figure(
+            sensitivity_figure(
+                sensitivity,
+                out / f"sensitivity_{tag}.png",
+                f"Sensitivity to the a priori covariance: {name}",
+                **page.fmt,
+            )
+        )
+    if group_stats["time_per_obs_s"].notna().any():
+        timed = group_stats.assign(estimator=group_stats["name"])
+        page.figure(runtime_figure(timed, out / f"runtime_{tag}.png", f"Run time: {name}", **page.fmt))
+    page.details_open(f"Statistics over seeds, paired comparisons and gap to the oracle: {name}")
+    page.h3("Statistics over seeds (errors in m, availability beside them)")
+    page.p(
+        "availability = solved / reference epochs (epochs with truth). The <code>*_ref</code> percentiles "
+        "are over all reference epochs, an unsolved epoch counting as an infinite error: "
+        f"{UNDEFINED} when the availability is below the percentile (below 0.5 for a median, 0.95 for "
+        "p95). horizontal_median_ref is the mean of per-seed medians with its 95 % bootstrap CI; "
+        "<code>*_solved</code> and max are over the solved epochs only.",
+        cls="note",
+    )
+    page.table(group_stats[list(DETAIL_COLUMNS)].rename(columns={"name": "estimator"}))
+    early = convergence_statistics(group)
+    if len(early):
+        page.h3(
+            f"Convergence: 3-D error over the first {CONVERGENCE_S / 60:.0f} minutes (mean over seeds of "
+            "each run's median, mean and max; 95 % bootstrap CI of the mean) [m]"
+        )
+        page.table(early.drop(columns=["overrides"]))
+    present = set(summary["estimator"])
+    baseline = next((b for b in BASELINES if b in present), None)
+    if baseline:
+        pairs = paired_comparisons(in_group, baseline)
+        if len(pairs):
+            page.h3(
+                f"Paired comparison with {baseline} on the same seeds (ratio of mean medians over the "
+                "solved epochs; wins = share of seeds with a lower median; read with both availabilities)"
+            )
+            page.table(pairs.drop(columns=GROUP))
+    gap = oracle_gap(in_group)
+    if len(gap):
+        page.h3(
+            "Gap to the oracle (mean per-seed median over the solved epochs minus the oracle's, with "
+            "both availabilities) [m]"
+        )
+        page.table(gap.drop(columns=GROUP))
+    page.details_close()
+
+
+def _time_views(
+    page: _Page, out: Path, tag: str, name: str, shown: pd.DataFrame, scenarios: Mapping[str, Path]
+) -> None:
+    """Trajectory, E/N/U error, signal and consistency against time of the group's first seed."""
+    seed = shown["seed"].min()
+    one = shown[shown["seed"] == seed]
+    key = str(one["scenario_key"].iloc[0])
+    one = one[one["scenario_key"] == key]
+    cache = scenarios.get(key)
+    truth = pd.read_parquet(cache / "truth.parquet", columns=["epoch", "t", "x", "y", "z"]) if cache else None
+    if truth is not None and len(truth):
+        reference = truth[["epoch", "t"]]
+        east, north, _ = local_enu(truth[["x", "y", "z"]].to_numpy(float), truth[["x", "y", "z"]].to_numpy(float)[0]).T
+        track: pd.DataFrame | None = pd.DataFrame({"east": east, "north": north})
+    else:  # not in this run's cache (e.g. a scored solution's run moved): the estimates alone
+        reference, track = one[["epoch", "t"]].drop_duplicates("epoch").sort_values("epoch"), None
+    where = f"{name}, seed {seed}" + ("" if shown["seed"].nunique() == 1 else " (the first seed)")
+    if {"east", "north"} <= set(one.columns) and one["east"].notna().any():
+        page.figure(trajectory_figure(one, track, out / f"trajectory_{tag}.png", f"Trajectory: {where}", **page.fmt))
+    page.figure(
+        enu_error_figure(one, reference, out / f"enu_time_{tag}.png", f"Error against time: {where}", **page.fmt)
+    )
+    if cache is not None:
+        observations = pd.read_parquet(cache / "observations.parquet", columns=["epoch", "sat", "cn0_l1"])
+        page.figure(
+            signal_figure(
+                signal_per_epoch(observations, reference),
+                one,
+                reference,
+                out / f"signal_time_{tag}.png",
+                f"Satellites, C/N0 and availability against time: {where}",
+                **page.fmt,
+            )
+        )
+    with_cov = one["nees"].notna().groupby(one["estimator"]).any() if "nees" in one else pd.Series(dtype=bool)
+    covered = sorted(with_cov[with_cov].index)
+    if covered:
+        page.figure(
+            consistency_figure(
+                one[one["estimator"].isin(covered)],
+                reference,
+                out / f"consistency_{tag}.png",
+                f"Consistency of the position covariance: {where}",
+                **page.fmt,
+            )
+        )
+    others = sorted(set(one["estimator"]) - set(covered))
+    if others:
+        page.p(
+            f"No position covariance (so no consistency check) from: {', '.join(others)}.",
+            cls="note",
+        )
+
+
+def _provenance_box(page: _Page, run_dir: Path, summary: pd.DataFrame, scenarios: Mapping[str, Path]) -> None:
+    """What ran on what with which code: the first thing on the page."""
+    job_meta = _first_job_metadata(run_dir)
+    config = job_meta.get("simbench.config") or {}
+    rows: dict[str, str] = {"run directory": f"<code>{html.escape(str(run_dir.resolve()))}</code>"}
+    if len(summary):
+        simulated = summary["source"].fillna(SIMULATED).astype(str) == SIMULATED
+        rows["scenarios"] = ", ".join(sorted(map(str, summary["scenario"].dropna().unique())))
+        rows["sources"] = ", ".join(sorted(map(str, summary["source"].fillna(SIMULATED).unique())))
+        receivers = sorted(map(str, summary.loc[simulated, "receiver"].dropna().unique()))
+        if receivers:
+            rows["receiver (simulated data only)"] = ", ".join(receivers)
+        durations = sorted({_duration(d) for key, d in scenarios.items() if key in set(summary["scenario_key"])})
+        shown = [f"{sig3(d)} s" for d in durations if np.isfinite(d)]
+        if shown:
+            rows["duration"] = ", ".join(shown)
+        models = sorted(str(m) for m in summary["gnss_model"].dropna().unique() if str(m))
+        rows["gnss_model"] = ", ".join(models) or "n/a (results from before the column)"
+        variants = with_variant_columns(summary)
+        explicit = variants.loc[variants["overrides"] != NO_OVERRIDES, ["name", "overrides"]].drop_duplicates()
+        rows["overrides"] = (
+            "; ".join(f"{html.escape(n)}: <code>{html.escape(o)}</code>" for n, o in explicit.itertuples(index=False))
+            or "none (every estimator at its gnss_model preset's defaults)"
+        )
+        seeds = sorted(int(s) for s in summary["seed"].dropna().unique())
+        rows["seeds"] = f"{len(seeds)} ({_ranges(seeds)})"
+        rows["estimators"] = f"{summary['name'].nunique()} variants of {summary['estimator'].nunique()} estimators"
+        rows["estimator time"] = f"{sig3(summary['total_s'].sum())} s (sum over jobs of the estimators' own run time)"
+        if (run_dir / STUDY_TIMES).is_file():
+            rows["wall time"] = f"{sig3(pd.read_csv(run_dir / STUDY_TIMES)['wall_s'].sum())} s (all studies)"
+    notes = [_system_notes(d) for key, d in scenarios.items() if key in set(summary.get("scenario_key", []))]
+    for text in dict.fromkeys(n for n in notes if n):
+        rows.setdefault("GNSS systems", "")
+        rows["GNSS systems"] += ("<br>" if rows["GNSS systems"] else "") + text
+    rows["git SHA"] = f"<code>{html.escape(str(job_meta.get('simbench.git_sha', 'unknown')))}</code>"
+    versions = job_meta.get("simbench.versions") or {}
+    rows["package versions"] = ", ".join(f"{html.escape(k)} {html.escape(str(v))}" for k, v in versions.items())
+    rows["results written"] = html.escape(str(job_meta.get("simbench.created", "unknown")))
+    rows["report built"] = datetime.now(timezone.utc).isoformat(timespec="seconds")
+    if config.get("seed") is not None and not len(summary):
+        rows["seeds"] = str(config["seed"])
+    page.provenance(rows)
+
+
+def _first_job_metadata(run_dir: Path) -> dict[str, Any]:
+    """The provenance metadata of the run's first readable job file (code and versions of its results)."""
+    for stem in job_stems(run_dir):
+        try:
+            return read_parquet_metadata(stem.with_suffix(".summary.parquet"))
+        except (OSError, ValueError):  # damaged: aggregate() warned about it and left it out already
+            continue
+    return {}
+
+
+def _scenario_meta(cache: Path) -> dict[str, Any]:
+    """``Scenario.meta`` of a cached scenario, read from its Parquet metadata alone (no table)."""
+    stored = read_parquet_metadata(cache / "observations.parquet").get("simbench.scenario") or {}
+    return cast(dict[str, Any], stored.get("meta") or {})
+
+
+def _duration(cache: Path) -> float:
+    """The scenario's span of reference epochs [s] (first to last, plus one interval); NaN without any."""
+    t = pd.read_parquet(cache / "truth.parquet", columns=["t"])["t"].to_numpy(float)
+    if t.size == 0:
+        return np.nan
+    step = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+    return float(t.max() - t.min() + step)
+
+
+def _system_notes(cache: Path) -> str:
+    """The systems a real log was asked for and used, and why any was left out (``''`` when the meta has none)."""
+    meta = _scenario_meta(cache)
+    if not any(k in meta for k in ("systems_asked", "systems_used", "system_notes")):
+        return ""
+    parts = [f"{meta.get('name', cache.name)}: asked {meta.get('systems_asked', 'n/a')}"]
+    parts.append(f"used {meta.get('systems_used', 'n/a')}")
+    parts += [str(n) for n in meta.get("system_notes") or []]
+    return html.escape("; ".join(str(p) for p in parts))
+
+
+def _ranges(values: Sequence[int]) -> str:
+    """``0-4, 7, 9-10`` for sorted integers."""
+    out: list[str] = []
+    for v in values:
+        if out and out[-1].split("-")[-1] == str(v - 1):
+            out[-1] = f"{out[-1].split('-')[0]}-{v}"
+        else:
+            out.append(str(v))
+    return ", ".join(out)
+
+
+#: Columns of the collapsed statistics table (the leaderboard has the 3-D p95 and every CI).
+DETAIL_COLUMNS = (
+    "name",
+    "gnss_model",
+    "n_seeds",
+    "n_failed",
+    "availability",
+    "horizontal_median_ref",
+    "ci_low",
+    "ci_high",
+    "horizontal_p95_ref",
+    "error_3d_median_ref",
+    "horizontal_median_solved",
+    "horizontal_max",
+    "time_per_obs_s",
+    "update_median_s",
+    "time_per_epoch_s",
+)
+#: Leaderboard columns: header (with unit) -> (statistic, CI low, CI high) of :func:`seed_statistics`.
+LEADERBOARD_STATISTICS = {
+    "horizontal median [m]": ("horizontal_median_ref", "ci_low", "ci_high"),
+    "horizontal p95 [m]": ("horizontal_p95_ref", "horizontal_p95_ref_ci_low", "horizontal_p95_ref_ci_high"),
+    "3-D median [m]": ("error_3d_median_ref", "error_3d_median_ref_ci_low", "error_3d_median_ref_ci_high"),
+    "3-D p95 [m]": ("error_3d_p95_ref", "error_3d_p95_ref_ci_low", "error_3d_p95_ref_ci_high"),
+}
+
+
+def leaderboard(stats: pd.DataFrame) -> pd.DataFrame:
+    """One row per estimator variant of a group, sorted by median horizontal error (undefined last).
+
+    Parameters
+    ----------
+    stats : pandas.DataFrame
+        :func:`~simbench.analysis.tables.seed_statistics` rows of one group, with ``name``.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``estimator`` (the variant's name), ``family``, ``seeds``, ``availability [%]``, the
+        :data:`LEADERBOARD_STATISTICS` as ``value [CI]`` text (3 significant digits) and
+        ``time per epoch [ms]``.
+    """
+    rows = stats.sort_values(["horizontal_median_ref", "error_3d_median_ref", "name"], na_position="last")
+    table = pd.DataFrame(
+        {
+            "estimator": rows["name"],
+            "family": [family(e) for e in rows["estimator"]],
+            "seeds": rows["n_seeds"].astype(int),
+            "availability [%]": [sig3(100 * a) for a in rows["availability"]],
+        }
+    )
+    for header, (value, low, high) in LEADERBOARD_STATISTICS.items():
+        table[header] = [with_ci(v, lo, hi) for v, lo, hi in zip(rows[value], rows[low], rows[high])]
+    table["time per epoch [ms]"] = [sig3(1e3 * t) if np.isfinite(t) else BLANK for t in rows["time_per_epoch_s"]]
+    return table.reset_index(drop=True)
+
+
+def _leaderboard_section(page: _Page, summary: pd.DataFrame, stats: pd.DataFrame, oracles: Sequence[str]) -> None:
+    page.h2("Leaderboard", anchor="leaderboard")
+    groups = list(stats.groupby(GROUP, dropna=False))
+    for keys, rows in groups:
+        if len(groups) > 1:
+            sweep, scenario, receiver = keys
+            source = summary.loc[_in_group(summary, keys), "source"].iloc[0]
+            page.h3(data_label(scenario, receiver, source) + (f" (sweep {sweep})" if sweep else ""))
+        page.leaderboard(leaderboard(rows))
+    page.p(
+        MEDIAN_DEFINITION + " Sorted by horizontal median; availability = solved / reference epochs; time per "
+        "epoch = the estimator's run time over its reference epochs (a batch estimator's total spread over them)."
+        + (f" {LABELS_MARK} {LABEL_USERS_NOTE}." if oracles else ""),
+        cls="note",
+    )
 
 
 def _labels(summary: pd.DataFrame) -> pd.Series:
@@ -242,11 +606,11 @@ def _labels(summary: pd.DataFrame) -> pd.Series:
 
 
 def _reference_epochs(summary: pd.DataFrame, epochs: pd.DataFrame) -> dict[str, int]:
-    """Per estimator: the reference epochs (summed ``n_epochs``) of the ok jobs whose epochs are in ``epochs``."""
-    keys = ["scenario_key", "estimator", "overrides"]
-    jobs = epochs[keys].fillna(NO_OVERRIDES).drop_duplicates()
-    rows = summary[summary["status"] == "ok"].fillna({"overrides": NO_OVERRIDES}).merge(jobs, on=keys)
-    return {name: int(n) for name, n in rows.groupby("estimator")["n_epochs"].sum().items()}
+    """Per variant name: the reference epochs (summed ``n_epochs``) of the ok jobs whose epochs are in ``epochs``."""
+    keys = ["scenario_key", "estimator", "gnss_model", "overrides"]
+    jobs = with_variant_columns(epochs)[keys].drop_duplicates()
+    rows = with_variant_columns(summary[summary["status"] == "ok"]).merge(jobs, on=keys)
+    return {str(name): int(n) for name, n in rows.groupby("name")["n_epochs"].sum().items()}
 
 
 def _not_measured_line(claims: pd.DataFrame) -> str:
@@ -307,8 +671,17 @@ def _sensitivity_curves(group_stats: pd.DataFrame) -> pd.DataFrame | None:
 
 
 def _diagnostics_section(page: _Page, diag: dict[str, list[dict]], out: Path) -> None:
-    """Each estimator's diagnostics from its first job: scalars, tables (lists of records), and the
-    learned-mixture evolution and selected features where an estimator records them."""
+    """Each estimator's diagnostics from its first job, collapsed: scalars, tables (lists of records), and
+    the learned-mixture evolution and selected features where an estimator records them."""
+    _diagnostics_body(
+        page, diag, out, lambda: page.details_open("Estimator diagnostics (first job of each estimator)", level=2)
+    )
+    if page.open_details:
+        page.details_close()
+
+
+def _diagnostics_body(page: _Page, diag: dict[str, list[dict]], out: Path, begin: Callable[[], None]) -> None:
+    """:func:`_diagnostics_section`'s content; ``begin()`` opens the section before the first estimator's."""
     shown = False
     for estimator, jobs in sorted(diag.items()):
         first = jobs[0]["diagnostics"] if jobs else {}
@@ -317,7 +690,7 @@ def _diagnostics_section(page: _Page, diag: dict[str, list[dict]], out: Path) ->
         if not tables and not scalars:
             continue
         if not shown:
-            page.h2("Estimator diagnostics (first job of each estimator)")
+            begin()
             shown = True
         job = jobs[0]["job"]
         where = f"{_job_label(job)}, seed {job.get('seed', '')}"
@@ -333,13 +706,14 @@ def _diagnostics_section(page: _Page, diag: dict[str, list[dict]], out: Path) ->
                 for i, m in enumerate(busiest["diagnostics"]["model_history"])
             ]
             job = busiest["job"]
-            page.img(
+            page.figure(
                 mixture_evolution_figure(
                     history,
                     out / f"mixture_{estimator}.png",
                     f"{estimator}: noise model after each adaptation (0: a priori), {_job_label(job)}, "
                     f"seed {job.get('seed', '')}",
                     xlabel="adaptation",
+                    formats=page.formats,
                 )
             )
         counts = _adaptation_counts(jobs)
@@ -348,11 +722,12 @@ def _diagnostics_section(page: _Page, diag: dict[str, list[dict]], out: Path) ->
             page.table(counts)
         for key, records in tables.items():
             if any("mixture" in r for r in records):
-                page.img(
+                page.figure(
                     mixture_evolution_figure(
                         records,
                         out / f"mixture_{estimator}.png",
                         f"{estimator}: learned noise mixture per iteration, {where}",
+                        formats=page.formats,
                     )
                 )
             if any("selected_features" in r for r in records):
@@ -404,10 +779,9 @@ def _adaptation_counts(jobs: list[dict]) -> pd.DataFrame | None:
     ).reset_index()
 
 
-def _validation_section(page: _Page, run_dir: Path, out: Path) -> None:
-    """Sim-vs-real statistics (:mod:`simbench.analysis.validation`) of the run's cached scenarios, when the cache
-    holds both a real log with a reference trajectory and a simulation; nothing otherwise."""
-    dirs = cached_scenarios(run_dir)
+def _validation_section(page: _Page, run_dir: Path, out: Path, dirs: list[Path]) -> None:
+    """Sim-vs-real statistics (:mod:`simbench.analysis.validation`) of the run's cached scenarios ``dirs``, when
+    they hold both a real log with a reference trajectory and a simulation; nothing otherwise."""
     n_real = sum(not (d / "labels.parquet").is_file() for d in dirs)  # real logs have no error labels
     if not 0 < n_real < len(dirs):
         return
@@ -437,26 +811,37 @@ def _validation_section(page: _Page, run_dir: Path, out: Path) -> None:
         cls="note",
     )
     page.table(table.drop(columns=["ks_against"]))
-    page.img(
+    page.figure(
         validation_figure(
-            samples, out / "validation.png", "Sim vs real: |code residual|, C/N0 against elevation, tracked satellites"
+            samples,
+            out / "validation.png",
+            "Sim vs real: |code residual|, C/N0 against elevation, tracked satellites",
+            formats=page.formats,
         )
     )
 
 
 class _Page:
-    """Accumulates the report as HTML and Markdown side by side."""
+    """Accumulates the report as HTML and Markdown side by side, and the figures it shows."""
 
-    def __init__(self) -> None:
+    def __init__(self, formats: Sequence[Format] = ("png",)) -> None:
         self.html: list[str] = []
         self.md: list[str] = []
+        self.formats: tuple[Format, ...] = tuple(dict.fromkeys(("png", *formats)))
+        self.figures: list[FigureFile] = []
+        self.open_details = 0
+
+    @property
+    def fmt(self) -> dict[str, Any]:
+        """``formats=`` keyword of the figure functions."""
+        return {"formats": self.formats}
 
     def h1(self, text: str) -> None:
         self.html.append(f"<h1>{html.escape(text)}</h1>")
         self.md += [f"# {text}", ""]
 
-    def h2(self, text: str) -> None:
-        self.html.append(f"<h2>{html.escape(text)}</h2>")
+    def h2(self, text: str, anchor: str = "") -> None:
+        self.html.append(f"<h2 id='{anchor}'>{html.escape(text)}</h2>" if anchor else f"<h2>{html.escape(text)}</h2>")
         self.md += [f"## {text}", ""]
 
     def h3(self, text: str) -> None:
@@ -467,36 +852,109 @@ class _Page:
         self.html.append(f"<p class='{cls}'>{text}</p>")
         self.md += [re.sub(r"<[^>]+>", "", text), ""]
 
-    def img(self, path: Path) -> None:
-        self.html.append(f"<p><img src='{path.name}' alt='{path.stem}'></p>")
-        self.md += [f"![{path.stem}]({path.name})", ""]
+    def details_open(self, summary: str, level: int = 3) -> None:
+        """Start a collapsed part (``<details>``); Markdown gets a heading instead."""
+        self.open_details += 1
+        self.html.append(f"<details><summary>{html.escape(summary)}</summary>")
+        self.md += [f"{'#' * level} {summary}", ""]
+
+    def details_close(self) -> None:
+        self.open_details -= 1
+        self.html.append("</details>")
+
+    def figure(self, figure: FigureFile) -> None:
+        """The PNG with its caption (the title, not drawn in the image) and links to the other formats."""
+        self.figures.append(figure)
+        png = figure.path.name
+        links = " ".join(f"<a href='{f.name}'>{f.suffix[1:].upper()}</a>" for f in figure.files[1:])
+        caption = html.escape(figure.title) + (f" ({links})" if links else "")
+        self.html.append(
+            f"<figure><img src='{png}' alt='{html.escape(figure.path.stem)}'>"
+            f"<figcaption>{caption}</figcaption></figure>"
+        )
+        self.md += [f"![{figure.title}]({png})", ""]
+
+    def provenance(self, rows: Mapping[str, str]) -> None:
+        """The provenance box: one line per item (values are HTML)."""
+        body = "".join(f"<dt>{html.escape(k)}</dt><dd>{v}</dd>" for k, v in rows.items())
+        self.html.append(f"<dl class='provenance'>{body}</dl>")
+        self.md += [f"- **{k}**: {re.sub(r'<[^>]+>', ' ', v).strip()}" for k, v in rows.items()] + [""]
+
+    def leaderboard(self, table: pd.DataFrame) -> None:
+        """The leaderboard: text cells, a value's CI on a second line in HTML."""
+
+        def cell(value: Any) -> str:
+            text = str(value)
+            value_text, _, ci = text.partition(" [")
+            if ci:
+                return f"<td class='num lb'>{html.escape(value_text)}<br><small>[{html.escape(ci)}</small></td>"
+            numeric = text.replace(".", "", 1).replace("e", "").replace("-", "").replace("+", "").isdigit()
+            return f"<td class='{'num lb' if numeric or text == UNDEFINED else 'lb'}'>{html.escape(text)}</td>"
+
+        head = "".join(f"<th>{html.escape(str(c))}</th>" for c in table.columns)
+        body = "".join("<tr>" + "".join(cell(v) for v in row) + "</tr>" for row in table.itertuples(index=False))
+        self.html.append(f"<div class='scroll'><table id='leaderboard-table'><tr>{head}</tr>{body}</table></div>")
+        # the cells are formatted text: tabulate would parse '8.80' back into 8.8
+        self.md += [table.to_markdown(index=False, disable_numparse=True) if len(table) else "(none)", ""]
 
     def table(self, df: pd.DataFrame, classes: Any = None) -> None:
+        """A table; a blank (NaN) cell shows :data:`BLANK` and the note under the table says why."""
         head = "".join(f"<th>{html.escape(str(c))}</th>" for c in df.columns)
         body = []
         for _, row in df.iterrows():
             cls = f" class='{classes(row)}'" if classes else ""
             cells = "".join(_cell(v) for v in row)
             body.append(f"<tr{cls}>{cells}</tr>")
-        self.html.append(f"<table><tr>{head}</tr>{''.join(body)}</table>")
+        self.html.append(f"<div class='scroll'><table><tr>{head}</tr>{''.join(body)}</table></div>")
         shown = df.copy()
-        for column in df.columns[df.isin([np.inf]).any()]:  # tabulate would print 'inf'
-            shown[column] = [_text(v) for v in df[column]]
-        self.md += [shown.to_markdown(index=False, floatfmt=".4g") if len(df) else "(none)", ""]
+        for column in df.columns:
+            values = df[column]
+            if values.isin([np.inf]).any() or values.isna().any():  # tabulate would print 'inf' and 'nan'
+                shown[column] = [_text(v) if isinstance(v, (float, np.floating)) else _blank(v) for v in values]
+        self.md += [shown.to_markdown(index=False, floatfmt=".3g") if len(df) else "(none)", ""]
+        blank = [str(c) for c in df.columns if df[c].map(_is_blank).any()]
+        if blank:
+            reasons = "; ".join(f"{c}: {BLANK_REASONS.get(c, 'not defined for that row')}" for c in blank)
+            self.p(f"{BLANK} = {reasons}.", cls="note")
 
-    def write(self, out: Path) -> Path:
+    def write(self, out: Path, started: float) -> Path:
+        """Write index.html, README.md and figures.json; the page ends with the build time."""
+        self.p(f"Report built in {time.perf_counter() - started:.1f} s.", cls="note")
         page = (
             f"<!doctype html><html><head><meta charset='utf-8'><title>simbench report</title>"
-            f"<style>{_CSS}</style></head><body>{''.join(self.html)}</body></html>"
+            f"<meta name='viewport' content='width=device-width'><style>{_CSS}</style></head>"
+            f"<body>{''.join(self.html)}</body></html>"
         )
-        for name, text in (("index.html", page), ("README.md", "\n".join(self.md) + "\n")):
+        figures = [
+            {
+                "file": f.path.name,
+                "files": [p.name for p in f.files],
+                "title": f.title,
+                "series": list(f.series),
+                "legend": list(f.legend),
+            }
+            for f in self.figures
+        ]
+        for name, text in (
+            ("index.html", page),
+            ("README.md", "\n".join(self.md) + "\n"),
+            ("figures.json", json.dumps(figures, indent=1) + "\n"),
+        ):
             write_bytes(out / name, text.encode())
         return out
 
 
+def _is_blank(value: Any) -> bool:
+    return value is None or (isinstance(value, (float, np.floating)) and np.isnan(value))
+
+
+def _blank(value: Any) -> Any:
+    return BLANK if _is_blank(value) else value
+
+
 def _text(value: Any) -> str:
-    """A float as the report shows it: 4 significant digits, '—' for an undefined percentile (inf)."""
-    return UNDEFINED if value == np.inf else "" if not np.isfinite(value) else f"{value:.4g}"
+    """A float as the report shows it: 3 significant digits, '—' for an undefined percentile (inf), n/a for NaN."""
+    return BLANK if np.isnan(value) else sig3(value)
 
 
 def _cell(value: Any) -> str:
@@ -504,4 +962,4 @@ def _cell(value: Any) -> str:
         return f"<td class='num'>{_text(value)}</td>"
     if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
         return f"<td class='num'>{value}</td>"
-    return f"<td>{html.escape(str(value))}</td>"
+    return f"<td>{html.escape(str(_blank(value)))}</td>"

@@ -1,18 +1,27 @@
 """Publication-quality figures from the results tables.
 
-Each estimator keeps one colour and line style (:func:`estimator_styles`), so
-14 and more estimators stay distinct. Error distributions are drawn over all
-reference epochs (:func:`simbench.analysis.metrics.reference_ecdf`): a curve ends at its
+Every figure is drawn without a title (the report's HTML carries it as a
+caption, so a figure can go into a paper as it is) and written in each of the
+asked formats (PNG for the page, PDF for a paper). Each curve keeps its
+family's hue and a line style of its own (:mod:`simbench.report.style`); past
+:data:`SMALL_MULTIPLES_ABOVE` curves a figure becomes one panel per family.
+Error distributions are drawn over all reference epochs
+(:func:`simbench.analysis.metrics.reference_ecdf`): a curve ends at its
 estimator's availability, below 1 when it left epochs unsolved.
+
+Every figure function returns a :class:`FigureFile`: the files written and
+the series names read back from the drawn figure (legend entries, category
+labels and panel titles), which the report writes beside the figures
+(``figures.json``) so what a figure shows can be checked without pixels.
 """
 
 from __future__ import annotations
 
 import io
-import textwrap
 from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal, cast
+from typing import Any, Literal
 
 import matplotlib
 
@@ -20,31 +29,66 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
-from matplotlib.colors import ListedColormap
-from matplotlib.ticker import MaxNLocator
+from matplotlib.ticker import FuncFormatter, MaxNLocator
 
-from simbench.analysis.metrics import reference_ecdf, reference_percentile
+from simbench.analysis.metrics import reference_ecdf
 from simbench.analysis.validation import ValidationSample, cn0_by_elevation
 from simbench.contract import write_bytes
 from simbench.errors import SimbenchError
+from simbench.report.style import by_family, curve_styles, sig3
 
 METRIC_LABELS = {"horizontal": "horizontal error [m]", "error_3d": "3-D error [m]"}
-#: After the ten colours of tab10 the line style changes, so 40 estimators get distinct lines.
-LINESTYLES = ("-", "--", ":", "-.")
 #: Legends with more entries go beside the axes instead of over the curves.
 LEGEND_INSIDE_MAX = 6
+#: More curves than this and a figure becomes small multiples, one panel per family.
+SMALL_MULTIPLES_ABOVE = 8
 #: What a figure says about curves that end below 1.
 REFERENCE_NOTE = "over all reference epochs: a curve ends at its availability, unsolved epochs counting as missed"
+#: Resolution of the PNG files [dots per inch]; PDF is vector.
+PNG_DPI = 150
+#: Marks an estimator that reads the true error labels in figure and table names.
+LABELS_MARK = "†"
+#: File formats a figure can be written in.
+Format = Literal["png", "pdf", "svg"]
+FORMATS: tuple[Format, ...] = ("png", "pdf", "svg")
 
 
-def estimator_styles(names: Iterable[str]) -> dict[str, dict[str, Any]]:
-    """A distinct ``color`` and ``linestyle`` per estimator name, by sorted name (same set, same styles)."""
-    tab10 = cast(ListedColormap, plt.get_cmap("tab10"))
-    colors = cast(Sequence[tuple[float, float, float]], tab10.colors)  # a tuple of ten RGB triples
-    return {
-        name: {"color": colors[i % len(colors)], "linestyle": LINESTYLES[(i // len(colors)) % len(LINESTYLES)]}
-        for i, name in enumerate(sorted(set(names)))
-    }
+@dataclass(frozen=True)
+class FigureFile:
+    """A written figure.
+
+    Attributes
+    ----------
+    files : tuple of Path
+        One file per format, the PNG (shown in the HTML) first.
+    title : str
+        The caption the report prints under it.
+    series : tuple of str
+        Names drawn: legend entries, category labels and panel titles (without availability
+        or median suffixes), read back from the figure.
+    legend : tuple of str
+        The legend entries as drawn (with availability and median where the figure gives them).
+    """
+
+    files: tuple[Path, ...]
+    title: str
+    series: tuple[str, ...]
+    legend: tuple[str, ...] = ()
+
+    @property
+    def path(self) -> Path:
+        """The file the HTML page shows (PNG)."""
+        return self.files[0]
+
+
+def estimator_of(name: str) -> str:
+    """The estimator of a curve name: ``dcs[prior_scale=10]`` and ``oracle†`` give ``dcs`` and ``oracle``."""
+    return name.split("[")[0].rstrip(LABELS_MARK)
+
+
+def estimator_styles(names: Iterable[str]) -> dict[str, dict]:
+    """A distinct ``color`` and ``linestyle`` per curve name (:func:`simbench.report.style.curve_styles`)."""
+    return curve_styles({n: estimator_of(n) for n in set(names)})
 
 
 def availability_text(fraction: float) -> str:
@@ -67,88 +111,117 @@ def _references(epochs: pd.DataFrame, n_reference: Mapping[str, int]) -> dict[st
     return {name: int(n_reference[name]) for name in epochs["estimator"].unique()}
 
 
+def _panels(names: Sequence[str]) -> list[tuple[str, list[str]]]:
+    """One panel for a few curves; one per family (titled by it) beyond :data:`SMALL_MULTIPLES_ABOVE`."""
+    if len(names) <= SMALL_MULTIPLES_ABOVE:
+        return [("", list(names))]
+    return list(by_family({n: estimator_of(n) for n in names}).items())
+
+
+def grid_axes(
+    n: int, width: float, height: float, ncols: int = 2, sharex: bool = False, sharey: bool = False
+) -> tuple[plt.Figure, list[plt.Axes]]:
+    """``n`` axes in rows of ``ncols`` (one column for a single panel), each ``width`` x ``height`` inches."""
+    cols = 1 if n == 1 else ncols
+    rows = int(np.ceil(n / cols))
+    fig, axes = plt.subplots(
+        rows, cols, figsize=(width * cols, height * rows), dpi=PNG_DPI, squeeze=False, sharex=sharex, sharey=sharey
+    )
+    # room for each panel's title and tick labels; the saved figure is cropped to what is drawn
+    fig.subplots_adjust(hspace=0.45 if rows > 1 else 0.2, wspace=0.3)
+    flat = list(axes.ravel())
+    for ax in flat[n:]:
+        ax.set_visible(False)
+    return fig, flat[:n]
+
+
 def ecdf_figure(
-    epochs: pd.DataFrame, metric: str, path: str | Path, title: str, n_reference: Mapping[str, int]
-) -> Path:
+    epochs: pd.DataFrame,
+    metric: str,
+    path: str | Path,
+    title: str,
+    n_reference: Mapping[str, int],
+    medians: Mapping[str, float] | None = None,
+    formats: Sequence[Format] = ("png",),
+) -> FigureFile:
     """ECDF of one error metric per estimator over all reference epochs, log-scaled error axis.
 
     Parameters
     ----------
     epochs : pandas.DataFrame
-        ``epochs.parquet`` rows (columns ``estimator`` and ``metric``): the solved epochs.
+        ``epochs.parquet`` rows (columns ``estimator``, the curve name, and ``metric``): the solved epochs.
     metric : str
         ``horizontal`` or ``error_3d``.
     path : path-like
-        PNG to write.
+        PNG to write (other formats beside it).
     title : str
-    n_reference : mapping of estimator name to int
-        Reference epochs of that estimator's jobs in ``epochs`` (the summed ``n_epochs``): the
-        denominator, so a curve ends at the estimator's availability. The legend gives the
-        availability and the median over reference epochs ('—' below 50 % availability).
+        Caption for the report (not drawn).
+    n_reference : mapping of curve name to int
+        Reference epochs of that curve's jobs in ``epochs`` (the summed ``n_epochs``): the
+        denominator, so a curve ends at the estimator's availability.
+    medians : mapping of curve name to float, optional
+        The median printed in the legend [m] (the report passes its leaderboard's, so both show
+        one number); '—' for inf (availability below 50 %). None: no median in the legend.
+    formats : sequence of str
+        File formats to write.
     """
     counts = _references(epochs, n_reference)
     styles = estimator_styles(epochs["estimator"])
-    curves = []
+    curves = {}
     for name, group in epochs.groupby("estimator"):
-        values = group[metric].to_numpy(float)
-        x, p = reference_ecdf(values, counts[name])
+        x, p = reference_ecdf(group[metric].to_numpy(float), counts[str(name)])
         if x.size:
-            curves.append((reference_percentile(values, counts[name], 50.0), -p[-1], name, x, p))
-    beside = len(curves) > LEGEND_INSIDE_MAX
-    fig, ax = plt.subplots(figsize=(9.5 if beside else 6.4, 4.4), dpi=150)
-    for median, _, name, x, p in sorted(curves, key=lambda c: c[:3]):
-        x = np.maximum(x, 1e-3)
-        shown = f"{median:.2f} m" if np.isfinite(median) else "—"
-        ax.step(
-            np.r_[x[0], x],
-            np.r_[0.0, p],
-            where="post",
-            lw=1.5,
-            **styles[name],
-            label=f"{name} ({availability_text(p[-1])}, median {shown})",
-        )
-        ax.plot(x[-1], p[-1], marker="o", ms=3, color=styles[name]["color"])  # where the curve stops
-    ax.set_xscale("log")
-    ax.set_xlabel(METRIC_LABELS.get(metric, metric))
-    ax.set_ylabel("fraction of reference epochs")
-    ax.set_ylim(0, 1.01)
-    ax.grid(True, which="both", alpha=0.3)
-    # a legend beside the axes leaves the title about 5.5 inches
-    ax.set_title(_wrap(fig, f"{title}\n({REFERENCE_NOTE})", 10, 5.5 if beside else None), fontsize=10)
-    _legend(ax, len(curves), "lower right")
-    return _save(fig, path)
+            curves[str(name)] = (x, p)
+    order = sorted(curves, key=lambda n: ((medians or {}).get(n, np.inf), -curves[n][1][-1], n))
+    panels = _panels(order)
+    beside = len(panels) == 1 and len(order) > LEGEND_INSIDE_MAX
+    fig, axes = grid_axes(len(panels), 7.6 if beside else 5.2, 3.4, sharex=True, sharey=True)
+    for ax, (panel, names) in zip(axes, panels):
+        for other in order if panel else []:  # the other families in grey: every panel on one scale
+            if other not in names:
+                x, p = curves[other]
+                ax.step(np.r_[x[0], x], np.r_[0.0, p], where="post", lw=0.6, color="0.85")
+        for name in names:
+            x, p = curves[name]
+            x = np.maximum(x, 1e-3)
+            median = "" if medians is None else f", median {sig3(medians.get(name, np.nan))} m"
+            ax.step(
+                np.r_[x[0], x],
+                np.r_[0.0, p],
+                where="post",
+                lw=1.5,
+                **styles[name],
+                label=f"{name} ({availability_text(p[-1])}{median})",
+            )
+            ax.plot(x[-1], p[-1], marker="o", ms=3, color=styles[name]["color"])  # where the curve stops
+        ax.set_xscale("log")
+        plain_log_ticks(ax.xaxis)
+        ax.set_xlabel(METRIC_LABELS.get(metric, metric))
+        ax.set_ylabel("fraction of reference epochs")
+        ax.set_ylim(0, 1.01)
+        ax.grid(True, which="both", alpha=0.3)
+        if panel:  # small multiples share their axes: the outer panels carry the labels
+            ax.set_title(panel, fontsize=9)
+            ax.label_outer()
+        _legend(ax, len(names) if not panel else 1, "lower right")
+    return save_figure(fig, path, f"{title} ({REFERENCE_NOTE})", formats)
 
 
-def error_timeseries_figure(epochs: pd.DataFrame, path: str | Path, title: str) -> Path:
-    """Horizontal error over time per estimator (convergence behaviour)."""
-    styles = estimator_styles(epochs["estimator"])
-    n = epochs["estimator"].nunique()
-    fig, ax = plt.subplots(figsize=(7.0 if n <= LEGEND_INSIDE_MAX else 9.0, 3.6), dpi=150)
-    ax.set_title(_wrap(fig, title, 12, 6.0 if n > LEGEND_INSIDE_MAX else None))
-    for name, group in epochs.groupby("estimator"):
-        ax.plot(group["t"], group["horizontal"], lw=1.0, label=name, **styles[name])
-    ax.set_yscale("log")
-    ax.set_xlabel("time since start [s]")
-    ax.set_ylabel("horizontal error [m]")
-    ax.grid(True, which="both", alpha=0.3)
-    _legend(ax, n, "upper right")
-    return _save(fig, path)
-
-
-def _legend(ax: plt.Axes, entries: int, inside: Literal["lower right", "upper right"]) -> None:
+def _legend(ax: plt.Axes, entries: int, inside: Literal["lower right", "upper right", "best"]) -> None:
     """Legend at ``inside`` for a few entries, beside the axes (two columns past 20) for many."""
     if entries <= LEGEND_INSIDE_MAX:
-        ax.legend(loc=inside, fontsize=8, frameon=True)
+        ax.legend(loc=inside, fontsize=7, frameon=True)
     else:
         ax.legend(
             loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False, ncols=1 if entries <= 20 else 2
         )
 
 
-def _wrap(fig: plt.Figure, text: str, fontsize: float, width_in: float | None = None) -> str:
-    """``text`` wrapped to the figure's width, or ``width_in`` inches (titles otherwise run off narrow figures)."""
-    chars = max(20, int((width_in or fig.get_figwidth()) * 72 / (0.55 * fontsize)))
-    return "\n".join(textwrap.fill(line, chars) for line in text.split("\n"))
+def plain_log_ticks(axis: Any) -> None:
+    """Tick labels of a log axis as plain numbers (``2``, ``0.5``), not ``2 x 10^0``."""
+    axis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
+    # of the minor ticks only 2 and 5 x 10^k: all eight would overlap
+    axis.set_minor_formatter(FuncFormatter(lambda value, _: f"{value:g}" if f"{value:g}"[0] in "25" else ""))
 
 
 def _log_x_if_wide(ax: plt.Axes, values: np.ndarray) -> None:
@@ -161,19 +234,57 @@ def _log_x_if_wide(ax: plt.Axes, values: np.ndarray) -> None:
         ax.set_xlim(left=0)
 
 
-def _save(fig: plt.Figure, path: str | Path) -> Path:
-    fig.tight_layout()
-    path = Path(path)
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format=path.suffix[1:] or "png")
+def legend_texts(fig: plt.Figure) -> tuple[str, ...]:
+    """Every legend entry of a figure as drawn, figure legends first."""
+    texts: list[str] = []
+    for legend in [*fig.legends, *(ax.get_legend() for ax in fig.axes)]:
+        if legend is not None:
+            texts += [t.get_text() for t in legend.get_texts()]
+    return tuple(texts)
+
+
+def drawn_series(fig: plt.Figure) -> tuple[str, ...]:
+    """The names a figure shows: legend entries, category tick labels and panel titles, in order.
+
+    A legend entry ``dcs (98 % solved, median 2.3 m)`` and a tick label ``dcs\n98 % solved`` both give ``dcs``.
+    """
+    texts = list(legend_texts(fig))
+    for ax in fig.axes:
+        if not ax.get_visible():
+            continue
+        texts.append(ax.get_title())
+        for axis in (ax.xaxis, ax.yaxis):
+            if axis.get_major_formatter().__class__.__name__ == "StrCategoryFormatter":
+                texts += [t.get_text() for t in axis.get_ticklabels()]
+    names = [t.split("\n")[0].split(" (")[0].strip() for t in texts]
+    return tuple(dict.fromkeys(n for n in names if n))
+
+
+def save_figure(fig: plt.Figure, path: str | Path, title: str, formats: Sequence[Format] = ("png",)) -> FigureFile:
+    """Write ``fig`` as ``path`` (PNG) and in the other ``formats`` beside it; close it."""
+    path = Path(path).with_suffix(".png")
+    series, legend = drawn_series(fig), legend_texts(fig)
+    files = []
+    for fmt in dict.fromkeys(["png", *formats]):
+        buffer = io.BytesIO()
+        # cropped to what is drawn (legends beside the axes included): cheaper than a layout engine,
+        # which spent half the report's time, and it never warns
+        fig.savefig(buffer, format=fmt, dpi=PNG_DPI, bbox_inches="tight", pad_inches=0.05)
+        target = path.with_suffix(f".{fmt}")
+        write_bytes(target, buffer.getvalue())  # atomic: two reports of one run never mix their figures
+        files.append(target)
     plt.close(fig)
-    write_bytes(path, buffer.getvalue())  # atomic: two reports of one run never mix their figures
-    return path
+    return FigureFile(tuple(files), title, series, legend)
 
 
 def box_figure(
-    epochs: pd.DataFrame, path: str | Path, title: str, n_reference: Mapping[str, int], metric: str = "horizontal"
-) -> Path:
+    epochs: pd.DataFrame,
+    path: str | Path,
+    title: str,
+    n_reference: Mapping[str, int],
+    metric: str = "horizontal",
+    formats: Sequence[Format] = ("png",),
+) -> FigureFile:
     """Box plot of the solved epochs' errors per estimator (dissertation Fig. 5.3.2), log scale.
 
     Each label gives the estimator's availability (solved / ``n_reference`` epochs,
@@ -183,26 +294,33 @@ def box_figure(
     order = sorted(
         epochs["estimator"].unique(), key=lambda n: np.nanmedian(epochs.loc[epochs["estimator"] == n, metric])
     )
+    styles = estimator_styles(order)
     data = [epochs.loc[epochs["estimator"] == n, metric].dropna().to_numpy() for n in order]
     labels = [f"{n}\n{availability_text(len(d) / counts[n])}" for n, d in zip(order, data)]
-    fig, ax = plt.subplots(figsize=(max(4.0, 0.9 * len(order) + 1.5), 4.2), dpi=150)
-    ax.boxplot(data, whis=(5, 95), showfliers=False, medianprops={"color": "black"})
-    ax.set_xticks(range(1, len(order) + 1), labels, rotation=30, ha="right", fontsize=8)
+    fig, ax = plt.subplots(figsize=(max(4.0, 0.55 * len(order) + 1.5), 3.6), dpi=PNG_DPI)
+    boxes = ax.boxplot(data, whis=(5, 95), showfliers=False, medianprops={"color": "black"}, patch_artist=True)
+    for patch, name in zip(boxes["boxes"], order):
+        patch.set_facecolor(styles[name]["color"])
+        patch.set_alpha(0.6)
+    ax.set_xticks(range(1, len(order) + 1), labels, rotation=35, ha="right", fontsize=7)
     ax.set_yscale("log")
+    plain_log_ticks(ax.yaxis)
     ax.set_ylabel(METRIC_LABELS.get(metric, metric))
     ax.grid(True, axis="y", which="both", alpha=0.3)
-    # wrapped as if larger: the default font runs wider than _wrap's estimate for narrow figures
-    ax.set_title(_wrap(fig, f"{title}\n(solved epochs only; box: quartiles, whiskers: 5-95 %)", 12), fontsize=10)
-    return _save(fig, path)
+    series = tuple(order)
+    figure = save_figure(fig, path, f"{title} (solved epochs only; box: quartiles, whiskers: 5-95 %)", formats)
+    return FigureFile(figure.files, figure.title, series, figure.legend)
 
 
-def sensitivity_figure(curves: pd.DataFrame, path: str | Path, title: str) -> Path:
+def sensitivity_figure(
+    curves: pd.DataFrame, path: str | Path, title: str, formats: Sequence[Format] = ("png",)
+) -> FigureFile:
     """Median error against the a priori covariance scale per estimator (dissertation Fig. 5.3.7).
 
     ``curves`` has columns estimator, scale, horizontal_median_ref (over reference epochs; a
     scale whose median is undefined, inf, is left out), ci_low, ci_high.
     """
-    fig, ax = plt.subplots(figsize=(6.0, 4.0), dpi=150)
+    fig, ax = plt.subplots(figsize=(5.6, 3.6), dpi=PNG_DPI)
     styles = estimator_styles(curves["estimator"])
     for name, group in curves.groupby("estimator"):
         group = group[np.isfinite(group["horizontal_median_ref"])].sort_values("scale")
@@ -214,42 +332,54 @@ def sensitivity_figure(curves: pd.DataFrame, path: str | Path, title: str) -> Pa
             marker="o",
             capsize=3,
             label=name,
-            **styles[name],
+            **styles[str(name)],
         )
     ax.set_xscale("log")
     ax.set_xlabel("a priori covariance scale s")
     ax.set_ylabel("median horizontal error [m]\n(over reference epochs)")
     ax.grid(True, which="both", alpha=0.3)
-    ax.set_title(_wrap(fig, title, 10) + "\n(per-seed medians: mean and 95 % CI over seeds)", fontsize=10)
-    ax.legend(fontsize=8)
-    return _save(fig, path)
+    ax.legend(fontsize=7)
+    return save_figure(fig, path, f"{title} (per-seed medians: mean and 95 % CI over seeds)", formats)
 
 
-def runtime_figure(stats: pd.DataFrame, path: str | Path, title: str) -> Path:
-    """Run time per observation and median per-epoch update time per estimator (Figs. 5.3.8, 7.3.3)."""
+def runtime_figure(
+    stats: pd.DataFrame, path: str | Path, title: str, formats: Sequence[Format] = ("png",)
+) -> FigureFile:
+    """Run time per observation and median per-epoch update time per estimator (Figs. 5.3.8, 7.3.3).
+
+    ``stats`` has one row per curve: ``estimator`` (the curve's short name), ``time_per_obs_s``
+    and ``update_median_s`` [s].
+    """
     stats = stats.sort_values("time_per_obs_s")
-    fig, axes = plt.subplots(1, 2, figsize=(9.0, 3.8), dpi=150)
-    labels = [f"{e}\n{v}" if v else e for e, v in zip(stats["estimator"], stats["variant"].fillna(""))]
-    axes[0].barh(labels, stats["time_per_obs_s"] * 1e6, color="tab:blue")
+    styles = estimator_styles(stats["estimator"])
+    colors = [styles[n]["color"] for n in stats["estimator"]]
+    fig, axes = plt.subplots(1, 2, figsize=(8.0, 0.9 + 0.22 * len(stats)), dpi=PNG_DPI, sharey=True)
+    labels = list(stats["estimator"])
+    axes[0].barh(labels, stats["time_per_obs_s"] * 1e6, color=colors)
     axes[0].set_xlabel("run time per observation [us]")
-    axes[1].barh(labels, stats["update_median_s"] * 1e3, color="tab:orange")
+    axes[1].barh(labels, stats["update_median_s"] * 1e3, color=colors)
     axes[1].set_xlabel("median per-epoch update [ms]")
     for ax, values in zip(axes, (stats["time_per_obs_s"], stats["update_median_s"])):
         _log_x_if_wide(ax, values.to_numpy())
         ax.grid(True, axis="x", which="both", alpha=0.3)
         ax.tick_params(axis="y", labelsize=7)
-    fig.suptitle(_wrap(fig, title, 11), fontsize=11)
-    return _save(fig, path)
+    return save_figure(fig, path, title, formats)
 
 
-def mixture_evolution_figure(history: list[dict], path: str | Path, title: str, xlabel: str = "iteration") -> Path:
+def mixture_evolution_figure(
+    history: list[dict],
+    path: str | Path,
+    title: str,
+    xlabel: str = "iteration",
+    formats: Sequence[Format] = ("png",),
+) -> FigureFile:
     """Component standard deviations of the learned noise mixture per iteration (dissertation Fig. 5.3.3).
 
     ``history`` holds one record per iteration (or ICE adaptation, ``xlabel``) with ``mixture`` =
     {weights, covariances (K, D, D)}; the first two dimensions are the code and phase residuals [m].
     Marker area is proportional to weight.
     """
-    fig, axes = plt.subplots(1, 2, figsize=(9.0, 3.6), dpi=150, sharex=True)
+    fig, axes = plt.subplots(1, 2, figsize=(8.0, 3.2), dpi=PNG_DPI, sharex=True)
     for record in history:
         mix = record.get("mixture") or {}
         cov = np.asarray(mix.get("covariances", []), float)
@@ -265,19 +395,24 @@ def mixture_evolution_figure(history: list[dict], path: str | Path, title: str, 
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.set_ylabel(label)
         ax.grid(True, which="both", alpha=0.3)
-    fig.suptitle(_wrap(fig, title + " (marker area ~ component weight)", 10), fontsize=10)
-    return _save(fig, path)
+    return save_figure(fig, path, f"{title} (marker area ~ component weight)", formats)
 
 
-def validation_figure(samples: Sequence[ValidationSample], path: str | Path, title: str, bin_deg: float = 10.0) -> Path:
+def validation_figure(
+    samples: Sequence[ValidationSample],
+    path: str | Path,
+    title: str,
+    bin_deg: float = 10.0,
+    formats: Sequence[Format] = ("png",),
+) -> FigureFile:
     """Sim-vs-real panels (:mod:`simbench.analysis.validation`): ECDF of the |code residual|, C/N0 median
     (and 10-90 % band) against elevation, and the distribution of tracked satellites per epoch.
 
-    Each world keeps one colour and line style (:func:`estimator_styles` on the world names); a
-    real log is drawn thicker. The fourth panel holds the legend.
+    Each world keeps one colour and line style (:func:`world_styles`); a real log is drawn thicker.
+    The fourth panel holds the legend.
     """
-    styles = estimator_styles(s.name for s in samples)
-    fig, grid = plt.subplots(2, 2, figsize=(11.0, 8.0), dpi=150)
+    styles = world_styles(s.name for s in samples)
+    fig, grid = plt.subplots(2, 2, figsize=(10.0, 7.2), dpi=PNG_DPI)
     ecdf_ax, cn0_ax, sats_ax, legend_ax = grid.ravel()
     for sample in samples:
         style = {**styles[sample.name], "linewidth": 2.4 if sample.real else 1.4}
@@ -312,5 +447,14 @@ def validation_figure(samples: Sequence[ValidationSample], path: str | Path, tit
         frameon=False,
         ncols=1 if len(samples) <= 12 else 2,
     )
-    fig.suptitle(_wrap(fig, title, 11), fontsize=11)
-    return _save(fig, path)
+    return save_figure(fig, path, title, formats)
+
+
+def world_styles(names: Iterable[str]) -> dict[str, dict]:
+    """A ``color`` (tab10) and line style per world name, by sorted name (worlds have no family)."""
+    colors = plt.get_cmap("tab10").colors  # type: ignore[attr-defined]
+    styles = ("-", "--", ":", "-.")
+    return {
+        name: {"color": colors[i % len(colors)], "linestyle": styles[(i // len(colors)) % len(styles)]}
+        for i, name in enumerate(sorted(set(names)))
+    }

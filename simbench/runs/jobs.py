@@ -17,6 +17,7 @@ from typing import Any, cast
 import pandas as pd
 from omegaconf import DictConfig, OmegaConf
 from threadpoolctl import threadpool_limits
+from tqdm.auto import tqdm
 
 import estimators
 from simbench.analysis.variants import overrides_json, overrides_of, variant_label
@@ -43,7 +44,7 @@ class RunOptions:
     blas_threads: int | None = None
 
 
-def run_job(cfg: DictConfig, *, fail_fast: bool = True) -> pd.DataFrame:
+def run_job(cfg: DictConfig, *, fail_fast: bool = True, bar: tqdm | None = None) -> pd.DataFrame:
     """Run (or resume) one job; return the summary rows of every estimator it covers.
 
     Parameters
@@ -55,17 +56,28 @@ def run_job(cfg: DictConfig, *, fail_fast: bool = True) -> pd.DataFrame:
         config or a scenario that cannot be built, e.g. a missing or malformed
         input file (a single run: the user gets one line). In a sweep (False)
         it becomes a failed row like any other job failure and the sweep goes on.
+    bar : tqdm, optional
+        A progress bar over the jobs x estimators of a whole run or sweep, advanced by one per
+        estimator of this job (a finished one too); None: with ``progress`` set, a bar over this
+        job's estimators.
     """
     opts = to_typed(
         {k: cfg[k] for k in ("results_dir", "progress", "sweep_name", "blas_threads") if k in cfg}, RunOptions, "config"
     )
     if opts.blas_threads is not None and opts.blas_threads < 1:
         raise SimbenchError("blas_threads", f"is {opts.blas_threads}", "set blas_threads to 1 or more (or null)")
-    with threadpool_limits(limits=opts.blas_threads or 1):
-        return _run_job(cfg, opts, fail_fast=fail_fast)
+    own = bar is None
+    if bar is None:
+        bar = tqdm(total=len(cfg.estimator), desc="estimators", unit="est", disable=not opts.progress, leave=False)
+    try:
+        with threadpool_limits(limits=opts.blas_threads or 1):
+            return _run_job(cfg, opts, fail_fast=fail_fast, bar=bar)
+    finally:
+        if own:
+            bar.close()
 
 
-def _run_job(cfg: DictConfig, opts: RunOptions, *, fail_fast: bool) -> pd.DataFrame:
+def _run_job(cfg: DictConfig, opts: RunOptions, *, fail_fast: bool, bar: tqdm) -> pd.DataFrame:
     sim = scenario_settings(cfg)
     root = Path(opts.results_dir)
     key = scenario_key(sim)
@@ -74,6 +86,7 @@ def _run_job(cfg: DictConfig, opts: RunOptions, *, fail_fast: bool) -> pd.DataFr
     codes = {name: code_identity(estimators.get(name).__module__) for name in estimator_cfgs}
     stems = {name: result_stem(root, key, name, c, codes[name]) for name, c in estimator_cfgs.items()}
     pending = {name: c for name, c in estimator_cfgs.items() if not is_finished(stems[name])}
+    bar.update(len(estimator_cfgs) - len(pending))  # found in the store: done
     meta = provenance(cast(dict[str, Any], OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)))
     # the overrides of a row are relative to its gnss_model preset (as shipped), so the preset joins the row
     gnss_model = str(cfg.gnss_model.name)
@@ -94,6 +107,7 @@ def _run_job(cfg: DictConfig, opts: RunOptions, *, fail_fast: bool) -> pd.DataFr
             # in a sweep it fails this job's estimators, not the sweep
             scenario, failure = None, one_line(exc)
         for name, est_cfg in pending.items():
+            bar.set_postfix_str(f"{sim.scenario.name} seed {sim.seed}: {name}")
             overrides = estimator_overrides(name, est_cfg, gnss_model)
             if scenario is None:
                 summary = pd.DataFrame(
@@ -111,7 +125,7 @@ def _run_job(cfg: DictConfig, opts: RunOptions, *, fail_fast: bool) -> pd.DataFr
                 ).reindex(columns=list(SUMMARY_COLUMNS))
                 epochs, diag = pd.DataFrame(columns=list(EPOCH_COLUMNS)), {}
             else:
-                result = run_estimators(scenario, {name: est_cfg}, receiver=sim.receiver.name, progress=opts.progress)
+                result = run_estimators(scenario, {name: est_cfg}, receiver=sim.receiver.name, progress=False)
                 summary, epochs, diag = result.summary, result.epochs, result.diagnostics.get(name, {})
             columns = {**tags, "variant": variant_label(overrides), "overrides": overrides_json(overrides)}
             summary = summary.assign(**columns)
@@ -124,6 +138,7 @@ def _run_job(cfg: DictConfig, opts: RunOptions, *, fail_fast: bool) -> pd.DataFr
                 diag,
                 {**meta, "simbench.code": code},
             )
+            bar.update(1)
     rows = [
         pd.read_parquet(stem.with_suffix(".summary.parquet"))
         for stem in stems.values()

@@ -20,7 +20,8 @@ import pandas as pd
 from tqdm.auto import tqdm
 
 import estimators
-from simbench.analysis.metrics import enu_errors, reference_stats, summary_stats
+from estimators.base import COVARIANCE_COLUMNS, COVARIANCE_INDEX
+from simbench.analysis.metrics import enu_errors, local_enu, nees, reference_stats, summary_stats
 from simbench.contract import Need, Scenario, available_needs, unmet_needs_reason
 from simbench.errors import one_line
 from simbench.source import SIMULATED
@@ -92,6 +93,15 @@ EPOCH_COLUMNS: dict[str, str] = {
     "overrides": "str, JSON (as in summary.parquet)",
     "epoch": "int, epoch index",
     "t": "s, since scenario start",
+    "x": "m, estimated antenna position, ECEF x",
+    "y": "m, estimated ECEF y",
+    "z": "m, estimated ECEF z",
+    "east": "m, estimated position in the local east-north-up frame at the scenario's first reference point",
+    "north": "m, as east",
+    "up": "m, as east",
+    **{name: f"{meaning} (NaN where the estimator gives none)" for name, meaning in COVARIANCE_COLUMNS.items()},
+    "nees": "-, normalised estimation error squared of the position, d^T P^-1 d with d the ECEF error and P the "
+    "covariance above (chi-square with 3 degrees of freedom when consistent); NaN without a covariance",
     "e": "m, east error",
     "n": "m, north error",
     "u": "m, up error",
@@ -180,7 +190,8 @@ def score_solution(scenario: Scenario, solution: pd.DataFrame, total_s: float) -
     ----------
     scenario : Scenario
     solution : pandas.DataFrame
-        Columns ``epoch, t, x, y, z, update_s`` (ECEF m; update time s, NaN when unknown).
+        Columns ``epoch, t, x, y, z, update_s`` (ECEF m; update time s, NaN when unknown), and
+        the ECEF position covariance (``cov_xx`` ... ``cov_zz`` [m^2]) where the estimator has one.
     total_s : float
         Wall time of the run that produced it [s]; NaN when unknown (a foreign solution).
 
@@ -191,9 +202,18 @@ def score_solution(scenario: Scenario, solution: pd.DataFrame, total_s: float) -
         ``n_epochs`` and ``n_obs``: status (ok, diverged, or failed when nothing is finite),
         availability over the reference epochs and the error statistics.
     errors : pandas.DataFrame
-        Per-epoch errors, columns ``epoch, t, e, n, u, horizontal, error_3d, update_s``.
+        Per-epoch positions and errors: the :data:`EPOCH_COLUMNS` from ``epoch`` to ``update_s``.
     """
+    solution = solution.reindex(columns=list(dict.fromkeys([*solution.columns, *COVARIANCE_COLUMNS])))
     err = enu_errors(solution, scenario.truth)
+    origin = scenario.truth[["x", "y", "z"]].to_numpy(float)[0]
+    position = err[["x", "y", "z"]].to_numpy(float)
+    err["east"], err["north"], err["up"] = local_enu(position, origin).T
+    truth = scenario.truth.set_index("epoch").loc[err["epoch"], ["x", "y", "z"]].to_numpy(float)
+    covariance = np.zeros((len(err), 3, 3))
+    for column, (i, j) in COVARIANCE_INDEX.items():
+        covariance[:, i, j] = covariance[:, j, i] = err[column].to_numpy(float)
+    err["nees"] = nees(position - truth, covariance)
     horizontal = err["horizontal"].to_numpy()
     finite = np.isfinite(horizontal)
     status, message = "ok", ""
@@ -217,7 +237,7 @@ def score_solution(scenario: Scenario, solution: pd.DataFrame, total_s: float) -
         update_median_s=float(np.nanmedian(update_s)) if timed else np.nan,
         update_p95_s=float(np.nanpercentile(update_s, 95)) if timed else np.nan,
     )
-    return scores, err[["epoch", "t", "e", "n", "u", "horizontal", "error_3d", "update_s"]]
+    return scores, err[list(EPOCH_COLUMNS)[list(EPOCH_COLUMNS).index("epoch") :]]
 
 
 def scenario_source(scenario: Scenario) -> str:

@@ -88,7 +88,7 @@ def source_code(name: str) -> str:
 
 
 def scenario_from_overrides(overrides: Sequence[str]) -> tuple[ScenarioSettings, Scenario]:
-    """Compose ``conf/config.yaml`` with command-line style overrides (``scenario=rinex``,
+    """Compose ``conf/config.yaml`` with command-line style overrides (``scenario=hk_tst_2019``,
     ``receiver=high``, ``seed=3``) and build that scenario; return the typed config and the scenario."""
 
     settings = scenario_settings(compose_config(list(overrides)))
@@ -139,6 +139,12 @@ def simulate(
     Returns
     -------
     Scenario
+
+    Raises
+    ------
+    SimbenchError
+        For a preset of a real log or another source (``rinex``, ``hk_tst_2019``), naming
+        :func:`simbench.scenario`, which builds any source.
     """
 
     cfg = compose_config(
@@ -150,4 +156,11 @@ def simulate(
             *overrides_from_kwargs(overrides),
         ]
     )
-    return build_scenario(sim_config(cfg))  # the simulator's check, then the generator
+    settings = scenario_settings(cfg)
+    if settings.scenario.source != SIMULATED:
+        raise SimbenchError(
+            "scenario",
+            f"'{scenario}' is read by source '{settings.scenario.source}', not simulated",
+            f"build it with simbench.scenario('{scenario}', ...), which builds real and simulated scenarios alike",
+        )
+    return build_scenario(sim_config_of(settings))  # the simulator's check, then the generator

@@ -27,7 +27,7 @@ import numpy as np
 import pandas as pd
 
 from estimators.measurement import prepare_ppp
-from estimators.ppp_config import MeasurementMode, StochasticModelConfig
+from estimators.ppp_config import IonosphereMode, MeasurementMode, StochasticModelConfig
 from simbench.analysis.metrics import enu_errors
 from simbench.analysis.published import DRIVE_SCENARIOS, ZERO_BASELINE_MEAN_3D_M, Receiver
 from simbench.contract import Scenario
@@ -75,7 +75,7 @@ def single_point_positions(scenario: Scenario, keep: pd.MultiIndex | None = None
         view = replace(view, observations=view.observations[rows].reset_index(drop=True))
     obs = prepare_ppp(
         view,
-        ionosphere_free=False,
+        ionosphere=IonosphereMode.broadcast,
         code_sigma_m=noise.code_sigma_m,
         phase_sigma_m=noise.phase_sigma_m,
         elevation_mask_deg=noise.elevation_mask_deg,

@@ -146,6 +146,7 @@ def canyon_rays(
     cfg: NlosConfig,
     dt_s: float,
     rng: np.random.Generator,
+    where: np.ndarray | None = None,
 ) -> CanyonRays:
     """Direct, single-bounce and double-bounce rays of every satellite in the street canyon.
 
@@ -162,33 +163,47 @@ def canyon_rays(
     dt_s : float
         Epoch interval [s], for the persistence of reflections.
     rng : numpy.random.Generator
+    where : ndarray of bool, shape (n, m), optional
+        The (epoch, satellite) pairs whose rays are wanted (by default all). Elsewhere
+        nothing arrives: blocked, amplitude and delay 0. The random processes are drawn
+        for every pair either way, so the rays where wanted do not depend on ``where``.
 
     Returns
     -------
     CanyonRays
     """
-    s = np.sin(az_rad - road_heading_rad[:, None])
+    n, m = el_rad.shape
+    # the rays of one pair depend on its own inputs only: the arithmetic runs on the wanted pairs, a
+    # third of the grid for a ground receiver (satellites below the mask are most of it)
+    ei, si = np.nonzero(np.ones((n, m), bool) if where is None else where)
+    el = el_rad[ei, si]
+    s = np.sin(az_rad[ei, si] - road_heading_rad[ei])
     right = s > 0.0
     abs_s = np.maximum(np.abs(s), 1e-9)
-    d_near = np.where(right, wall_right_m[:, None], wall_left_m[:, None])
-    h_near = np.where(right, height_right_m[:, None], height_left_m[:, None])
-    d_far = np.where(right, wall_left_m[:, None], wall_right_m[:, None])
-    h_far = np.where(right, height_left_m[:, None], height_right_m[:, None])
-    k = np.tan(el_rad) / abs_s  # climb per metre across the street
+    wall_left, wall_right, height_left, height_right = (
+        wall_left_m[ei],
+        wall_right_m[ei],
+        height_left_m[ei],
+        height_right_m[ei],
+    )
+    d_near = np.where(right, wall_right, wall_left)
+    h_near = np.where(right, height_right, height_left)
+    d_far = np.where(right, wall_left, wall_right)
+    h_far = np.where(right, height_left, height_right)
+    k = np.tan(el) / abs_s  # climb per metre across the street
     blocked = k * d_near < h_near
 
     # Knife edge over the near roof, in the vertical plane across the street (normal to the edge).
     clearance = h_near - k * d_near  # > 0: the roof masks the direct ray
     cos_cross = 1.0 / np.sqrt(1.0 + k * k)
-    slant = d_near / (abs_s * np.maximum(np.cos(el_rad), 1e-9))  # antenna -> roof edge along the ray
+    slant = d_near / (abs_s * np.maximum(np.cos(el), 1e-9))  # antenna -> roof edge along the ray
     v = clearance * cos_cross * np.sqrt(2.0 / (LAMBDA_L1 * slant))
     a_direct = 10.0 ** (-knife_edge_loss_db(v) / 20.0)
     d_direct = np.where(blocked, (clearance * cos_cross) ** 2 / (2.0 * slant), 0.0)
 
     # A reflection persists for a while: threshold a slow unit Gauss-Markov process so that the
     # long-run fraction of facades offering a specular point is the configured one.
-    n, m = el_rad.shape
-    gate = gauss_markov(n, m, 1.0, REFLECTION_TAU_S, dt_s, rng) < norm.ppf(cfg.reflection_probability)
+    gate = gauss_markov(n, m, 1.0, REFLECTION_TAU_S, dt_s, rng)[ei, si] < norm.ppf(cfg.reflection_probability)
     single = gate & (h_far > 0.0) & (blocked | ((k * d_far < h_far) & (k * (2.0 * d_far + d_near) > h_near)))
     double = (
         gate
@@ -198,26 +213,32 @@ def canyon_rays(
         & (k * (3.0 * d_near + 2.0 * d_far) > h_near)
     )
 
-    cos_inc = np.cos(el_rad) * abs_s
+    cos_inc = np.cos(el) * abs_s
     co, cross = fresnel_circular(cos_inc, cfg.facade_material)
-    xpol = 10.0 ** (-cfg.lhcp_rejection_db * np.sin(np.maximum(el_rad, 0.0)) / 20.0)
+    xpol = 10.0 ** (-cfg.lhcp_rejection_db * np.sin(np.maximum(el, 0.0)) / 20.0)
     rough = 10.0 ** (-cfg.scattering_loss_db / 20.0)
     # Powers of the two polarisations add (their phases differ with the geometry).
     a_single = rough * np.sqrt(np.abs(co) ** 2 + (xpol * np.abs(cross)) ** 2)
     # Two bounces: the handedness flips twice for cross * cross and once for the mixed terms.
     a_double = rough**2 * np.sqrt(np.abs(co * co + cross * cross) ** 2 + (xpol * np.abs(2.0 * co * cross)) ** 2)
 
-    facade = np.maximum(d_far + _relief_m(travelled_m, m, cfg, rng), 0.5 * d_far)  # never behind the antenna
+    facade = np.maximum(d_far + _relief_m(travelled_m, m, cfg, rng, ei, si), 0.5 * d_far)  # never behind the antenna
     horizontal = 2.0 * cos_inc
-    amplitude = np.stack([a_direct, np.where(single, a_single, 0.0), np.where(double, a_double, 0.0)], axis=-1)
-    beyond = np.where(blocked, _reflector_beyond_m(n, m, cfg, dt_s, rng), 0.0)
-    delay = np.stack([d_direct, horizontal * (facade + beyond), horizontal * (facade + d_near)], axis=-1)
+    beyond = np.where(blocked, _reflector_beyond_m(n, m, cfg, dt_s, rng, ei, si), 0.0)
+    amplitude = np.zeros((n, m, N_RAYS))
+    delay = np.zeros((n, m, N_RAYS))
+    amplitude[ei, si] = np.stack([a_direct, np.where(single, a_single, 0.0), np.where(double, a_double, 0.0)], axis=-1)
+    delay[ei, si] = np.stack([d_direct, horizontal * (facade + beyond), horizontal * (facade + d_near)], axis=-1)
     phase = -2.0 * np.pi / LAMBDA_L1 * delay + np.pi * np.arange(N_RAYS)
-    return CanyonRays(blocked=blocked, amplitude=amplitude, delay_m=delay, phase_rad=phase)
+    blocked_all = np.ones((n, m), bool)
+    blocked_all[ei, si] = blocked
+    return CanyonRays(blocked=blocked_all, amplitude=amplitude, delay_m=delay, phase_rad=phase)
 
 
-def _reflector_beyond_m(n: int, m: int, cfg: NlosConfig, dt_s: float, rng: np.random.Generator) -> np.ndarray:
-    """How far beyond the far facade a masked satellite's reflecting building stands [m], shape (n, m).
+def _reflector_beyond_m(
+    n: int, m: int, cfg: NlosConfig, dt_s: float, rng: np.random.Generator, ei: np.ndarray, si: np.ndarray
+) -> np.ndarray:
+    """How far beyond the far facade a masked satellite's reflecting building stands [m], at ``(ei, si)``.
 
     Uniform over ``reflector_beyond_m``, persistent like the reflection gate (a
     slow unit Gauss-Markov process through the normal CDF); zero, without a
@@ -225,12 +246,14 @@ def _reflector_beyond_m(n: int, m: int, cfg: NlosConfig, dt_s: float, rng: np.ra
     """
     low, high = cfg.reflector_beyond_m
     if high <= 0.0:
-        return np.zeros((n, m))
-    return low + (high - low) * norm.cdf(gauss_markov(n, m, 1.0, REFLECTION_TAU_S, dt_s, rng))
+        return np.zeros(len(ei))
+    return low + (high - low) * norm.cdf(gauss_markov(n, m, 1.0, REFLECTION_TAU_S, dt_s, rng)[ei, si])
 
 
-def _relief_m(travelled_m: np.ndarray, m: int, cfg: NlosConfig, rng: np.random.Generator) -> np.ndarray:
-    """Offset of each satellite's specular point on the far facade [m], shape (n, m).
+def _relief_m(
+    travelled_m: np.ndarray, m: int, cfg: NlosConfig, rng: np.random.Generator, ei: np.ndarray, si: np.ndarray
+) -> np.ndarray:
+    """Offset of satellite ``si``'s specular point on the far facade at epoch ``ei`` [m].
 
     A Gauss-Markov process in distance (step an eighth of the correlation
     length), linearly interpolated at the distance travelled at each epoch.
@@ -241,5 +264,5 @@ def _relief_m(travelled_m: np.ndarray, m: int, cfg: NlosConfig, rng: np.random.G
     grid = gauss_markov(n_grid, m, cfg.facade_relief_sigma_m, cfg.facade_relief_length_m, step, rng)
     u = (travelled_m - (travelled_m[0] if len(travelled_m) else 0.0)) / step
     i = np.minimum(u.astype(np.intp), n_grid - 2)
-    frac = (u - i)[:, None]
-    return grid[i] * (1.0 - frac) + grid[i + 1] * frac
+    frac = (u - i)[ei]
+    return grid[i[ei], si] * (1.0 - frac) + grid[i[ei] + 1, si] * frac

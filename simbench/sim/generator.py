@@ -157,7 +157,10 @@ def _observation_tables(state: SimState) -> tuple[pd.DataFrame, pd.DataFrame]:
     """
     los = state.los
     ei, si = np.nonzero(state.lock.tracked)
-    keys = {"epoch": ei.astype(np.int64), "sat": np.asarray(state.constellation.sats)[si]}
+    # the satellite names converted to pandas' string array once (m names), then repeated per row: a
+    # conversion of every row's name, in each of the two tables, costs more than the rest of them
+    sats = pd.Series(np.asarray(state.constellation.sats)).array
+    keys = {"epoch": ei.astype(np.int64), "sat": sats.take(si)}
     grids = {
         "code_l1": state.code_l1_m,
         "phase_l1": state.phase_l1_m,

@@ -64,7 +64,7 @@ import numpy as np
 import pandas as pd
 
 from simbench.contract import NavInfo, ReceiverData
-from simbench.core.constants import LAMBDA_L2, OMEGA_EARTH, SECONDS_PER_WEEK
+from simbench.core.constants import F_L1, F_L2, LAMBDA_L2, OMEGA_EARTH, SECONDS_PER_WEEK
 from simbench.core.gpstime import datetime64_to_gps, gps_to_datetime64
 from simbench.core.orbits import NominalConstellation
 from simbench.data.rinex import SIGNALS
@@ -243,7 +243,9 @@ def write_rinex_obs(
             "channel, which the observation table lacks)",
             f"export a scenario of systems {''.join(_WRITABLE)} (scenario.systems)",
         )
-    dual = bool(data.nav.dual_frequency) and np.isfinite(obs["code_l2"].to_numpy(float)).any()
+    # GPS L2 rows only: a real log's L5 or other systems' second signals have no C2W column here
+    l2_row = (letters == "G") & np.isclose(obs["f1_f2_ratio"].to_numpy(float), F_L1 / F_L2)
+    dual = bool(data.nav.dual_frequency) and bool((l2_row & np.isfinite(obs["code_l2"].to_numpy(float))).any())
     types = _observables(systems, dual)
     t0_gps = data.nav.gps_week * SECONDS_PER_WEEK + data.nav.start_sow_s
     t = obs["t"].to_numpy(float)
@@ -303,8 +305,8 @@ def write_rinex_obs(
         for i in range(n)
     ]
     if dual:
-        code2 = _f14(obs["code_l2"].to_numpy(float), "code_l2")
-        phase2 = _f14(obs["phase_l2"].to_numpy(float) / LAMBDA_L2, "phase_l2")
+        code2 = _f14(np.where(l2_row, obs["code_l2"].to_numpy(float), np.nan), "code_l2")
+        phase2 = _f14(np.where(l2_row, obs["phase_l2"].to_numpy(float), np.nan) / LAMBDA_L2, "phase_l2")
         cols = [c + (f"{code2[i]}  {phase2[i]}{lli2[i]} " if letters[i] == "G" else "") for i, c in enumerate(cols)]
     sats = obs["sat"].to_numpy()
     body = []

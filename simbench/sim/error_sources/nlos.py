@@ -24,6 +24,8 @@ from simbench.sim.error_source import Contribution, SimState
 #: Shared arrays (n, m): DLL code error [m], carrier error [m] relative to the locked ray, and the RMS
 #: code error over carrier phase of the strongest other ray [m].
 CANYON_CODE_M, CANYON_PHASE_M, CANYON_SIGMA_M = "canyon_code_m", "canyon_phase_m", "canyon_sigma_m"
+#: Prompt power where nothing arrives, relative to an unobstructed direct ray [dB] (:func:`track_rays`'s floor).
+NO_SIGNAL_DB = -200.0
 
 
 class Nlos:
@@ -52,10 +54,24 @@ class Nlos:
             cfg,
             state.dt_s,
             rng,
+            # what the antenna does not see is never tracked: its rays would go unused
+            where=state.in_view,
         )
-        delay, code, phase, prompt_db, sigma = track_rays(
-            rays, state.in_view, state.spacing_chips, state.front_end_bw_hz
+        # the loops only matter where the antenna sees the satellite: track those rays, the rest stay empty
+        seen = state.in_view
+        rays = CanyonRays(
+            blocked=rays.blocked[seen],
+            amplitude=rays.amplitude[seen],
+            delay_m=rays.delay_m[seen],
+            phase_rad=rays.phase_rad[seen],
         )
+        tracked = track_rays(rays, np.ones(len(rays.blocked), bool), state.spacing_chips, state.front_end_bw_hz)
+        delay, code, phase, prompt_db, sigma = (np.zeros(state.shape) for _ in range(5))
+        prompt_db[:] = NO_SIGNAL_DB
+        for grid, values in zip((delay, code, phase, prompt_db, sigma), tracked):
+            grid[seen] = values
+        nlos = np.zeros(state.shape, bool)
+        nlos[seen] = rays.reference > 0
         # The DLL (time constant 1/(4 B)) averages reflections that fade faster than it: a first-order
         # filter passes tau_c / (tau_c + tau_dll) of the variance of a fading with correlation time
         # tau_c = relief length / speed (first order in the reflection amplitude, where the mean over
@@ -66,7 +82,7 @@ class Nlos:
             delay_m=delay,
             cn0_dbhz=prompt_db,
             # locked to a bounce; a ray diffracted over the roof is nearly direct
-            labels={"nlos": rays.reference > 0, "nlos_delay": delay},
+            labels={"nlos": nlos, "nlos_delay": delay},
             shared={CANYON_CODE_M: code * averaging, CANYON_PHASE_M: phase, CANYON_SIGMA_M: sigma * averaging},
         )
 
@@ -122,4 +138,4 @@ def track_rays(
     alpha = np.take_along_axis(others, second, -1)[..., 0] / np.maximum(ref_amp, 1e-10)
     offset = (np.take_along_axis(rays.delay_m, second, -1)[..., 0] - ref_delay) / CHIP_LENGTH_CA
     sigma = tracking.multipath_error_envelope_chips(alpha, offset, spacing_chips) * (CHIP_LENGTH_CA / np.sqrt(2.0))
-    return ref_delay, code, carrier, 20.0 * np.log10(np.maximum(prompt, 1e-10)), sigma
+    return ref_delay, code, carrier, 20.0 * np.log10(np.maximum(prompt, 10.0 ** (NO_SIGNAL_DB / 20.0))), sigma

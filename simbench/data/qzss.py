@@ -1,0 +1,141 @@
+"""RINEX 3 QZSS navigation records -> :class:`~simbench.core.orbits.BroadcastEphemeris`.
+
+QZSS broadcasts the GPS LNAV message layout on L1 C/A (IS-QZSS-PNT 4.1.2): the
+same Keplerian set, clock polynomial and TGD, in GPS time and GPS weeks, with
+the WGS-84 / GPS constants, so the IS-GPS-200 user algorithm of
+:class:`~simbench.core.orbits.BroadcastEphemeris` computes its satellites. The
+records come from the shared reader :func:`simbench.gnss.navigation.read_rinex3_records`
+(QZSS-only or mixed files, several merged).
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from simbench.core.constants import SECONDS_PER_WEEK
+from simbench.core.gpstime import datetime64_to_gps
+from simbench.core.orbits import FIT_HALF_WINDOW_S, BroadcastEphemeris
+from simbench.errors import SimbenchError
+from simbench.gnss.navigation import NavPaths, check_coverage, files_field, nav_paths, read_rinex3_records
+
+__all__ = ["read_qzss_navigation"]
+
+#: Order of the numbers of a RINEX 3 GPS / QZSS record (3 on the first line, 4 on each of 7 more).
+_LAYOUT = (
+    "af0",
+    "af1",
+    "af2",
+    "iode",
+    "crs",
+    "dn",
+    "m0",
+    "cuc",
+    "e",
+    "cus",
+    "sqrta",
+    "toe",
+    "cic",
+    "omega0",
+    "cis",
+    "i0",
+    "crc",
+    "w",
+    "omegadot",
+    "idot",
+    "codes_l2",
+    "week",
+    "l2p_flag",
+    "accuracy",
+    "health",
+    "tgd",
+    "iodc",
+)
+#: Health bit 0 flags L1C/B (older: LEX), a signal this reader does not use: satellites that do not
+#: transmit it set the bit (every J record of the Nagoya file has health 1); RTKLIB masks it too.
+_UNUSED_HEALTH_BITS = 1
+#: Record quantities the orbit and clock need.
+_FIELDS = (
+    "af0",
+    "af1",
+    "af2",
+    "crs",
+    "dn",
+    "m0",
+    "cuc",
+    "e",
+    "cus",
+    "sqrta",
+    "cic",
+    "omega0",
+    "cis",
+    "i0",
+    "crc",
+    "w",
+    "omegadot",
+    "idot",
+    "tgd",
+)
+
+
+def read_qzss_navigation(
+    path: NavPaths,
+    max_age_s: float = FIT_HALF_WINDOW_S,
+    setting: str = "scenario.nav",
+    span: tuple[float, float] | None = None,
+) -> BroadcastEphemeris:
+    """Read QZSS ephemerides from RINEX 3 navigation files (QZSS-only or mixed), records merged.
+
+    Parameters
+    ----------
+    path : str, PathLike or sequence of them
+        RINEX 3 navigation file(s); only ``J`` records are read, and unhealthy or
+        incomplete ones are dropped.
+    max_age_s : float
+        Largest |t - Toe| at which a record may be used [s]; default 7200.
+    setting : str
+        Config setting that named the files, for error messages.
+    span : tuple of float, optional
+        First and last observation epoch [s, continuous GPS] that the records must cover
+        (:func:`~simbench.gnss.navigation.check_coverage`).
+
+    Returns
+    -------
+    BroadcastEphemeris
+        Toe/Toc in continuous GPS seconds; ``tgd`` is the L1 C/A group delay; no Klobuchar
+        coefficients (the GPS ones serve every system).
+
+    Raises
+    ------
+    SimbenchError
+        Missing file, not RINEX 3 navigation data, a malformed record, no healthy QZSS
+        record, or records that leave part of ``span`` uncovered.
+    """
+    paths = nav_paths(path)
+    field = files_field(setting, paths) if paths else setting
+    fix = "pass a RINEX 3 mixed navigation file with QZSS (J) records (e.g. BRDC00IGS_R_<yyyydoy>0000_01D_MN.rnx)"
+    nav = read_rinex3_records(paths, "J", setting, fix)
+    a = nav.values
+    if a.shape[1] < len(_LAYOUT):
+        raise SimbenchError(field, f"has QZSS records of {a.shape[1]} numbers, not {len(_LAYOUT)}", fix)
+    col = {name: k for k, name in enumerate(_LAYOUT)}
+    v = {key: a[:, col[key]] for key in _FIELDS}
+    week, toe_sow, health = a[:, col["week"]], a[:, col["toe"]], a[:, col["health"]]
+    keep = (
+        np.all(np.isfinite(np.stack(list(v.values()))), axis=0)
+        & np.isfinite(week)
+        & np.isfinite(toe_sow)
+        & (np.nan_to_num(health, nan=1.0).astype(np.int64) & ~_UNUSED_HEALTH_BITS == 0)
+        & (v["sqrta"] > 1000.0)
+    )
+    if not keep.any():
+        raise SimbenchError(field, "has no complete healthy QZSS record", fix)
+    toe = week[keep] * SECONDS_PER_WEEK + toe_sow[keep]
+    toc = datetime64_to_gps(nav.epoch[keep])
+    toe += SECONDS_PER_WEEK * np.round((toc - toe) / SECONDS_PER_WEEK)
+    check_coverage(toe, max_age_s, span, field, "J")
+    sats, sat_idx = np.unique(nav.sv[keep], return_inverse=True)
+    records = {k: x[keep] for k, x in v.items()}
+    records.update(sat=sat_idx, toe=toe, toc=toc)
+    return BroadcastEphemeris(sats, records, source=", ".join(os.path.basename(p) for p in paths), max_age_s=max_age_s)
