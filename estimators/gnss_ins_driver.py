@@ -37,7 +37,7 @@ from estimators.ins_mechanisation import (
     level_roll_pitch,
     yaw_of,
 )
-from estimators.window_solver import CLK, NS, POS, NormalEquations, WindowNode, WindowSolver, initial_sigmas
+from estimators.window_solver import CLK, POS, WindowNode, WindowSolver, initial_sigmas
 from simbench.contract import Need, ReceiverData
 from simbench.core.constants import DEG
 from simbench.errors import SimbenchError
@@ -258,7 +258,7 @@ def _record(solver: WindowSolver, track: _Track, epoch: int, gnss: GnssEpoch | N
     track.pos.append(solver.nodes[-1].pose.translation().copy())
     track.update_s.append(time.perf_counter() - tic)
     # after the clock stops: the covariance is for scoring consistency, not part of the estimator's update
-    track.cov.append(newest_position_covariance(solver))
+    track.cov.append(solver.newest_position_covariance())
     if gnss is not None:
         track.code_rows += len(gnss.code)
         track.doppler_rows += int(np.count_nonzero(gnss.w_rr))
@@ -268,23 +268,6 @@ def _record(solver: WindowSolver, track: _Track, epoch: int, gnss: GnssEpoch | N
         track.code_rows_with_s += int(np.count_nonzero(leaving.s_code))
         track.doppler_rows_with_s += int(np.count_nonzero(leaving.s_rr))
         _keep_outliers(track.outliers, epoch - (len(solver.nodes) - 2), leaving)
-
-
-def newest_position_covariance(solver: WindowSolver) -> np.ndarray:
-    """ECEF covariance of the newest state's position [m^2]: its marginal under the window's normal equations.
-
-    The block-tridiagonal information is reduced onto the newest state by forward Schur
-    complements (linear in the window length, where a dense inverse is cubic). GTSAM's
-    Pose3 tangent holds the translation in the body frame, so the block is rotated to ECEF.
-    """
-    # the solver keeps its linearisation at the current states; rebuilding it here would double the cost
-    ne: NormalEquations = solver._normal_equations(solver.nodes, solver._linearised(), solver._stacked_factors())
-    schur = ne.D[0]
-    for k in range(1, len(ne.D)):
-        schur = ne.D[k] - ne.U[k - 1].T @ np.linalg.solve(schur, ne.U[k - 1])
-    body = np.linalg.inv(schur + 1e-12 * np.eye(NS))[POS : POS + 3, POS : POS + 3]
-    rotation = solver.nodes[-1].pose.rotation().matrix()
-    return rotation @ body @ rotation.T
 
 
 def _keep_outliers(out: list[dict[str, Any]], epoch: int, node: WindowNode) -> None:

@@ -24,6 +24,7 @@ State order used by :func:`predict`'s Jacobian: ``[x, y, z, clock_m, zwd_m]``
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from typing import Any
@@ -58,6 +59,7 @@ __all__ = [
     "predict_given_troposphere",
     "sigma_factor",
     "variance_factors",
+    "ionosphere_free",
     "N_BASE_STATES",
 ]
 
@@ -580,6 +582,42 @@ def variance_factors(
     ndarray, shape (G,)
         Factor per group on the code sigma (dimensionless), geometric mean over the rows 1.
     """
+    key = _digest(epoch, sat_pos, code, sigma, group, system_index, el, np.array([doy, iterations], float))
+    if key not in _VC_CACHE:
+        if len(_VC_CACHE) >= _VC_CACHE_SIZE:
+            del _VC_CACHE[next(iter(_VC_CACHE))]
+        _VC_CACHE[key] = _helmert_factors(epoch, sat_pos, code, sigma, group, system_index, el, doy, iterations)
+    return _VC_CACHE[key].copy()
+
+
+#: :func:`variance_factors` of the last few inputs: every GNSS estimator of a job prepares the same
+#: rows, and one estimate costs ~10 s on the Hong Kong log
+_VC_CACHE: dict[str, np.ndarray] = {}
+_VC_CACHE_SIZE = 8
+
+
+def _digest(*arrays: np.ndarray) -> str:
+    """Content hash of arrays (dtype, shape and bytes)."""
+    h = hashlib.blake2b(digest_size=20)
+    for a in arrays:
+        a = np.ascontiguousarray(a)
+        h.update(f"{a.dtype.str}{a.shape}".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def _helmert_factors(
+    epoch: np.ndarray,
+    sat_pos: np.ndarray,
+    code: np.ndarray,
+    sigma: np.ndarray,
+    group: np.ndarray,
+    system_index: np.ndarray,
+    el: np.ndarray,
+    doy: float,
+    iterations: int,
+) -> np.ndarray:
+    """:func:`variance_factors`, computed."""
     n_groups = int(group.max(initial=-1)) + 1
     factor = np.ones(n_groups)
     start = None
@@ -622,6 +660,33 @@ def _variance_groups(
         for s, b in keys.T.tolist()
     ]
     return group.reshape(-1), names
+
+
+def ionosphere_free(obs: pd.DataFrame, mode: IonosphereMode, elevation_mask_deg: float) -> bool:
+    """Whether the ``ionosphere`` choice forms the ionosphere-free combination on these rows.
+
+    The decision :func:`prepare_ppp` takes, for estimators that hand the rows to another
+    program (RTKLIB) and must choose the same way.
+
+    Parameters
+    ----------
+    obs : pandas.DataFrame
+        Observation table (:mod:`simbench.contract`).
+    mode : IonosphereMode
+        ``broadcast``: never; ``free``: always (an error without any second frequency);
+        ``auto``: when every satellite above the mask has a second frequency on at least
+        :data:`AUTO_FREE_MIN_FRACTION` of its rows.
+    elevation_mask_deg : float
+        Rows at or below this elevation [deg] do not count.
+
+    Returns
+    -------
+    bool
+    """
+    code_cols = ["code_l1", "sat_x", "sat_y", "sat_z", "sat_clock", "el"]
+    used = np.isfinite(obs[code_cols].to_numpy(float)).all(axis=1)
+    used &= obs["el"].to_numpy(float) > elevation_mask_deg
+    return _decide_ionosphere_free(mode, obs["sat"].to_numpy()[used], _second_frequency(obs)[used])
 
 
 def _second_frequency(obs: pd.DataFrame) -> np.ndarray:

@@ -148,11 +148,8 @@ class GnssModelConfig:
     #: single-system simulated worlds: unchanged (docs/estimators.md)
     variance_components: VarianceComponents = VarianceComponents.system
     #: values of the fields above for one estimator, where its published code differs from the
-    #: others (estimator name -> field -> value), e.g. ``{mm: {outlier_scale: 1.0e6}}``. RTKLIB's
-    #: ``ionosphere`` takes its own words (klobuchar | none), so it keeps its Klobuchar here
-    per_estimator: dict[str, dict[str, Any]] = field(
-        default_factory=lambda: {"rtklib_spp": {"ionosphere": "klobuchar"}}
-    )
+    #: others (estimator name -> field -> value), e.g. ``{mm: {outlier_scale: 1.0e6}}``
+    per_estimator: dict[str, dict[str, Any]] = field(default_factory=dict)
 
     @staticmethod
     def model_fields() -> list[str]:

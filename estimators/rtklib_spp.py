@@ -15,9 +15,11 @@ whose GDOP exceeds 30, so on an urban log it leaves many epochs unsolved
 (the runner counts them against availability).
 
 Settings, written per run to an options file (``rnx2rtkp -k``): ``pos1-posmode
-= single``, ``pos1-frequency = l1``, ``pos1-sateph = brdc``, ``pos1-elmask`` =
-``elevation_mask_deg`` (10 deg), ``pos1-ionoopt = brdc`` and ``pos1-tropopt =
-saas`` (``ionosphere``, ``troposphere``), ``pos1-posopt5`` (RAIM FDE) =
+= single``, ``pos1-sateph = brdc``, ``pos1-elmask`` = ``elevation_mask_deg``
+(10 deg), ``pos1-ionoopt`` from ``ionosphere`` (the ``gnss_model`` choice:
+``brdc`` with ``pos1-frequency = l1``, or ``dual-freq`` with ``l1+l2`` where the
+other estimators form the ionosphere-free combination), ``pos1-tropopt = saas``
+(``troposphere``), ``pos1-posopt5`` (RAIM FDE) =
 ``raim_fde`` (off, RTKLIB's default), ``pos1-navsys`` from the systems the
 scenario ingested; output ECEF, GPS time as week and seconds.
 
@@ -47,6 +49,8 @@ import pandas as pd
 
 from estimators import register
 from estimators.base import Estimator, solution_frame
+from estimators.measurement import ionosphere_free
+from estimators.ppp_config import IonosphereMode
 from simbench.contract import Need, ReceiverData
 from simbench.data.export import write_receiver_rinex
 from simbench.data.rtklib_pos import parse_rtklib_pos
@@ -71,9 +75,15 @@ NAVSYS_BITS: dict[str, int] = {"G": 1, "S": 2, "R": 4, "E": 8, "J": 16, "C": 32,
 
 
 class IonosphereModel(Choice):
-    """Ionospheric correction RTKLIB applies (member names are the YAML words)."""
+    """Ionospheric correction RTKLIB applies (member names are the YAML words).
 
-    klobuchar = "klobuchar"  #: broadcast Klobuchar model (RTKLIB ``brdc``)
+    The first three are :class:`~estimators.ppp_config.IonosphereMode`'s words, so the
+    ``gnss_model`` preset's choice reaches RTKLIB as it reaches the other estimators.
+    """
+
+    auto = "auto"  #: ``free`` where every satellite above the mask has a second frequency, else ``broadcast``
+    broadcast = "broadcast"  #: broadcast Klobuchar model (RTKLIB ``brdc``)
+    free = "free"  #: dual-frequency ionosphere-free code (RTKLIB ``dual-freq``, ``pos1-frequency = l1+l2``)
     none = "none"  #: no correction (``off``)
 
 
@@ -84,7 +94,7 @@ class TroposphereModel(Choice):
     none = "none"  #: no correction (``off``)
 
 
-_IONO_WORD = {IonosphereModel.klobuchar: "brdc", IonosphereModel.none: "off"}
+_IONO_WORD = {IonosphereModel.broadcast: "brdc", IonosphereModel.free: "dual-freq", IonosphereModel.none: "off"}
 _TROPO_WORD = {TroposphereModel.saastamoinen: "saas", TroposphereModel.none: "off"}
 
 
@@ -93,7 +103,7 @@ class RtklibSppConfig:
     """RTKLIB single-point settings (see the module docstring for the options file they become)."""
 
     elevation_mask_deg: float = 10.0  #: satellites below are not used [deg] (RTKLIB's default is 15)
-    ionosphere: IonosphereModel = IonosphereModel.klobuchar  #: klobuchar | none
+    ionosphere: IonosphereModel = IonosphereModel.auto  #: auto | broadcast | free | none
     troposphere: TroposphereModel = TroposphereModel.saastamoinen  #: saastamoinen | none
     raim_fde: bool = False  #: RTKLIB's RAIM fault detection and exclusion (``pos1-posopt5``)
     timeout_s: float = 300.0  #: rnx2rtkp is stopped after this wall time [s]
@@ -113,7 +123,7 @@ class RtklibSppConfig:
         require_positive(f"{where}.timeout_s", self.timeout_s, "give a wall-time limit in seconds, e.g. 300")
 
 
-def rnx2rtkp_options(config: RtklibSppConfig, systems: str) -> dict[str, str]:
+def rnx2rtkp_options(config: RtklibSppConfig, systems: str, dual_frequency: bool = False) -> dict[str, str]:
     """The ``rnx2rtkp -k`` options of a single-point run.
 
     Parameters
@@ -121,6 +131,9 @@ def rnx2rtkp_options(config: RtklibSppConfig, systems: str) -> dict[str, str]:
     config : RtklibSppConfig
     systems : str
         RINEX system letters to use, e.g. ``'GC'``.
+    dual_frequency : bool
+        What ``ionosphere = auto`` resolves to on the rows (:func:`estimators.measurement.ionosphere_free`);
+        ignored for the other choices.
 
     Returns
     -------
@@ -134,16 +147,19 @@ def rnx2rtkp_options(config: RtklibSppConfig, systems: str) -> dict[str, str]:
             f"RTKLIB knows no system {unknown or repr(systems)}",
             f"use letters of '{''.join(NAVSYS_BITS)}'",
         )
+    iono = config.ionosphere
+    if iono == IonosphereModel.auto:
+        iono = IonosphereModel.free if dual_frequency else IonosphereModel.broadcast
     return {
         "pos1-posmode": "single",
-        "pos1-frequency": "l1",
+        "pos1-frequency": "l1+l2" if iono == IonosphereModel.free else "l1",
         "pos1-soltype": "forward",
         "pos1-elmask": f"{config.elevation_mask_deg:g}",
         "pos1-snrmask_r": "off",
         "pos1-dynamics": "off",
         "pos1-tidecorr": "off",
         "pos1-sateph": "brdc",
-        "pos1-ionoopt": _IONO_WORD[config.ionosphere],
+        "pos1-ionoopt": _IONO_WORD[iono],
         "pos1-tropopt": _TROPO_WORD[config.troposphere],
         "pos1-posopt5": "on" if config.raim_fde else "off",
         "pos1-exclsats": "",
@@ -249,7 +265,10 @@ class RtklibSpp(Estimator):
         cfg: RtklibSppConfig = self.config
         with tempfile.TemporaryDirectory(prefix="rtklib_spp-export-") as tmp:
             files = data.rinex if data.rinex is not None else write_receiver_rinex(data, tmp, "receiver")
-            options = rnx2rtkp_options(cfg, files.systems)
+            auto_free = cfg.ionosphere == IonosphereModel.auto and ionosphere_free(
+                data.observations, IonosphereMode.auto, cfg.elevation_mask_deg
+            )
+            options = rnx2rtkp_options(cfg, files.systems, auto_free)
             text = run_rnx2rtkp(files.obs, files.nav, options, cfg.timeout_s)
         pos = parse_rtklib_pos(text, f"{EXECUTABLE} output")
         si, ei, _ = match_receiver_epochs(data, pos["t_gps"].to_numpy())

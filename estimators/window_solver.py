@@ -833,6 +833,22 @@ class WindowSolver:
                     break
         return i, table
 
+    def newest_position_covariance(self) -> np.ndarray:
+        """ECEF covariance of the newest state's position [m^2]: its marginal under the window's normal equations.
+
+        The block-tridiagonal information is reduced onto the newest state by forward Schur
+        complements (linear in the window length, where a dense inverse is cubic). GTSAM's
+        Pose3 tangent holds the translation in the body frame, so the block is rotated to ECEF.
+        """
+        # the information does not depend on S: the kept normal equations serve when there are any
+        ne = self._ne or self._normal_equations(self.nodes, self._linearised(), self._stacked_factors())
+        schur = ne.D[0]
+        for k in range(1, len(ne.D)):
+            schur = ne.D[k] - ne.U[k - 1].T @ np.linalg.solve(schur, ne.U[k - 1])
+        body = np.linalg.inv(schur + 1e-12 * np.eye(NS))[POS : POS + 3, POS : POS + 3]
+        rotation = self.nodes[-1].pose.rotation().matrix()
+        return cast(np.ndarray, rotation @ body @ rotation.T)
+
     def s_l1_norm(self) -> float:
         """``|S|_1`` over the window [whitened units]."""
         return float(np.abs(self._s_vector()).sum())

@@ -86,8 +86,7 @@ def scenario(name: str, seed: int = 0, **overrides: Any) -> Scenario:
     SimbenchError
         An unknown preset or key, missing files of a real log, or any reader's one-line error.
     """
-    lists = {k: f"[{','.join(map(str, v))}]" for k, v in overrides.items() if isinstance(v, (list, tuple))}
-    cfg = compose_config([f"scenario={name}", f"seed={seed}", *overrides_from_kwargs({**overrides, **lists})])
+    cfg = compose_config([f"scenario={name}", f"seed={seed}", *overrides_from_kwargs(overrides)])
     return build_scenario(scenario_settings(cfg))
 
 

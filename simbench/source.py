@@ -94,6 +94,13 @@ class Source(ABC):
         """
         check_choices(cfg.scenario, "scenario")
 
+    def label(self, cfg: DataConfig) -> str:
+        """The scenario's name in result tables, known before :meth:`load` (for rows of a job that fails).
+
+        The default is ``scenario.name``; a source that derives the name from its input overrides it.
+        """
+        return cfg.scenario.name
+
     @abstractmethod
     def load(self, cfg: DataConfig) -> Scenario:
         """The scenario ``cfg.scenario`` describes (after :meth:`check`).

@@ -23,10 +23,10 @@ import yaml
 from omegaconf import OmegaConf
 
 import estimators
-from estimators.ppp_config import GnssModelConfig, MotionModel, SigmaModel
+from estimators.ppp_config import GnssModelConfig, IonosphereMode, MotionModel, SigmaModel, VarianceComponents
 from simbench.data.sources import RinexConfig
 from simbench.errors import SimbenchError
-from simbench.runs.compose import CONF_DIR, available, compose_config, estimator_yaml
+from simbench.runs.compose import CONF_DIR, available, compose_config, estimator_yaml, overrides_from_kwargs
 from simbench.runs.scenarios import ScenarioSettings, check_scenario, scenario_settings
 from simbench.runs.store import config_key
 from simbench.sim.config import SimConfig, TrajectoryKind, validate_sim
@@ -131,6 +131,8 @@ def test_composed_estimator_configs_are_the_dataclass_defaults_but_for_the_gnss_
         "min_satellites": 1,
         "scaled_mixture": True,
         "outlier_scale": 10.0,
+        "ionosphere": IonosphereMode.auto,
+        "variance_components": VarianceComponents.system,
     }
     table = {
         "motion_model": MotionModel.random_walk,
@@ -139,6 +141,8 @@ def test_composed_estimator_configs_are_the_dataclass_defaults_but_for_the_gnss_
         "min_satellites": 4,
         "scaled_mixture": False,
         "outlier_scale": 10.0,
+        "ionosphere": IonosphereMode.broadcast,
+        "variance_components": VarianceComponents.none,
     }
     shared = 0
     for name in NAMES:
@@ -225,3 +229,13 @@ def test_estimator_yaml_keeps_its_file_header() -> None:
     for name in WITH_YAML:
         first = estimator_yaml(name).read_text().splitlines()[0]
         assert first.startswith("# ") and len(first) > 20, f"{name}.yaml lost its description"
+
+
+def test_keyword_overrides_become_hydra_overrides_lists_included() -> None:
+    """``simbench.run(overrides=...)`` and ``simbench.scenario(**kw)``: lists of paths reach the config as lists."""
+    nav = ["/logs/a b.20n", "/logs/it's.20n"]
+    cfg = compose_config(
+        ["scenario=rinex", *overrides_from_kwargs({"scenario.nav": nav, "scenario__systems": "GE", "seed": 3})]
+    )
+    assert list(cfg.scenario.nav) == nav and cfg.scenario.systems == "GE" and cfg.seed == 3
+    assert overrides_from_kwargs({"a.b": True, "a.c": None, "a.d": {"k": 1}}) == ["a.b=true", "a.c=null", "a.d={k:1}"]

@@ -87,6 +87,11 @@ def test_options_follow_the_config() -> None:
     opts = rnx2rtkp_options(RtklibSppConfig(), "GC")
     assert opts["pos1-posmode"] == "single" and opts["pos1-navsys"] == "33"  # GPS 1 + BeiDou 32
     assert (opts["pos1-elmask"], opts["pos1-ionoopt"], opts["pos1-tropopt"]) == ("10", "brdc", "saas")
+    assert opts["pos1-frequency"] == "l1"  # auto on single-frequency rows
+    for iono, dual in (("auto", True), ("free", False)):
+        opts = rnx2rtkp_options(RtklibSppConfig(ionosphere=iono), "GC", dual_frequency=dual)
+        assert (opts["pos1-ionoopt"], opts["pos1-frequency"]) == ("dual-freq", "l1+l2"), iono
+    assert rnx2rtkp_options(RtklibSppConfig(ionosphere="broadcast"), "G", True)["pos1-ionoopt"] == "brdc"
     opts = rnx2rtkp_options(
         RtklibSppConfig(elevation_mask_deg=15, ionosphere="none", troposphere="none", raim_fde=True), "G"
     )

@@ -10,6 +10,7 @@ reference trajectory (or point), and navigation data for every system of ``syste
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from simbench.contract import Scenario
@@ -77,6 +78,10 @@ class RinexSource(Source):
         require_files(s, ("obs", "nav", "truth"))
         check_systems(s)
 
+    def label(self, cfg: DataConfig) -> str:
+        s = scenario_config(cfg, RinexConfig)
+        return s.name or Path(s.obs).stem
+
     def load(self, cfg: DataConfig) -> Scenario:
         s = scenario_config(cfg, RinexConfig)
         return load_rinex(
@@ -87,7 +92,7 @@ class RinexSource(Source):
             nav_bds_path=s.nav_bds,
             nav_glo_path=s.nav_glo,
             nav_gal_path=s.nav_gal,
-            name=s.name,
+            name=self.label(cfg),
             truth_max_gap_s=s.truth_max_gap_s,
         )
 

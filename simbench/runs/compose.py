@@ -340,11 +340,21 @@ def check_added_root_keys(overrides: Iterable[str], cfg: DictConfig) -> None:
 
 
 def overrides_from_kwargs(kwargs: dict[str, Any]) -> list[str]:
-    """Turn ``{"scenario.duration_s": 60, "scenario__rate_hz": 10}`` into Hydra overrides."""
-    out = []
-    for key, value in kwargs.items():
-        value = OmegaConf.to_yaml(value).strip() if isinstance(value, (list, dict)) else value
-        if isinstance(value, bool):
-            value = str(value).lower()
-        out.append(f"{key.replace('__', '.')}={value}")
-    return out
+    """Turn ``{"scenario.duration_s": 60, "scenario__rate_hz": 10, "scenario.nav": ["a.20n", "b.20n"]}``
+    into Hydra overrides (lists and dicts in Hydra's own syntax, their strings quoted)."""
+    return [f"{key.replace('__', '.')}={_override_value(value, top=True)}" for key, value in kwargs.items()]
+
+
+def _override_value(value: Any, top: bool = False) -> str:
+    """One value in Hydra's override grammar; a top-level string stays as given (it may be an interpolation)."""
+    if isinstance(value, bool):
+        return str(value).lower()
+    if value is None:
+        return "null"
+    if isinstance(value, (list, tuple)):
+        return "[" + ",".join(_override_value(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ",".join(f"{k}:{_override_value(v)}" for k, v in value.items()) + "}"
+    if isinstance(value, str) and not top:
+        return "'" + value.replace("\\", "\\\\").replace("'", "\\'") + "'"
+    return str(value)

@@ -20,6 +20,7 @@ from threadpoolctl import threadpool_limits
 from tqdm.auto import tqdm
 
 import estimators
+from simbench import source as sources
 from simbench.analysis.variants import overrides_json, overrides_of, variant_label
 from simbench.errors import SimbenchError, one_line
 from simbench.runs.compose import preset_estimator_config
@@ -27,6 +28,7 @@ from simbench.runs.provenance import code_identity, provenance
 from simbench.runs.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS, run_estimators
 from simbench.runs.scenarios import check_scenario, scenario_key, scenario_settings, source_code
 from simbench.runs.store import cache_damaged, cached_scenario, is_finished, result_stem, write_result
+from simbench.source import SIMULATED
 from simbench.typed import to_typed
 
 
@@ -92,6 +94,9 @@ def _run_job(cfg: DictConfig, opts: RunOptions, *, fail_fast: bool, bar: tqdm) -
     gnss_model = str(cfg.gnss_model.name)
     tags = {"sweep": opts.sweep_name, "scenario_key": key, "gnss_model": gnss_model}
     # a damaged cached scenario is rebuilt even when every result is finished: later jobs and the report read it
+    # a receiver preset describes simulated data only; a log's receiver is in its own files
+    receiver = sim.receiver.name if sim.scenario.source == SIMULATED else ""
+    label = sources.get(sim.scenario.source)().label(sim)
     if pending or cache_damaged(root, key):
         try:
             # the job's one check of its data config (the source's, e.g. validate_sim); loading trusts it
@@ -107,15 +112,15 @@ def _run_job(cfg: DictConfig, opts: RunOptions, *, fail_fast: bool, bar: tqdm) -
             # in a sweep it fails this job's estimators, not the sweep
             scenario, failure = None, one_line(exc)
         for name, est_cfg in pending.items():
-            bar.set_postfix_str(f"{sim.scenario.name} seed {sim.seed}: {name}")
+            bar.set_postfix_str(f"{label} seed {sim.seed}: {name}")
             overrides = estimator_overrides(name, est_cfg, gnss_model)
             if scenario is None:
                 summary = pd.DataFrame(
                     [
                         {
-                            "scenario": sim.scenario.name,
+                            "scenario": label,
                             "source": sim.scenario.source,
-                            "receiver": sim.receiver.name,
+                            "receiver": receiver,
                             "seed": sim.seed,
                             "estimator": name,
                             "status": "failed",
@@ -125,7 +130,7 @@ def _run_job(cfg: DictConfig, opts: RunOptions, *, fail_fast: bool, bar: tqdm) -
                 ).reindex(columns=list(SUMMARY_COLUMNS))
                 epochs, diag = pd.DataFrame(columns=list(EPOCH_COLUMNS)), {}
             else:
-                result = run_estimators(scenario, {name: est_cfg}, receiver=sim.receiver.name, progress=False)
+                result = run_estimators(scenario, {name: est_cfg}, receiver=receiver, progress=False)
                 summary, epochs, diag = result.summary, result.epochs, result.diagnostics.get(name, {})
             columns = {**tags, "variant": variant_label(overrides), "overrides": overrides_json(overrides)}
             summary = summary.assign(**columns)
