@@ -47,10 +47,13 @@ def test_thesis_over_worlds_puts_each_study_and_world_in_its_own_folder() -> Non
     assert ch4.results_dir == ROOT / "ch4_convergence" and not any(a.startswith("scenario=") for a in ch4.args)
     assert ch5_mt.results_dir == ROOT / "morgantown1" / "ch5_bce"
     # the thesis's own override of the study, then the command line's
+    # the world's other studies share their identical rows with this one
+    siblings = ",".join(f"'{ROOT / 'morgantown1' / s}'" for s in ("ch5_sensitivity", "ch6_bce_ad", "ch7_ice"))
     assert ch5_mt.args == [
         "+sweep=ch5_bce",
         "scenario=morgantown1",
         f"results_dir={ROOT / 'morgantown1/ch5_bce'}",
+        f"shared_results=[{siblings}]",
         "estimator=[l2,dcs,mm,bce,oracle]",
         "hydra/launcher=joblib",
         "seed=range(0,5)",

@@ -27,7 +27,15 @@ from simbench.runs.compose import preset_estimator_config
 from simbench.runs.provenance import code_identity, provenance
 from simbench.runs.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS, run_estimators
 from simbench.runs.scenarios import check_scenario, scenario_key, scenario_settings, source_code
-from simbench.runs.store import cache_damaged, cached_scenario, is_finished, result_stem, write_result
+from simbench.runs.store import (
+    adopt_cache,
+    adopt_result,
+    cache_damaged,
+    cached_scenario,
+    is_finished,
+    result_stem,
+    write_result,
+)
 from simbench.source import SIMULATED
 from simbench.typed import to_typed
 
@@ -44,6 +52,10 @@ class RunOptions:
     #: are small, so extra threads only spin: two jobs with OpenBLAS's default two threads each
     #: on 2 cores ran BCE-AD 13x slower (151 s against 11 s) than with one thread each.
     blas_threads: int | None = None
+    #: results_dirs of other runs whose finished results (same scenario, estimator, config and code)
+    #: and cached scenarios this run copies instead of computing them: the studies of one world
+    #: (``+sweep=thesis``, :func:`simbench.runs.studies.plan`) share their rows this way
+    shared_results: list[str] = dataclasses.field(default_factory=list)
 
 
 def run_job(cfg: DictConfig, *, fail_fast: bool = True, bar: tqdm | None = None) -> pd.DataFrame:
@@ -64,7 +76,7 @@ def run_job(cfg: DictConfig, *, fail_fast: bool = True, bar: tqdm | None = None)
         job's estimators.
     """
     opts = to_typed(
-        {k: cfg[k] for k in ("results_dir", "progress", "sweep_name", "blas_threads") if k in cfg}, RunOptions, "config"
+        {k: cfg[k] for k in (f.name for f in dataclasses.fields(RunOptions)) if k in cfg}, RunOptions, "config"
     )
     if opts.blas_threads is not None and opts.blas_threads < 1:
         raise SimbenchError("blas_threads", f"is {opts.blas_threads}", "set blas_threads to 1 or more (or null)")
@@ -88,11 +100,20 @@ def _run_job(cfg: DictConfig, opts: RunOptions, *, fail_fast: bool, bar: tqdm) -
     codes = {name: code_identity(estimators.get(name).__module__) for name in estimator_cfgs}
     stems = {name: result_stem(root, key, name, c, codes[name]) for name, c in estimator_cfgs.items()}
     pending = {name: c for name, c in estimator_cfgs.items() if not is_finished(stems[name])}
-    bar.update(len(estimator_cfgs) - len(pending))  # found in the store: done
-    meta = provenance(cast(dict[str, Any], OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)))
     # the overrides of a row are relative to its gnss_model preset (as shipped), so the preset joins the row
     gnss_model = str(cfg.gnss_model.name)
     tags = {"sweep": opts.sweep_name, "scenario_key": key, "gnss_model": gnss_model}
+    shared = [Path(p) for p in opts.shared_results if Path(p).resolve() != root.resolve()]
+    for name in list(pending):
+        if any(
+            adopt_result(stems[name], result_stem(other, key, name, pending[name], codes[name]), tags)
+            for other in shared
+        ):
+            del pending[name]
+    if shared:
+        adopt_cache(root, key, shared)
+    bar.update(len(estimator_cfgs) - len(pending))  # found in the store: done
+    meta = provenance(cast(dict[str, Any], OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)))
     # a damaged cached scenario is rebuilt even when every result is finished: later jobs and the report read it
     # a receiver preset describes simulated data only; a log's receiver is in its own files
     receiver = sim.receiver.name if sim.scenario.source == SIMULATED else ""

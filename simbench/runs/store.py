@@ -31,9 +31,10 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import re
 import shutil
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -166,6 +167,76 @@ def write_result(
             if old_stem != stem:
                 for suffix in (*JOB_FILES, ".summary.parquet"):  # the summary last, as it was written
                     old_stem.with_suffix(suffix).unlink(missing_ok=True)
+
+
+def adopt_result(stem: Path, found: Path, tags: Mapping[str, Any]) -> bool:
+    """Copy another run's finished result of the same scenario, estimator, config and code to ``stem``.
+
+    The studies of one world (``+sweep=thesis``) share rows: ``ch5_sensitivity`` at
+    scale 1 is ``ch5_bce``'s run, and the studies' L2, DCS and MM runs on the same
+    scenario are identical. The copy is written like a computed result (checksums,
+    summary last) with this run's ``tags`` (e.g. its sweep name) and the found
+    result's provenance plus ``simbench.adopted_from``.
+
+    Parameters
+    ----------
+    stem : Path
+        This run's stem of the result (:func:`result_stem`).
+    found : Path
+        The other run's stem of the same result.
+    tags : mapping of str to Any
+        Columns set on every summary and epoch row of the copy.
+
+    Returns
+    -------
+    bool
+        False, writing nothing, when ``found`` is not a finished result (:func:`is_finished`).
+    """
+    if not is_finished(found):
+        return False
+    summary = read_job(found, "computing the result instead")
+    epochs = read_table(found.with_suffix(".epochs.parquet"), "computing the result instead")
+    if summary is None or epochs is None:
+        return False
+    diagnostics = json.loads(found.with_suffix(".diagnostics.json").read_text())
+    metadata = {k: v for k, v in provenance_of(found.with_suffix(".summary.parquet")).items() if k != "simbench.files"}
+    metadata["simbench.adopted_from"] = str(found)
+    write_result(stem, summary.assign(**tags), epochs.assign(**tags), diagnostics, metadata)
+    return True
+
+
+def adopt_cache(run_dir: Path, key: str, others: Sequence[Path]) -> bool:
+    """Give ``run_dir`` the intact cached scenario ``key`` of one of ``others`` (hard links where possible).
+
+    Returns
+    -------
+    bool
+        True when ``run_dir`` holds the scenario afterwards (already, or adopted).
+    """
+    target = Path(run_dir) / "cache" / key
+    if target.is_dir():
+        return True
+    for other in others:
+        source = Path(other) / "cache" / key
+        if not source.is_dir() or cache_problem(source):
+            continue
+        target.parent.mkdir(parents=True, exist_ok=True)
+        tmp = temporary_name(target)
+        try:
+            shutil.copytree(source, tmp, copy_function=_link_or_copy)
+            tmp.rename(target)
+        except OSError:  # another job adopted or built it first; its copy is identical
+            shutil.rmtree(tmp, ignore_errors=True)
+        return target.is_dir()
+    return False
+
+
+def _link_or_copy(src: str, dst: str) -> None:
+    """A hard link (cached tables are never written in place), or a copy across file systems."""
+    try:
+        os.link(src, dst)
+    except OSError:
+        shutil.copy2(src, dst)
 
 
 def write_json(path: Path, obj: Any) -> None:

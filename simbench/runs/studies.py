@@ -23,7 +23,7 @@ import pandas as pd
 from omegaconf import DictConfig
 
 from simbench.errors import SimbenchError
-from simbench.runs.compose import available
+from simbench.runs.compose import available, overrides_from_kwargs
 from simbench.typed import to_typed
 
 __all__ = ["STUDY_TIMES", "StudiesConfig", "StudyRun", "plan", "study_dir", "study_dirs", "time_budget"]
@@ -126,9 +126,15 @@ def plan(cfg: StudiesConfig, root: Path, args: Sequence[str]) -> list[StudyRun]:
             if study not in cfg.world_studies.get(world, [study]):
                 continue
             out = study_dir(root, study, world)
-            runs.append(
-                StudyRun(study, world, out, [f"+sweep={study}", f"scenario={world}", f"results_dir={out}", *extra])
-            )
+            # identical rows of the world's studies are computed once (simbench.runs.jobs.RunOptions)
+            siblings = [
+                str(study_dir(root, other, world))
+                for other in cfg.studies
+                if other != study and other not in cfg.own_scenario and other in cfg.world_studies.get(world, [other])
+            ]
+            args = [f"+sweep={study}", f"scenario={world}", f"results_dir={out}"]
+            args += overrides_from_kwargs({"shared_results": siblings})
+            runs.append(StudyRun(study, world, out, [*args, *extra]))
     return runs
 
 
