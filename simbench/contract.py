@@ -10,6 +10,8 @@ estimator whose :class:`Need` a scenario does not offer (:func:`available_needs`
 
 Every column, its unit and its meaning is listed in the ``*_COLUMNS`` dicts
 below; docs/contract.md's tables restate them (tests/test_readme.py checks every column is there).
+An observation table may also carry the :data:`OPTIONAL_OBSERVATION_COLUMNS`, after the others;
+a consumer treats an absent one as all NaN.
 """
 
 from __future__ import annotations
@@ -57,6 +59,16 @@ OBSERVATION_COLUMNS: dict[str, str] = {
     "sat_clock_drift": "m/s, satellite clock drift times c",
     "el": "deg, elevation from the receiver's approximate position",
     "az": "deg, azimuth clockwise from north",
+}
+
+#: Observation columns a source writes when it knows them (the RINEX reader does; the simulator and
+#: libRSF logs do not): appended after :data:`OBSERVATION_COLUMNS`; NaN or absent counts as 0.
+OPTIONAL_OBSERVATION_COLUMNS: dict[str, str] = {
+    "sat_dcb": "m, c (T2 - T1): broadcast group delay of the *_l2 signal minus that of the *_l1 signal, clock "
+    "reference of the broadcast message (GPS/QZSS L1/L2 (gamma - 1) c TGD, Galileo (gamma - 1) c BGD of the pair, "
+    "BeiDou B1I/B3I -c TGD1, B1I/B2I c (TGD2 - TGD1), gamma = f1_f2_ratio^2); the ionosphere-free clock is "
+    "sat_clock + sat_dcb / (gamma - 1). NaN where nothing is broadcast (GLONASS, GPS/QZSS L5) or without a second "
+    "frequency",
 }
 
 #: IMU table, one row per IMU sample; body axes x forward, y right, z down.
@@ -121,7 +133,12 @@ LABEL_COLUMNS: dict[str, str] = {
     "sample_grid_code_l1": "m, code error of the DLL seeing the code phase on the sample grid",
 }
 
-RECEIVER_COLUMNS = frozenset(OBSERVATION_COLUMNS) | frozenset(IMU_COLUMNS) | frozenset(ODOMETRY_COLUMNS)
+RECEIVER_COLUMNS = (
+    frozenset(OBSERVATION_COLUMNS)
+    | frozenset(OPTIONAL_OBSERVATION_COLUMNS)
+    | frozenset(IMU_COLUMNS)
+    | frozenset(ODOMETRY_COLUMNS)
+)
 TRUTH_ONLY_COLUMNS = (frozenset(TRUTH_COLUMNS) | frozenset(LABEL_COLUMNS)) - frozenset(OBSERVATION_COLUMNS)
 
 

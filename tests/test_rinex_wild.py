@@ -189,6 +189,9 @@ def test_mixed_nav_file_serves_every_system_with_second_frequencies(nagoya: Scen
         assert r.size > 0.9 * (system == s).sum() and np.allclose(r, value, rtol=0, atol=1e-12), s
     has_l2 = np.isfinite(obs["code_l2"].to_numpy())
     assert nagoya.nav.dual_frequency and np.isfinite(obs["phase_l2"].to_numpy()[has_l2]).mean() > 0.95
+    # every GPS L2, E5a and B3I row has its broadcast group delay; GLONASS broadcasts none
+    dcb = obs["sat_dcb"].to_numpy()
+    assert np.isfinite(dcb[has_l2 & (system != "R")]).all() and np.isnan(dcb[~has_l2 | (system == "R")]).all()
     # phase minus code on the second signal, per satellite: constant to metres (right wavelength, one signal)
     spread = (obs["phase_l2"] - obs["code_l2"]).groupby(obs["sat"]).agg(lambda x: x.max() - x.min())
     assert float(spread.max()) < 10.0

@@ -4,6 +4,10 @@ The ephemeris computation (CGCS2000 constants, BDT, geostationary rotation)
 lives in :mod:`simbench.core.beidou_orbits`; the records come from the shared
 RINEX 3 reader :func:`simbench.gnss.navigation.read_rinex3_records`; this
 module picks the fields and converts BDT weeks and seconds to continuous GPS seconds.
+
+The B1I clock is the broadcast clock (referred to B3I) minus TGD1; a dual-frequency
+user also needs TGD2, the B2I group delay (BDS-SIS-ICD-B1I 5.2.4.10), which
+:func:`load_beidou_navigation` returns.
 """
 
 from __future__ import annotations
@@ -17,9 +21,17 @@ from simbench.core.constants import SECONDS_PER_WEEK
 from simbench.core.gpstime import datetime64_to_gps
 from simbench.core.orbits import FIT_HALF_WINDOW_S
 from simbench.errors import SimbenchError
-from simbench.gnss.navigation import NavPaths, check_coverage, files_field, nav_paths, read_rinex3_records
+from simbench.gnss.navigation import (
+    GroupDelays,
+    NavPaths,
+    check_coverage,
+    files_field,
+    nav_paths,
+    read_rinex3_records,
+    satellite_medians,
+)
 
-__all__ = ["read_beidou_navigation"]
+__all__ = ["read_beidou_navigation", "load_beidou_navigation"]
 
 #: Record quantities the orbit and clock need (``tgd`` is TGD1, the B1I group delay).
 _FIELDS = (
@@ -53,6 +65,24 @@ def read_beidou_navigation(
 ) -> BeidouEphemeris:
     """Read BeiDou ephemerides from a RINEX 3 navigation file (BeiDou-only or mixed).
 
+    :func:`load_beidou_navigation` without the group delays; same parameters and errors.
+
+    Returns
+    -------
+    BeidouEphemeris
+        Toe/Toc converted from BDT to continuous GPS seconds; ``tgd`` is TGD1.
+    """
+    return load_beidou_navigation(path, max_age_s, setting, span)[0]
+
+
+def load_beidou_navigation(
+    path: NavPaths,
+    max_age_s: float = FIT_HALF_WINDOW_S,
+    setting: str = "scenario.nav_bds",
+    span: tuple[float, float] | None = None,
+) -> tuple[BeidouEphemeris, GroupDelays]:
+    """Read BeiDou ephemerides and both broadcast group delays from RINEX 3 navigation files.
+
     Parameters
     ----------
     path : str, PathLike or sequence of them
@@ -71,6 +101,8 @@ def read_beidou_navigation(
     -------
     BeidouEphemeris
         Toe/Toc converted from BDT to continuous GPS seconds; ``tgd`` is TGD1.
+    GroupDelays
+        ``tgd2`` per satellite of the ephemeris, the median over its kept records [s].
 
     Raises
     ------
@@ -104,7 +136,8 @@ def read_beidou_navigation(
     sats, sat_idx = np.unique(nav.sv[keep], return_inverse=True)
     records = {k: x[keep] for k, x in v.items()}
     records.update(sat=sat_idx, toe=toe, toc=toc)
-    return BeidouEphemeris(sats, records, source=", ".join(os.path.basename(p) for p in paths), max_age_s=max_age_s)
+    eph = BeidouEphemeris(sats, records, source=", ".join(os.path.basename(p) for p in paths), max_age_s=max_age_s)
+    return eph, {"tgd2": satellite_medians(sat_idx, a[keep, col["tgd2"]], sats.size)}
 
 
 #: Order of the 31 numbers of a RINEX 3 BeiDou record (3 on the first line, 4 on each of 7 more).

@@ -9,6 +9,11 @@ F/NAV (E5a-I; clock for E1-E5a) records of a satellite. An E1 user wants the
 I/NAV message: when a satellite has I/NAV records only those are kept, else its
 F/NAV ones, and each record's group delay is the BGD of its clock pair
 (RINEX 3 "data sources" bits 8/9; Galileo OS SIS ICD 5.1.5).
+
+Both BGDs serve a dual-frequency user (:func:`load_galileo_navigation`): I/NAV
+broadcasts BGD(E1,E5a) and BGD(E1,E5b), F/NAV only BGD(E1,E5a), and RINEX writes
+0 into an F/NAV record's BGD(E1,E5b) field (every F/NAV record of the Nagoya
+file), so that field counts as missing there.
 """
 
 from __future__ import annotations
@@ -22,9 +27,17 @@ from simbench.core.galileo_orbits import GalileoEphemeris
 from simbench.core.gpstime import datetime64_to_gps
 from simbench.core.orbits import FIT_HALF_WINDOW_S
 from simbench.errors import SimbenchError
-from simbench.gnss.navigation import NavPaths, check_coverage, files_field, nav_paths, read_rinex3_records
+from simbench.gnss.navigation import (
+    GroupDelays,
+    NavPaths,
+    check_coverage,
+    files_field,
+    nav_paths,
+    read_rinex3_records,
+    satellite_medians,
+)
 
-__all__ = ["read_galileo_navigation"]
+__all__ = ["read_galileo_navigation", "load_galileo_navigation"]
 
 #: Order of the numbers of a RINEX 3 Galileo record (3 on the first line, 4 on each further line).
 _LAYOUT = (
@@ -89,6 +102,25 @@ def read_galileo_navigation(
 ) -> GalileoEphemeris:
     """Read Galileo ephemerides from a RINEX 3 navigation file (Galileo-only or mixed).
 
+    :func:`load_galileo_navigation` without the group delays; same parameters and errors.
+
+    Returns
+    -------
+    GalileoEphemeris
+        Toe/Toc in continuous GPS seconds (the RINEX Galileo week is the GPS
+        week); ``tgd`` is BGD(E1,E5b) for I/NAV clocks, BGD(E1,E5a) for F/NAV.
+    """
+    return load_galileo_navigation(path, max_age_s, setting, span)[0]
+
+
+def load_galileo_navigation(
+    path: NavPaths,
+    max_age_s: float = FIT_HALF_WINDOW_S,
+    setting: str = "scenario.nav_gal",
+    span: tuple[float, float] | None = None,
+) -> tuple[GalileoEphemeris, GroupDelays]:
+    """Read Galileo ephemerides and both broadcast group delays from RINEX 3 navigation files.
+
     Parameters
     ----------
     path : str, PathLike or sequence of them
@@ -108,6 +140,9 @@ def read_galileo_navigation(
     GalileoEphemeris
         Toe/Toc in continuous GPS seconds (the RINEX Galileo week is the GPS
         week); ``tgd`` is BGD(E1,E5b) for I/NAV clocks, BGD(E1,E5a) for F/NAV.
+    GroupDelays
+        ``bgd_e5a`` and ``bgd_e5b`` per satellite of the ephemeris, medians over its kept
+        records [s]; ``bgd_e5b`` NaN for a satellite with F/NAV records only.
 
     Raises
     ------
@@ -126,7 +161,9 @@ def read_galileo_navigation(
     week, toe_sow, health = a[:, col["week"]], a[:, col["toe"]], a[:, col["health"]]
     src = np.nan_to_num(a[:, col["sources"]]).astype(np.int64)
     inav = ((src & _INAV_CLOCK_BIT) != 0) | (((src & _FNAV_CLOCK_BIT) == 0) & ((src & _INAV_SIGNAL_BITS) != 0))
-    bgd = np.where(inav, a[:, col["bgd_e5b"]], a[:, col["bgd_e5a"]])
+    bgd_e5a = a[:, col["bgd_e5a"]]
+    bgd_e5b = np.where(inav, a[:, col["bgd_e5b"]], np.nan)  # F/NAV's field holds 0, not a broadcast value
+    bgd = np.where(inav, bgd_e5b, bgd_e5a)
     keep = (
         np.all(np.isfinite(np.stack(list(v.values()))), axis=0)
         & np.isfinite(week)
@@ -146,4 +183,8 @@ def read_galileo_navigation(
     sats, sat_idx = np.unique(nav.sv[keep], return_inverse=True)
     records = {k: x[keep] for k, x in v.items()}
     records.update(sat=sat_idx, toe=toe, toc=toc, tgd=np.nan_to_num(bgd[keep]))
-    return GalileoEphemeris(sats, records, source=", ".join(os.path.basename(p) for p in paths), max_age_s=max_age_s)
+    eph = GalileoEphemeris(sats, records, source=", ".join(os.path.basename(p) for p in paths), max_age_s=max_age_s)
+    delays = {
+        name: satellite_medians(sat_idx, x[keep], sats.size) for name, x in (("bgd_e5a", bgd_e5a), ("bgd_e5b", bgd_e5b))
+    }
+    return eph, delays

@@ -11,6 +11,9 @@ unchanged on real data:
   ``t_rx - P / c`` because the pseudorange carries it too;
 * ``sat_clock = c (dt_sv - TGD)``: the L1 single-frequency user correction of
   IS-GPS-200 20.3.3.3.3.2, relativistic eccentricity term included;
+* ``sat_dcb = c (T2 - T1)``, the broadcast group delay of the row's second signal minus
+  the first's (:func:`second_group_delays`), which the ionosphere-free combination
+  needs on top of ``sat_clock``; written when the log has a second frequency;
 * elevation and azimuth from a per-epoch single-point solution (a receiver
   knows no reference; tens of metres of position error move an elevation by
   far less than a millidegree);
@@ -58,20 +61,28 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
 from simbench.contract import NavInfo, RinexFiles, Scenario
 from simbench.core.constants import C_LIGHT, F_B1I, F_L1, F_L2, SECONDS_PER_WEEK
 from simbench.core.glonass_orbits import GLO_F1_BASE_HZ, GlonassEphemeris, glonass_l1_frequency
 from simbench.core.gpstime import datetime64_to_gps
 from simbench.core.orbits import BroadcastEphemeris
-from simbench.data.beidou import read_beidou_navigation
-from simbench.data.galileo import read_galileo_navigation
+from simbench.data.beidou import load_beidou_navigation
+from simbench.data.galileo import load_galileo_navigation
 from simbench.data.glonass import read_glonass_navigation
 from simbench.data.logs import epoch_grid_of, log_scenario, log_truth, observation_table, rough_fix
 from simbench.data.qzss import read_qzss_navigation
 from simbench.data.reference import read_reference
 from simbench.errors import SimbenchError, warn
-from simbench.gnss.navigation import SYSTEM_NAMES, NavPaths, nav_paths, read_gps_navigation, read_rinex_lines
+from simbench.gnss.navigation import (
+    SYSTEM_NAMES,
+    GroupDelays,
+    NavPaths,
+    nav_paths,
+    read_gps_navigation,
+    read_rinex_lines,
+)
 
 __all__ = [
     "RinexObs",
@@ -79,6 +90,7 @@ __all__ = [
     "load_rinex",
     "first_signals",
     "second_frequency",
+    "second_group_delays",
     "SIGNALS",
     "SECOND_SIGNALS",
     "NAV_SETTINGS",
@@ -613,17 +625,21 @@ def _first_records(
 
 
 Ephemeris = BroadcastEphemeris | GlonassEphemeris
-#: Navigation reader of each system but GPS, called with ``(paths, setting=..., span=...)``.
-_READERS: dict[str, Callable[..., Ephemeris]] = {
-    "R": read_glonass_navigation,
-    "E": read_galileo_navigation,
-    "C": read_beidou_navigation,
-    "J": read_qzss_navigation,
+#: Navigation reader of GLONASS and QZSS, called with ``(paths, setting=..., span=...)``.
+_READERS: dict[str, Callable[..., Ephemeris]] = {"R": read_glonass_navigation, "J": read_qzss_navigation}
+#: Navigation reader of Galileo and BeiDou, called as :data:`_READERS`: their second signals need
+#: group delays the ephemeris does not keep, which these return beside it.
+_LOADERS: dict[str, Callable[..., tuple[Ephemeris, GroupDelays]]] = {
+    "E": load_galileo_navigation,
+    "C": load_beidou_navigation,
 }
 
 
-def _load_ephemeris(paths: tuple[str, ...], own_files: bool, obs: RinexObs, system: str) -> Ephemeris:
-    """Ephemeris of one system from ``paths`` (records merged), checked to cover the whole observation span.
+def _load_ephemeris(
+    paths: tuple[str, ...], own_files: bool, obs: RinexObs, system: str
+) -> tuple[Ephemeris, GroupDelays]:
+    """Ephemeris of one system from ``paths`` (records merged), checked to cover the whole observation span,
+    and its group delays (:data:`~simbench.gnss.navigation.GroupDelays`, ``tgd`` from the ephemeris).
 
     ``own_files`` says whether ``paths`` are the system's own setting or ``scenario.nav`` standing in for it.
     """
@@ -640,9 +656,76 @@ def _load_ephemeris(paths: tuple[str, ...], own_files: bool, obs: RinexObs, syst
         float(obs.epoch_t_int[0]) + obs.epoch_t_frac[0],
         float(obs.epoch_t_int[-1]) + obs.epoch_t_frac[-1],
     )
+    delays: GroupDelays = {}
     if system == "G":
-        return read_gps_navigation(paths, span=span, setting=setting)
-    return _READERS[system](paths, setting=setting, span=span)
+        eph: Ephemeris = read_gps_navigation(paths, span=span, setting=setting)
+    elif system in _LOADERS:
+        eph, delays = _LOADERS[system](paths, setting=setting, span=span)
+    else:
+        eph = _READERS[system](paths, setting=setting, span=span)
+    return eph, {"tgd": eph.tgd, **delays}
+
+
+def second_group_delays(
+    sat: np.ndarray,
+    signal_l2: np.ndarray,
+    f1_f2_ratio: np.ndarray,
+    ephs: dict[str, Ephemeris],
+    delays: dict[str, GroupDelays],
+) -> np.ndarray:
+    """``sat_dcb`` of each row: c (T2 - T1), the broadcast group delay of its second signal minus its first's.
+
+    With the clock reference of the broadcast message, P_i = rho + c dt_r - c (dt_sv - T_i) + I_i; the
+    ionosphere-free combination's clock is c (dt_sv - T1) + c (T2 - T1) / (gamma - 1), i.e.
+    ``sat_clock + sat_dcb / (gamma - 1)``. Per system:
+
+    * GPS and QZSS L1 C/A with any L2 code: T2 = gamma TGD, so (gamma - 1) c TGD; with L5 NaN
+      (LNAV carries no inter-signal corrections);
+    * Galileo E1 with E5a: (gamma - 1) c BGD(E1,E5a), with E5b: (gamma - 1) c BGD(E1,E5b), whichever
+      of the I/NAV and F/NAV clocks the ephemeris uses;
+    * BeiDou B1I (clock reference B3I, T1 = TGD1): with B3I -c TGD1, with B2I c (TGD2 - TGD1);
+    * GLONASS: NaN (no broadcast inter-frequency bias); rows without a second signal: NaN.
+
+    Parameters
+    ----------
+    sat : np.ndarray of str, shape (N,)
+        Satellite id of each row (``'G05'``).
+    signal_l2 : np.ndarray of str, shape (N,)
+        RINEX code of each row's second signal (``'2W'``), ``''`` without one.
+    f1_f2_ratio : np.ndarray, shape (N,)
+        Carrier frequency ratio of each row's two signals (NaN without a second one).
+    ephs : dict of str -> Ephemeris
+        Ephemeris of each system letter; satellites it lacks get NaN.
+    delays : dict of str -> GroupDelays
+        Group delays of each system of ``ephs`` but GLONASS, aligned with its ephemeris' ``sats``
+        (``tgd``, and ``bgd_e5a``, ``bgd_e5b`` for Galileo, ``tgd2`` for BeiDou) [s].
+
+    Returns
+    -------
+    np.ndarray, shape (N,)
+        ``sat_dcb`` [m].
+    """
+    out = np.full(sat.size, np.nan)
+    letters = sat.astype("<U1")
+    band = signal_l2.astype("<U1")
+    for system, eph in ephs.items():
+        rows = np.flatnonzero(letters == system)
+        if system not in "GJEC" or not rows.size or not eph.sats.size:
+            continue
+        # ephemeris satellites are sorted (np.unique)
+        j = np.minimum(np.searchsorted(eph.sats, sat[rows]), eph.sats.size - 1)
+        found = eph.sats[j] == sat[rows]
+        rows, j, d = rows[found], j[found], delays[system]
+        b, gamma_1 = band[rows], f1_f2_ratio[rows] ** 2 - 1.0
+        if system == "C":
+            t2 = np.where(b == "6", 0.0, np.where(b == "7", d["tgd2"][j], np.nan))
+            out[rows] = C_LIGHT * (t2 - d["tgd"][j])
+        elif system == "E":
+            bgd = np.where(b == "5", d["bgd_e5a"][j], np.where(b == "7", d["bgd_e5b"][j], np.nan))
+            out[rows] = C_LIGHT * gamma_1 * bgd
+        else:
+            out[rows] = C_LIGHT * gamma_1 * np.where(b == "2", d["tgd"][j], np.nan)
+    return out
 
 
 def satellite_states(obs: RinexObs, ephs: dict[str, Ephemeris]) -> dict[str, np.ndarray]:
@@ -717,7 +800,8 @@ def load_rinex(
     -------
     Scenario
         Observations in the simulator's columns (the second frequency, where a
-        satellite has one, in ``code_l2``/``phase_l2``/``lli_l2`` with its ``f1_f2_ratio``),
+        satellite has one, in ``code_l2``/``phase_l2``/``lli_l2`` with its ``f1_f2_ratio``; a log
+        with a second frequency also gets the optional ``sat_dcb``, :func:`second_group_delays`),
         ``truth`` with one row per epoch that the reference covers (epochs on the
         nominal grid of the log's interval), ``labels=None`` and an empty IMU table.
 
@@ -739,7 +823,8 @@ def load_rinex(
     # the navigation files actually read for each system
     paths = {s: own[s] or own["G"] for s in own}
     used = [s for s in dict.fromkeys(systems) if s in obs.signals]
-    ephs = {s: _load_ephemeris(paths[s], bool(own[s]), obs, s) for s in used}
+    loaded = {s: _load_ephemeris(paths[s], bool(own[s]), obs, s) for s in used}
+    ephs = {s: eph for s, (eph, _) in loaded.items()}
     st = satellite_states(obs, ephs)
     keep = np.isfinite(st["x"])
     n_dropped = int((~keep).sum())
@@ -809,6 +894,13 @@ def load_rinex(
             "az": np.degrees(rough.az),
         }
     )
+    if has_l2.any():
+        dcb = second_group_delays(
+            obs.sat[keep], np.where(has_l2, signal_l2, ""), freq / freq2, ephs, {s: d for s, (_, d) in loaded.items()}
+        )
+        # observation_table sorted the rows: align by (epoch, satellite), unique per row
+        by_row = pd.Series(dcb, index=pd.MultiIndex.from_arrays([grid.index[re], obs.sat[keep]]))
+        observations["sat_dcb"] = by_row.reindex(pd.MultiIndex.from_frame(observations[["epoch", "sat"]])).to_numpy()
 
     t0_gps = float(obs.epoch_t_int[0]) + obs.epoch_t_frac[0]
     week_hint = int(obs.epoch_t_int[0] // SECONDS_PER_WEEK)
@@ -851,7 +943,8 @@ def load_rinex(
         "epochs_with_truth": len(truth),
         "epochs": grid.n,
         "static_truth": bool(ref is not None and ref.static),
-        "corrections": "raw observables; Klobuchar (NavInfo) and Saastamoinen applied by the estimator model",
+        "corrections": "raw observables; Klobuchar (NavInfo) and Saastamoinen applied by the estimator model; "
+        "sat_dcb: broadcast group delays of the second signals",
     }
     # absolute paths: tools run in their own working directory, and a cached scenario outlives the cwd
     rinex = RinexFiles(

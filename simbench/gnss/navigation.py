@@ -10,6 +10,9 @@ for the other systems (BeiDou, Galileo, GLONASS; :mod:`simbench.data.beidou`,
 :mod:`simbench.data.galileo`, :mod:`simbench.data.glonass`), from a
 single-system or a mixed (``M``) file: georinex 1.16 returns all-NaN records
 for files whose spare fields are blank (as in ``hksc1180.19b``).
+
+:data:`GroupDelays` carries the broadcast group delays an ephemeris object does not
+keep (the second signals' ones), one value per satellite (:func:`satellite_medians`).
 """
 
 from __future__ import annotations
@@ -44,6 +47,8 @@ __all__ = [
     "files_field",
     "check_coverage",
     "unique_rows",
+    "satellite_medians",
+    "GroupDelays",
 ]
 
 #: Leading bytes of gzip, Unix compress, bzip2 and zip files.
@@ -52,6 +57,11 @@ _PACKED = (b"\x1f\x8b", b"\x1f\x9d", b"BZh", b"PK\x03\x04")
 SYSTEM_NAMES = {"G": "GPS", "R": "GLONASS", "E": "Galileo", "C": "BeiDou", "J": "QZSS"}
 #: One navigation file or several (records merged): what ``scenario.nav`` and the per-system settings hold.
 NavPaths = str | os.PathLike[str] | Sequence[str | os.PathLike[str]]
+
+#: Broadcast group-delay fields of one system, each one value per satellite of its ephemeris
+#: (aligned with ``sats``) [s], NaN where the records carry none: ``tgd`` (GPS and QZSS TGD, BeiDou
+#: TGD1), ``tgd2`` (BeiDou TGD2), ``bgd_e5a`` and ``bgd_e5b`` (Galileo BGD(E1,E5a), BGD(E1,E5b)).
+GroupDelays = dict[str, np.ndarray]
 
 #: georinex variable of each record quantity that :class:`BroadcastEphemeris` takes.
 _RECORD_SOURCE = {
@@ -130,6 +140,39 @@ def unique_rows(matrix: np.ndarray) -> np.ndarray:
     for k, key in enumerate(keys):
         first.setdefault(key, k)
     return np.array(sorted(first.values()), dtype=np.intp)
+
+
+def satellite_medians(record_sat: np.ndarray, values: np.ndarray, n_sats: int) -> np.ndarray:
+    """Median of the finite ``values`` of each satellite's records, NaN for a satellite without one.
+
+    The per-satellite reduction :class:`~simbench.core.orbits.BroadcastEphemeris` applies to ``tgd``,
+    for the group delays it does not keep (:data:`GroupDelays`).
+
+    Parameters
+    ----------
+    record_sat : np.ndarray of int, shape (R,)
+        Satellite (index into the ephemeris' ``sats``) of each record.
+    values : np.ndarray, shape (R,)
+        One number per record [any unit]; NaN where the record has none.
+    n_sats : int
+        Number of satellites.
+
+    Returns
+    -------
+    np.ndarray, shape (n_sats,)
+    """
+    ok = np.isfinite(values)
+    sat, v = record_sat[ok], values[ok]
+    order = np.lexsort((v, sat))
+    sat, v = sat[order], v[order]
+    start = np.searchsorted(sat, np.arange(n_sats), side="left")
+    count = np.searchsorted(sat, np.arange(n_sats), side="right") - start
+    lo = start + np.maximum(count - 1, 0) // 2
+    hi = start + count // 2
+    out = np.full(n_sats, np.nan)
+    has = count > 0
+    out[has] = 0.5 * (v[lo[has]] + v[hi[has]])
+    return out
 
 
 def check_coverage(
