@@ -22,10 +22,12 @@ from simbench.core.gpstime import datetime64_to_gps
 from simbench.core.orbits import FIT_HALF_WINDOW_S
 from simbench.errors import SimbenchError
 from simbench.gnss.navigation import (
+    KEPLER_CLOCK_FIELDS,
     GroupDelays,
     NavPaths,
     check_coverage,
     files_field,
+    kepler_layout,
     nav_paths,
     read_rinex3_records,
     satellite_medians,
@@ -34,27 +36,7 @@ from simbench.gnss.navigation import (
 __all__ = ["read_beidou_navigation", "load_beidou_navigation"]
 
 #: Record quantities the orbit and clock need (``tgd`` is TGD1, the B1I group delay).
-_FIELDS = (
-    "af0",
-    "af1",
-    "af2",
-    "crs",
-    "dn",
-    "m0",
-    "cuc",
-    "e",
-    "cus",
-    "sqrta",
-    "cic",
-    "omega0",
-    "cis",
-    "i0",
-    "crc",
-    "w",
-    "omegadot",
-    "idot",
-    "tgd",
-)
+_FIELDS = (*KEPLER_CLOCK_FIELDS, "tgd")
 
 
 def read_beidou_navigation(
@@ -141,34 +123,4 @@ def load_beidou_navigation(
 
 
 #: Order of the 31 numbers of a RINEX 3 BeiDou record (3 on the first line, 4 on each of 7 more).
-_LAYOUT = (
-    "af0",
-    "af1",
-    "af2",
-    "aode",
-    "crs",
-    "dn",
-    "m0",
-    "cuc",
-    "e",
-    "cus",
-    "sqrta",
-    "toe",
-    "cic",
-    "omega0",
-    "cis",
-    "i0",
-    "crc",
-    "w",
-    "omegadot",
-    "idot",
-    "",
-    "week",
-    "",
-    "accuracy",
-    "health",
-    "tgd",
-    "tgd2",
-    "t_trans",
-    "aodc",
-)
+_LAYOUT = kepler_layout("aode", "", "week", "", "accuracy", "health", "tgd", "tgd2", "t_trans", "aodc")

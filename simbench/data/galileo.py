@@ -28,10 +28,12 @@ from simbench.core.gpstime import datetime64_to_gps
 from simbench.core.orbits import FIT_HALF_WINDOW_S
 from simbench.errors import SimbenchError
 from simbench.gnss.navigation import (
+    KEPLER_CLOCK_FIELDS,
     GroupDelays,
     NavPaths,
     check_coverage,
     files_field,
+    kepler_layout,
     nav_paths,
     read_rinex3_records,
     satellite_medians,
@@ -40,56 +42,9 @@ from simbench.gnss.navigation import (
 __all__ = ["read_galileo_navigation", "load_galileo_navigation"]
 
 #: Order of the numbers of a RINEX 3 Galileo record (3 on the first line, 4 on each further line).
-_LAYOUT = (
-    "af0",
-    "af1",
-    "af2",
-    "iod",
-    "crs",
-    "dn",
-    "m0",
-    "cuc",
-    "e",
-    "cus",
-    "sqrta",
-    "toe",
-    "cic",
-    "omega0",
-    "cis",
-    "i0",
-    "crc",
-    "w",
-    "omegadot",
-    "idot",
-    "sources",
-    "week",
-    "",
-    "sisa",
-    "health",
-    "bgd_e5a",
-    "bgd_e5b",
-)
+_LAYOUT = kepler_layout("iod", "sources", "week", "", "sisa", "health", "bgd_e5a", "bgd_e5b")
 #: Record quantities the orbit and clock need.
-_FIELDS = (
-    "af0",
-    "af1",
-    "af2",
-    "crs",
-    "dn",
-    "m0",
-    "cuc",
-    "e",
-    "cus",
-    "sqrta",
-    "cic",
-    "omega0",
-    "cis",
-    "i0",
-    "crc",
-    "w",
-    "omegadot",
-    "idot",
-)
+_FIELDS = KEPLER_CLOCK_FIELDS
 _INAV_CLOCK_BIT, _FNAV_CLOCK_BIT = 1 << 9, 1 << 8  # af0..af2 refer to (E5b, E1) / (E5a, E1)
 _INAV_SIGNAL_BITS = 0b101  # E1-B, E5b-I
 

@@ -18,65 +18,25 @@ from simbench.core.constants import SECONDS_PER_WEEK
 from simbench.core.gpstime import datetime64_to_gps
 from simbench.core.orbits import FIT_HALF_WINDOW_S, BroadcastEphemeris
 from simbench.errors import SimbenchError
-from simbench.gnss.navigation import NavPaths, check_coverage, files_field, nav_paths, read_rinex3_records
+from simbench.gnss.navigation import (
+    KEPLER_CLOCK_FIELDS,
+    NavPaths,
+    check_coverage,
+    files_field,
+    kepler_layout,
+    nav_paths,
+    read_rinex3_records,
+)
 
 __all__ = ["read_qzss_navigation"]
 
 #: Order of the numbers of a RINEX 3 GPS / QZSS record (3 on the first line, 4 on each of 7 more).
-_LAYOUT = (
-    "af0",
-    "af1",
-    "af2",
-    "iode",
-    "crs",
-    "dn",
-    "m0",
-    "cuc",
-    "e",
-    "cus",
-    "sqrta",
-    "toe",
-    "cic",
-    "omega0",
-    "cis",
-    "i0",
-    "crc",
-    "w",
-    "omegadot",
-    "idot",
-    "codes_l2",
-    "week",
-    "l2p_flag",
-    "accuracy",
-    "health",
-    "tgd",
-    "iodc",
-)
+_LAYOUT = kepler_layout("iode", "codes_l2", "week", "l2p_flag", "accuracy", "health", "tgd", "iodc")
 #: Health bit 0 flags L1C/B (older: LEX), a signal this reader does not use: satellites that do not
 #: transmit it set the bit (every J record of the Nagoya file has health 1); RTKLIB masks it too.
 _UNUSED_HEALTH_BITS = 1
 #: Record quantities the orbit and clock need.
-_FIELDS = (
-    "af0",
-    "af1",
-    "af2",
-    "crs",
-    "dn",
-    "m0",
-    "cuc",
-    "e",
-    "cus",
-    "sqrta",
-    "cic",
-    "omega0",
-    "cis",
-    "i0",
-    "crc",
-    "w",
-    "omegadot",
-    "idot",
-    "tgd",
-)
+_FIELDS = (*KEPLER_CLOCK_FIELDS, "tgd")
 
 
 def read_qzss_navigation(

@@ -49,6 +49,8 @@ __all__ = [
     "unique_rows",
     "satellite_medians",
     "GroupDelays",
+    "KEPLER_CLOCK_FIELDS",
+    "kepler_layout",
 ]
 
 #: Leading bytes of gzip, Unix compress, bzip2 and zip files.
@@ -57,6 +59,44 @@ _PACKED = (b"\x1f\x8b", b"\x1f\x9d", b"BZh", b"PK\x03\x04")
 SYSTEM_NAMES = {"G": "GPS", "R": "GLONASS", "E": "Galileo", "C": "BeiDou", "J": "QZSS"}
 #: One navigation file or several (records merged): what ``scenario.nav`` and the per-system settings hold.
 NavPaths = str | os.PathLike[str] | Sequence[str | os.PathLike[str]]
+
+#: Keplerian orbit and clock-polynomial quantities of a GPS-like record (GPS, QZSS, Galileo, BeiDou),
+#: the names :class:`~simbench.core.orbits.BroadcastEphemeris` and its subclasses read.
+KEPLER_CLOCK_FIELDS = (
+    "af0",
+    "af1",
+    "af2",
+    "crs",
+    "dn",
+    "m0",
+    "cuc",
+    "e",
+    "cus",
+    "sqrta",
+    "cic",
+    "omega0",
+    "cis",
+    "i0",
+    "crc",
+    "w",
+    "omegadot",
+    "idot",
+)
+
+
+def kepler_layout(issue: str, *rest: str) -> tuple[str, ...]:
+    """Order of the numbers of a RINEX 3 GPS-like record: the 20 shared ones, then ``rest``.
+
+    Parameters
+    ----------
+    issue : str
+        Name of the system's issue-of-data number (the 4th: ``iode``, ``iod``, ``aode``).
+    rest : str
+        The system's numbers after ``idot`` ('' for one this reader skips).
+    """
+    return ("af0", "af1", "af2", issue, "crs", "dn", "m0", "cuc", "e", "cus", "sqrta", "toe",
+            "cic", "omega0", "cis", "i0", "crc", "w", "omegadot", "idot", *rest)  # fmt: skip
+
 
 #: Broadcast group-delay fields of one system, each one value per satellite of its ephemeris
 #: (aligned with ``sats``) [s], NaN where the records carry none: ``tgd`` (GPS and QZSS TGD, BeiDou
