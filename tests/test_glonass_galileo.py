@@ -30,6 +30,7 @@ from simbench.data.rinex import load_rinex
 from simbench.data.sources import RinexConfig
 from simbench.errors import SimbenchError
 from simbench.gnss.geometry import sagnac_range
+from simbench.gnss.navigation import KEPLER_CLOCK_FIELDS
 from simbench.runs.scenarios import ScenarioSettings, check_scenario
 
 MU, AE, J2, WE = 3.986004418e14, 6_378_136.0, 1_082_625.75e-9, 7.2921151467e-5
@@ -307,29 +308,7 @@ def test_galileo_kepler_uses_galileo_constants(tmp_path: Path) -> None:
         assert st.clock[k, 0] == pytest.approx(_kepler_clock(E01, tk), abs=1e-15)  # I/NAV af0, not F/NAV
     assert abs(np.linalg.norm(st.pos[1, 0]) - 29_600e3) < 50e3
     # the same records with the GPS constants (mu 3.986005e14) are ~1 m away after an hour (measured 0.96 m)
-    records = {
-        k: np.array([E01[k]])
-        for k in (
-            "af0",
-            "af1",
-            "af2",
-            "crs",
-            "dn",
-            "m0",
-            "cuc",
-            "e",
-            "cus",
-            "sqrta",
-            "cic",
-            "omega0",
-            "cis",
-            "i0",
-            "crc",
-            "w",
-            "omegadot",
-            "idot",
-        )
-    }
+    records = {k: np.array([E01[k]]) for k in KEPLER_CLOCK_FIELDS}
     records.update(sat=np.array([0]), toe=np.array([toe]), toc=np.array([toe]), tgd=np.array([0.0]))
     gps = BroadcastEphemeris(np.array(["E01"]), records).states(toe + tks)
     gps_ref = _kepler(E01, 3600.0, 3.986005e14, WE)
