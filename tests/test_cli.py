@@ -16,6 +16,7 @@ from simbench.cli.score import scenario_key_of
 from simbench.cli.terminal import SUMMARY_WIDTH, compact_summary
 from simbench.contract import read_parquet_metadata
 from simbench.errors import SimbenchError
+from simbench.runs.checks import check_run
 from simbench.runs.compose import available, compose_config, config_groups
 from simbench.runs.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS
 
@@ -30,7 +31,8 @@ def _run(*args: str) -> subprocess.CompletedProcess:
 
 def test_cli_writes_store_and_report(tmp_path: Path) -> None:
     out = tmp_path / "run"
-    proc = _run("scenario.duration_s=120", f"results_dir={out}", "progress=false", "seed=2")
+    # 90 s as the smoke sweep: long enough for every estimator to run
+    proc = _run("scenario.duration_s=90", f"results_dir={out}", "progress=false", "seed=2")
     assert proc.returncode == 0, proc.stderr[-2000:]
     summary = pd.read_parquet(out / "summary.parquet")
     epochs = pd.read_parquet(out / "epochs.parquet")
@@ -44,7 +46,7 @@ def test_cli_writes_store_and_report(tmp_path: Path) -> None:
     assert set(summary.loc[ran, "estimator"]) == set(epochs["estimator"])
     assert (summary["seed"] == 2).all() and (summary["scenario"] == "urban").all()
     meta = read_parquet_metadata(out / "summary.parquet")
-    assert meta["simbench.config"]["scenario"]["duration_s"] == 120
+    assert meta["simbench.config"]["scenario"]["duration_s"] == 90
     assert len(meta["simbench.git_sha"]) >= 7 and "numpy" in meta["simbench.versions"]
     assert (out / "report" / "ecdf_horizontal_urban_low.png").stat().st_size > 10_000
     assert "horizontal_median" in (out / "report" / "README.md").read_text()
@@ -57,12 +59,21 @@ def test_cli_writes_store_and_report(tmp_path: Path) -> None:
 
 def test_cli_overrides_scenario_and_receiver(tmp_path: Path) -> None:
     out = tmp_path / "flight"
+    # two estimators suffice: the rows must carry the scenario and receiver the command line chose
     proc = _run(
-        "scenario=flight", "receiver=high", "seed=3", "scenario.duration_s=90", f"results_dir={out}", "progress=false"
+        "scenario=flight",
+        "receiver=high",
+        "seed=3",
+        "scenario.duration_s=30",
+        "estimator=[l2,ekf_ppp]",
+        f"results_dir={out}",
+        "progress=false",
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
     summary = pd.read_parquet(out / "summary.parquet")
+    assert len(summary) == 2 and (summary["status"] == "ok").all()
     assert (summary["scenario"] == "flight").all() and (summary["receiver"] == "high").all()
+    assert (summary["seed"] == 3).all() and (summary["n_epochs"] == 30).all()
 
 
 def test_cli_unknown_scenario_is_one_line() -> None:
@@ -70,6 +81,16 @@ def test_cli_unknown_scenario_is_one_line() -> None:
     assert proc.returncode == 2
     assert proc.stderr.strip().count("\n") == 0
     assert "unknown scenario 'mars'" in proc.stderr and "urban" in proc.stderr
+
+
+def test_a_misspelt_report_format_is_refused_before_any_job(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    line = _one_error_line(_run("report.formats=[png,pfd]", "estimator=[l2]", f"results_dir={out}", "progress=false"))
+    assert line == "error: report.formats: unknown pfd -- choose from png, pdf, svg"
+    assert not out.exists()  # refused at the door: no job ran, no folder was made
+    with pytest.raises(SimbenchError, match=r"^report.formats: is 'pdf', not a list -- .*report.formats=\[png,pdf\]"):
+        check_run(compose_config(["report.formats=pdf"]))
+    check_run(compose_config(["report.formats=[png,pdf,svg]", f"results_dir={out}"]))
 
 
 def test_cli_negative_duration_is_one_line(tmp_path: Path) -> None:

@@ -9,6 +9,7 @@ and the very result of the intact run.
 from __future__ import annotations
 
 import importlib
+import json
 import os
 import shutil
 import subprocess
@@ -37,9 +38,12 @@ ARGS = ["estimator=[l2]", "scenario.duration_s=30", "progress=false"]
 
 
 def _run(run_dir: Path) -> pd.DataFrame:
-    """Run (or resume) the tiny job into ``run_dir`` and finalize it; the aggregate summary."""
+    """Run (or resume) the tiny job into ``run_dir`` and finalize it; the aggregate summary.
+
+    Without figures: these tests check the store, and drawing was most of a finalize's time.
+    """
     run_job(compose_config([*ARGS, f"results_dir={run_dir}"]))
-    finalize(run_dir, None)
+    finalize(run_dir, None, figures=False)
     return pd.read_parquet(run_dir / "summary.parquet")
 
 
@@ -130,7 +134,8 @@ def test_a_damaged_store_file_is_named_and_recomputed(
     relative = str(path.relative_to(run_dir))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        finalize(run_dir, None)  # the report of the damaged run: a damaged job is left out, never a crash
+        # the report of the damaged run, figures too (they read the cache): a damaged job is left out, never a crash
+        finalize(run_dir, None)
         summary = _run(run_dir)  # the rerun recomputes what is damaged
     messages = [str(w.message) for w in caught if issubclass(w.category, SimbenchWarning)]
     if warned:
@@ -145,8 +150,17 @@ def test_a_damaged_store_file_is_named_and_recomputed(
     assert (run_dir / "report" / "index.html").is_file() and len(pd.read_csv(run_dir / "claims.csv"))
     with warnings.catch_warnings(record=True) as again:
         warnings.simplefilter("always")
-        finalize(run_dir, None)
+        finalize(run_dir, None, figures=False)
     assert not [w for w in again if issubclass(w.category, SimbenchWarning)]  # the store is whole again
+
+
+def test_a_report_without_figures_has_its_tables_and_draws_nothing(intact: Path) -> None:
+    report = intact / "report"  # the fixture's finalize: figures=False
+    assert json.loads((report / "figures.json").read_text()) == []
+    assert not list(report.glob("*.png")) and not list(report.glob("*.pdf"))
+    page = (report / "index.html").read_text()
+    assert "Built without figures" in page and "<figure>" not in page
+    assert page.index("id='leaderboard-table'") < page.index("Statistics over seeds")
 
 
 def test_a_report_leaves_a_damaged_job_out_with_one_warning_line(intact: Path, tmp_path: Path) -> None:

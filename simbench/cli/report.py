@@ -6,8 +6,9 @@ import argparse
 import sys
 from pathlib import Path
 
+from simbench.errors import SimbenchError
 from simbench.report.build import finalize
-from simbench.report.figures import FORMATS
+from simbench.runs.checks import check_report_formats
 from simbench.runs.store import run_folders
 
 
@@ -22,9 +23,10 @@ def main(argv: list[str]) -> int:
         help="figure formats, comma-separated, e.g. png,pdf (the page shows the PNG; default: png)",
     )
     args = parser.parse_args(argv)
-    unknown = sorted(set(args.formats) - set(FORMATS))
-    if unknown:
-        print(f"error: --formats: unknown {', '.join(unknown)} -- choose from {', '.join(FORMATS)}", file=sys.stderr)
+    try:
+        check_report_formats(args.formats)
+    except SimbenchError as exc:
+        print(f"error: {exc}", file=sys.stderr)
         return 2
     # a study collection (+sweep=thesis) keeps each study's jobs/ in the folders its study_times.csv names
     if not any((folder / "jobs").is_dir() for folder in run_folders(args.run_dir)):

@@ -58,7 +58,6 @@ from simbench.analysis.variants import NO_OVERRIDES, config_defaults, display_na
 from simbench.contract import Scenario, read_parquet_metadata, write_bytes
 from simbench.errors import SimbenchError
 from simbench.report.figures import (
-    FORMATS,
     LABELS_MARK,
     FigureFile,
     Format,
@@ -69,7 +68,7 @@ from simbench.report.figures import (
     sensitivity_figure,
     validation_figure,
 )
-from simbench.report.style import UNDEFINED, family, sig3, with_ci
+from simbench.report.style import UNDEFINED, families, sig3, with_ci
 from simbench.report.time_views import (
     consistency_figure,
     enu_error_figure,
@@ -77,6 +76,7 @@ from simbench.report.time_views import (
     signal_per_epoch,
     trajectory_figure,
 )
+from simbench.runs.checks import check_report_formats
 from simbench.runs.provenance import provenance
 from simbench.runs.runner import SUMMARY_COLUMNS
 from simbench.runs.store import aggregate, cached_scenarios, diagnostics, job_stems
@@ -120,7 +120,9 @@ details{margin:0.8em 0}
 summary{cursor:pointer;font-weight:600}"""
 
 
-def finalize(run_dir: str | Path, config: dict[str, Any] | None, formats: Sequence[Format] | None = None) -> Path:
+def finalize(
+    run_dir: str | Path, config: dict[str, Any] | None, formats: Sequence[Format] | None = None, figures: bool = True
+) -> Path:
     """Aggregate job files, write ``claims.csv`` and build ``report/``; return the report directory.
 
     Parameters
@@ -131,18 +133,20 @@ def finalize(run_dir: str | Path, config: dict[str, Any] | None, formats: Sequen
         The run's resolved config (None: a rebuild; the page reads what it shows from the job files).
     formats : sequence of str, optional
         Figure formats; None: ``config['report']['formats']``, else PNG only.
+    figures : bool
+        False: the tables, claims and page without drawing a figure (most of the build time), e.g.
+        to check a store; the page says so.
 
     Raises
     ------
     SimbenchError
-        For a figure format not in :data:`~simbench.report.figures.FORMATS`, before any file is written.
+        For a figure format not in :data:`~simbench.runs.checks.REPORT_FORMATS`, before any file is written
+        (:func:`~simbench.runs.checks.check_report_formats`; a run checks it before its first job).
     """
     start = time.perf_counter()
     if formats is None:
         formats = cast(Sequence[Format], ((config or {}).get("report") or {}).get("formats") or ("png",))
-    unknown = sorted(set(formats) - set(FORMATS))
-    if unknown:
-        raise SimbenchError("report.formats", f"unknown {', '.join(unknown)}", f"choose from {', '.join(FORMATS)}")
+    check_report_formats(formats)
     run_dir = Path(run_dir)
     summary, epochs = aggregate(run_dir, provenance(config or {"run_dir": str(run_dir)}))
     # results written before a column existed (e.g. source) are shown with it empty
@@ -151,7 +155,7 @@ def finalize(run_dir: str | Path, config: dict[str, Any] | None, formats: Sequen
     epochs = _ok_epochs(epochs, summary)  # figures and claims use the results the tables use
     claims = claims_table(summary, epochs, diag)
     write_bytes(run_dir / "claims.csv", claims.to_csv(index=False).encode())
-    return build_report(run_dir, summary, epochs, claims, diag, formats=formats, started=start)
+    return build_report(run_dir, summary, epochs, claims, diag, formats=formats, started=start, figures=figures)
 
 
 def _ok_epochs(epochs: pd.DataFrame, summary: pd.DataFrame) -> pd.DataFrame:
@@ -168,7 +172,9 @@ def _named(frame: pd.DataFrame, names: Mapping[tuple[str, str, str], str]) -> pd
     if frame.empty:
         return frame.assign(name=pd.Series(dtype=object))
     keys = with_variant_columns(frame)[["estimator", "gnss_model", "overrides"]].astype(str)
-    return frame.assign(name=[names[k] for k in keys.itertuples(index=False, name=None)])
+    # looked up once per distinct variant: the epoch table has a row per epoch (millions in a thesis run)
+    codes, variants = pd.MultiIndex.from_frame(keys).factorize()
+    return frame.assign(name=np.array([names[k] for k in variants], dtype=object)[codes])
 
 
 def variant_names(summary: pd.DataFrame, oracles: Sequence[str]) -> dict[tuple[str, str, str], str]:
@@ -192,6 +198,7 @@ def build_report(
     diag: dict[str, list[dict]],
     formats: Sequence[Format] = ("png",),
     started: float | None = None,
+    figures: bool = True,
 ) -> Path:
     """Write ``report/`` of a run from its tables; return the directory.
 
@@ -206,12 +213,16 @@ def build_report(
         Figure formats beside the PNG the page shows, e.g. ``("png", "pdf")``.
     started : float, optional
         ``time.perf_counter()`` when the build began (the page gives the build time).
+    figures : bool
+        False: no figure is drawn (the page says so).
     """
     started = time.perf_counter() if started is None else started
     out = run_dir / "report"
     out.mkdir(parents=True, exist_ok=True)
-    page = _Page(formats)
+    page = _Page(formats, draw=figures)
     page.h1("simbench report")
+    if not figures:
+        page.p("Built without figures (<code>figures=False</code>): tables and claims only.", cls="note")
     oracles = sorted(summary.loc[summary["uses_labels"].fillna(False).astype(bool), "estimator"].unique())
     names = variant_names(summary, oracles)
     summary = _named(summary, names)
@@ -308,6 +319,22 @@ def _group_section(
     shown = group.assign(estimator=group["name"])
     n_reference = _reference_epochs(in_group, group)
     group_stats = stats[_in_group(stats, keys)]
+    if page.draw:
+        _group_figures(page, out, tag, name, shown, n_reference, group_stats, scenarios)
+    _group_tables(page, name, group, in_group, summary, group_stats)
+
+
+def _group_figures(
+    page: _Page,
+    out: Path,
+    tag: str,
+    name: str,
+    shown: pd.DataFrame,
+    n_reference: Mapping[str, int],
+    group_stats: pd.DataFrame,
+    scenarios: Mapping[str, Path],
+) -> None:
+    """A group's figures: ECDFs, box plot, time views, prior-scale sensitivity and run time."""
     for metric, label in (("horizontal", "horizontal"), ("error_3d", "3-D")):
         median_column = "horizontal_median_ref" if metric == "horizontal" else "error_3d_median_ref"
         medians = dict(zip(group_stats["name"], group_stats[median_column]))
@@ -339,6 +366,17 @@ def _group_section(
     if group_stats["time_per_obs_s"].notna().any():
         timed = group_stats.assign(estimator=group_stats["name"])
         page.figure(runtime_figure(timed, out / f"runtime_{tag}.png", f"Run time: {name}", **page.fmt))
+
+
+def _group_tables(
+    page: _Page,
+    name: str,
+    group: pd.DataFrame,
+    in_group: pd.DataFrame,
+    summary: pd.DataFrame,
+    group_stats: pd.DataFrame,
+) -> None:
+    """A group's detailed tables, collapsed: statistics over seeds, convergence, paired comparisons, oracle gap."""
     page.details_open(f"Statistics over seeds, paired comparisons and gap to the oracle: {name}")
     page.h3("Statistics over seeds (errors in m, availability beside them)")
     page.p(
@@ -568,7 +606,7 @@ def leaderboard(stats: pd.DataFrame) -> pd.DataFrame:
     table = pd.DataFrame(
         {
             "estimator": rows["name"],
-            "family": [family(e) for e in rows["estimator"]],
+            "family": rows["estimator"].map(families(rows["estimator"].unique())),
             "seeds": rows["n_seeds"].astype(int),
             "availability [%]": [sig3(100 * a) for a in rows["availability"]],
         }
@@ -697,8 +735,8 @@ def _diagnostics_body(page: _Page, diag: dict[str, list[dict]], out: Path, begin
         page.h3(f"{estimator}: {where}")
         if scalars:
             page.table(pd.DataFrame([scalars]))
-        if "model_history" in tables:  # ICE: the noise model after each adaptation (Fig. 7.3.2)
-            del tables["model_history"]
+        # ICE: the noise model after each adaptation (Fig. 7.3.2), a figure rather than a table
+        if tables.pop("model_history", None) is not None and page.draw:
             # the job that adapted most shows the most (the first one often never adapts)
             busiest = max(jobs, key=lambda j: len(j["diagnostics"].get("model_history", [])))
             history = [
@@ -721,7 +759,7 @@ def _diagnostics_body(page: _Page, diag: dict[str, list[dict]], out: Path, begin
             page.p("<b>model adaptations in every job</b> (naive: one per T_c tested residuals)")
             page.table(counts)
         for key, records in tables.items():
-            if any("mixture" in r for r in records):
+            if page.draw and any("mixture" in r for r in records):
                 page.figure(
                     mixture_evolution_figure(
                         records,
@@ -811,6 +849,8 @@ def _validation_section(page: _Page, run_dir: Path, out: Path, dirs: list[Path])
         cls="note",
     )
     page.table(table.drop(columns=["ks_against"]))
+    if not page.draw:
+        return
     page.figure(
         validation_figure(
             samples,
@@ -824,7 +864,8 @@ def _validation_section(page: _Page, run_dir: Path, out: Path, dirs: list[Path])
 class _Page:
     """Accumulates the report as HTML and Markdown side by side, and the figures it shows."""
 
-    def __init__(self, formats: Sequence[Format] = ("png",)) -> None:
+    def __init__(self, formats: Sequence[Format] = ("png",), draw: bool = True) -> None:
+        self.draw = draw  #: False: figures are left out (build_report's ``figures``)
         self.html: list[str] = []
         self.md: list[str] = []
         self.formats: tuple[Format, ...] = tuple(dict.fromkeys(("png", *formats)))

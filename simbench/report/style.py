@@ -9,7 +9,7 @@ family at a glance. Numbers are printed with 3 significant digits everywhere
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from typing import Any
 
 import numpy as np
@@ -46,16 +46,25 @@ LINESTYLES: tuple[Any, ...] = ("-", "--", ":", "-.", (0, (5, 1, 1, 1, 1, 1)), (0
 UNDEFINED = "—"
 
 
-def family(estimator: str) -> str:
-    """The family of an estimator name (one of :data:`FAMILIES`).
+def families(estimators: Iterable[str]) -> dict[str, str]:
+    """The family (one of :data:`FAMILIES`) of each estimator name: that of its module
+    (:data:`FAMILY_OF_MODULE`), ``other`` for a plug-in or a scored solution. The registry is read
+    once per call: it imports every estimator module.
 
     Parameters
     ----------
-    estimator : str
-        A registered estimator name, or any other (a scored solution): ``other``.
+    estimators : iterable of str
+        Estimator names, registered or not.
+
+    Returns
+    -------
+    dict
+        Name to family.
     """
-    cls = registered().get(estimator)
-    return FAMILY_OF_MODULE.get(cls.__module__, "other") if cls is not None else "other"
+    known = registered()
+    return {
+        name: FAMILY_OF_MODULE.get(known[name].__module__, "other") if name in known else "other" for name in estimators
+    }
 
 
 def curve_styles(names: Mapping[str, str]) -> dict[str, dict[str, Any]]:
@@ -72,8 +81,9 @@ def curve_styles(names: Mapping[str, str]) -> dict[str, dict[str, Any]]:
         Curve name to matplotlib keyword arguments; the same set of names always gets the same styles.
     """
     members: dict[str, list[str]] = {}
+    of = families(set(names.values()))
     for name in sorted(names):
-        members.setdefault(family(names[name]), []).append(name)
+        members.setdefault(of[names[name]], []).append(name)
     out: dict[str, dict[str, Any]] = {}
     for fam, curves in members.items():
         cmap = colormaps[FAMILY_COLORMAPS[fam]]
@@ -86,7 +96,8 @@ def curve_styles(names: Mapping[str, str]) -> dict[str, dict[str, Any]]:
 
 def by_family(names: Mapping[str, str]) -> dict[str, list[str]]:
     """Curve names grouped by family, families in :data:`FAMILIES` order, names sorted."""
-    grouped = {fam: sorted(n for n in names if family(names[n]) == fam) for fam in FAMILIES}
+    of = families(set(names.values()))
+    grouped = {fam: sorted(n for n in names if of[names[n]] == fam) for fam in FAMILIES}
     return {fam: curves for fam, curves in grouped.items() if curves}
 
 

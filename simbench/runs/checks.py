@@ -5,7 +5,8 @@ composed config (for a sweep, on one config per swept value), so a bad value sto
 run in one line and about a second, not as a ``failed`` row hours into a sweep. It
 checks the output folder, the estimator selection, the data config (the source's own
 check, e.g. :func:`~simbench.sim.config.validate_sim`, with its cross-field and memory
-checks) and every selected estimator's ``Config`` (``validate``). The job itself
+checks), every selected estimator's ``Config`` (``validate``) and the report's options
+(``report.formats``, :func:`check_report_formats`), which are read only after the last job. The job itself
 runs the same source and estimator checks again (a job may run in another process);
 they are cheap.
 """
@@ -13,8 +14,9 @@ they are cheap.
 from __future__ import annotations
 
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, cast
+from typing import Any, Literal, cast
 
 from omegaconf import DictConfig, OmegaConf
 
@@ -23,6 +25,11 @@ from estimators.base import validate_config
 from simbench.errors import SimbenchError
 from simbench.runs.scenarios import check_scenario, scenario_settings
 from simbench.typed import to_typed
+
+#: A file format of the report's figures: the page shows the PNG; PDF and SVG are for a paper.
+ReportFormat = Literal["png", "pdf", "svg"]
+#: Every :data:`ReportFormat`, the values ``report.formats`` may list.
+REPORT_FORMATS: tuple[ReportFormat, ...] = ("png", "pdf", "svg")
 
 
 def check_run(cfg: DictConfig) -> None:
@@ -38,9 +45,11 @@ def check_run(cfg: DictConfig) -> None:
     SimbenchError
         Naming the field: ``results_dir`` (:func:`check_results_dir`), ``estimator`` (none
         selected), a scenario, receiver or IMU field (the source's check), a key a ``+``
-        override added that the typed schema lacks, or ``estimator.<name>.<field>``.
+        override added that the typed schema lacks, ``estimator.<name>.<field>``, or
+        ``report.formats`` (:func:`check_report_formats`).
     """
     check_results_dir(str(cfg.results_dir))
+    check_report_formats(OmegaConf.select(cfg, "report.formats", default=None))
     selected = list(cfg.get("estimator") or {})  # estimator=[] composes to no node at all
     if not selected:
         raise SimbenchError(
@@ -52,6 +61,35 @@ def check_run(cfg: DictConfig) -> None:
         # resolved here: the node's gnss_model fields are interpolations into the root config
         node = cast(dict[str, Any], OmegaConf.to_container(cfg.estimator[name], resolve=True) or {})
         validate_config(to_typed(node, estimators.get(name).Config, where), where)
+
+
+def check_report_formats(formats: Sequence[str] | str | None) -> None:
+    """Raise a one-line :class:`SimbenchError` unless ``formats`` lists only :data:`REPORT_FORMATS`.
+
+    Checked at the door because the report is built after the last job: a misspelt format
+    would otherwise end an hour-long sweep with no report.
+
+    Parameters
+    ----------
+    formats : sequence of str, str or None
+        ``report.formats``; None (the key is absent) means PNG only.
+
+    Raises
+    ------
+    SimbenchError
+        Naming ``report.formats``, the unknown values and the allowed ones; also for a bare
+        word (``report.formats=pdf``), which is not a list.
+    """
+    if formats is None:
+        return
+    allowed = ", ".join(REPORT_FORMATS)
+    if isinstance(formats, str):
+        raise SimbenchError(
+            "report.formats", f"is '{formats}', not a list", f"write a list, e.g. report.formats=[png,{formats}]"
+        )
+    unknown = [str(f) for f in formats if f not in REPORT_FORMATS]
+    if unknown:
+        raise SimbenchError("report.formats", f"unknown {', '.join(unknown)}", f"choose from {allowed}")
 
 
 def check_results_dir(path: str) -> None:
