@@ -65,7 +65,9 @@ GRID: dict[str, list[object]] = {
 def main() -> pd.DataFrame:
     """Run the grid, print the table best first and the chosen values; return the table."""
     os.chdir(REPO)  # the configs name ../shared relative to the repository root
-    target = world_statistics(residual_sample(scenario_from_overrides(["scenario=hk_tst_2019"])[1]))
+    target = world_statistics(
+        residual_sample(scenario_from_overrides(["scenario=hk_tst_2019", "scenario.systems=G"])[1])
+    )
     base = sim_config(compose_config(["scenario=urban_deep", "receiver=consumer"]))
     rows = []
     points = list(itertools.product(*GRID.values()))
