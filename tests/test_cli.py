@@ -91,6 +91,10 @@ def test_a_misspelt_report_format_is_refused_before_any_job(tmp_path: Path) -> N
     with pytest.raises(SimbenchError, match=r"^report.formats: is 'pdf', not a list -- .*report.formats=\[png,pdf\]"):
         check_run(compose_config(["report.formats=pdf"]))
     check_run(compose_config(["report.formats=[png,pdf,svg]", f"results_dir={out}"]))
+    # a thesis run too: before its first study, not after its last
+    thesis = _run("+sweep=thesis", "report.formats=[pfd]", f"results_dir={out}")
+    assert _one_error_line(thesis) == "error: report.formats: unknown pfd -- choose from png, pdf, svg"
+    assert not out.exists()
 
 
 def test_cli_negative_duration_is_one_line(tmp_path: Path) -> None:

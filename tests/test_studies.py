@@ -162,9 +162,16 @@ def test_run_studies_records_every_study_and_keeps_earlier_invocations(tmp_path:
         return 1 if "scenario=urban_deep" in cmd else 0
 
     monkeypatch.setattr(simbench.cli.studies.subprocess, "call", fake_call)
-    monkeypatch.setattr(simbench.cli.studies, "finalize", lambda root, config: root / "report")
+    reported: list[list[str]] = []
+
+    def fake_finalize(root: Path, config: dict, formats: list[str]) -> Path:
+        reported.append(list(formats))
+        return root / "report"
+
+    monkeypatch.setattr(simbench.cli.studies, "finalize", fake_finalize)
     cfg = StudiesConfig(studies=["ch5_bce", "ch6_bce_ad"], worlds=["urban"])
-    assert simbench.cli.studies.run_studies(cfg, tmp_path, ["hydra/launcher=joblib"]) == 0
+    assert simbench.cli.studies.run_studies(cfg, tmp_path, ["hydra/launcher=joblib"], ["png", "pdf"]) == 0
+    assert reported == [["png", "pdf"]]  # the aggregate report gets the command line's formats
     assert [c[3:6] for c in calls] == [
         ["+sweep=ch5_bce", "scenario=urban", f"results_dir={tmp_path / 'urban/ch5_bce'}"],
         ["+sweep=ch6_bce_ad", "scenario=urban", f"results_dir={tmp_path / 'urban/ch6_bce_ad'}"],

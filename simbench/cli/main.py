@@ -29,7 +29,7 @@ from simbench.cli import export, report, score, tables, validate, zero_baseline
 from simbench.cli.studies import run_studies
 from simbench.cli.terminal import compact_summary, did_you_mean, one_line_warnings
 from simbench.errors import SimbenchError
-from simbench.runs.checks import check_run
+from simbench.runs.checks import check_report_formats, check_run
 from simbench.runs.compose import (
     CONF_DIR,
     available,
@@ -116,7 +116,10 @@ def main() -> None:
         shaping = config_overrides(args)
         cfg = compose_config(shaping, with_hydra=True) if shaping is not None else None
         if cfg is not None and "studies" in cfg:  # a sweep of sweeps (thesis): studies x worlds
-            sys.exit(run_studies(StudiesConfig.from_config(cfg), Path(cfg.results_dir), args))
+            formats = OmegaConf.select(cfg, "report.formats", default=None)
+            check_report_formats(formats)  # before the first study, not after the last
+            formats = list(formats or ["png"])
+            sys.exit(run_studies(StudiesConfig.from_config(cfg), Path(cfg.results_dir), args, formats))
         check_jobs(args, (shaping, cfg) if shaping is not None and cfg is not None else None)
         if cfg is not None and (
             any(a in RUN_FLAGS for a in args) or OmegaConf.select(cfg, "hydra.mode") == RunMode.MULTIRUN

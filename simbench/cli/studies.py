@@ -13,14 +13,19 @@ import pandas as pd
 
 from simbench.cli.terminal import compact_summary
 from simbench.report.build import finalize
+from simbench.runs.checks import ReportFormat
 from simbench.runs.studies import STUDY_TIMES, StudiesConfig, plan
 
 
-def run_studies(cfg: StudiesConfig, root: Path, args: Sequence[str]) -> int:
+def run_studies(
+    cfg: StudiesConfig, root: Path, args: Sequence[str], report_formats: Sequence[ReportFormat] = ("png",)
+) -> int:
     """Run every study of :func:`plan` in its own process, then one aggregate over all of them.
 
     A study that exits with an error does not stop the others (its finished jobs
-    are in the store); the return code is then 1.
+    are in the store); the return code is then 1. ``report_formats`` are the aggregate
+    report's figure formats (``report.formats`` of the command line; each study's own
+    report gets them through ``args``).
 
     Returns
     -------
@@ -52,7 +57,7 @@ def run_studies(cfg: StudiesConfig, root: Path, args: Sequence[str]) -> int:
         )
         # written after every study: a killed run still says where its time went
         pd.concat([earlier, pd.DataFrame(times)], ignore_index=True).to_csv(path, index=False)
-    report = finalize(root, {"studies": cfg.studies, "worlds": cfg.worlds, "args": list(args)})
+    report = finalize(root, {"studies": cfg.studies, "worlds": cfg.worlds, "args": list(args)}, formats=report_formats)
     if (root / "summary.parquet").is_file():
         print(compact_summary(pd.read_parquet(root / "summary.parquet")))
     print(f"results: {root.resolve()}  report: {report.resolve() / 'index.html'}", file=sys.stderr)
