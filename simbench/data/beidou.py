@@ -14,8 +14,6 @@ from __future__ import annotations
 
 import os
 
-import numpy as np
-
 from simbench.core.beidou_orbits import BDT_WEEK_OFFSET, GPS_MINUS_BDT_S, BeidouEphemeris
 from simbench.core.constants import SECONDS_PER_WEEK
 from simbench.core.gpstime import datetime64_to_gps
@@ -25,11 +23,13 @@ from simbench.gnss.navigation import (
     KEPLER_CLOCK_FIELDS,
     GroupDelays,
     NavPaths,
-    check_coverage,
+    complete_kepler_records,
     files_field,
     kepler_layout,
+    kepler_records,
     nav_paths,
     read_rinex3_records,
+    record_columns,
     satellite_medians,
 )
 
@@ -95,31 +95,17 @@ def load_beidou_navigation(
     fix = "pass a RINEX 3 BeiDou or mixed navigation file (e.g. hksc1180.19b)"
     field = files_field(setting, paths)
     nav = read_rinex3_records(paths, "C", setting, fix)
-    a = nav.values
-    if a.shape[1] < len(_LAYOUT):
-        raise SimbenchError(field, f"has BeiDou records of {a.shape[1]} numbers, not {len(_LAYOUT)}", fix)
-    col = {name: k for k, name in enumerate(_LAYOUT) if name}
-    v = {key: a[:, col[key]] for key in _FIELDS}
-    toc = datetime64_to_gps(nav.epoch) + GPS_MINUS_BDT_S
-    week, toe_sow, health = a[:, col["week"]], a[:, col["toe"]], a[:, col["health"]]
-    keep = (
-        np.all(np.isfinite(np.stack(list(v.values()))), axis=0)
-        & np.isfinite(week)
-        & np.isfinite(toe_sow)
-        & (health == 0)
-        & (v["sqrta"] > 1000.0)
-    )
+    c = record_columns(nav, _LAYOUT, "C", field, fix)
+    keep = complete_kepler_records(c, _FIELDS) & (c["health"] == 0)
     if not keep.any():
         raise SimbenchError(field, "has no complete healthy BeiDou record", fix)
-    toe = (week[keep] + BDT_WEEK_OFFSET) * SECONDS_PER_WEEK + toe_sow[keep] + GPS_MINUS_BDT_S
-    toc = toc[keep]
-    toe += SECONDS_PER_WEEK * np.round((toc - toe) / SECONDS_PER_WEEK)
-    check_coverage(toe, max_age_s, span, field, "C")
-    sats, sat_idx = np.unique(nav.sv[keep], return_inverse=True)
-    records = {k: x[keep] for k, x in v.items()}
-    records.update(sat=sat_idx, toe=toe, toc=toc)
+    toe = (c["week"][keep] + BDT_WEEK_OFFSET) * SECONDS_PER_WEEK + c["toe"][keep] + GPS_MINUS_BDT_S
+    toc = datetime64_to_gps(nav.epoch[keep]) + GPS_MINUS_BDT_S
+    sats, sat_idx, records = kepler_records(
+        nav, c, _FIELDS, keep, toe, toc, max_age_s=max_age_s, span=span, field=field, system="C"
+    )
     eph = BeidouEphemeris(sats, records, source=", ".join(os.path.basename(p) for p in paths), max_age_s=max_age_s)
-    return eph, {"tgd2": satellite_medians(sat_idx, a[keep, col["tgd2"]], sats.size)}
+    return eph, {"tgd2": satellite_medians(sat_idx, c["tgd2"][keep], sats.size)}
 
 
 #: Order of the 31 numbers of a RINEX 3 BeiDou record (3 on the first line, 4 on each of 7 more).

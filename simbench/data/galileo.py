@@ -31,11 +31,13 @@ from simbench.gnss.navigation import (
     KEPLER_CLOCK_FIELDS,
     GroupDelays,
     NavPaths,
-    check_coverage,
+    complete_kepler_records,
     files_field,
     kepler_layout,
+    kepler_records,
     nav_paths,
     read_rinex3_records,
+    record_columns,
     satellite_medians,
 )
 
@@ -108,36 +110,24 @@ def load_galileo_navigation(
     field = files_field(setting, paths)
     fix = "pass a RINEX 3 Galileo or mixed navigation file (e.g. BRDC00IGS_R_<yyyydoy>0000_01D_MN.rnx)"
     nav = read_rinex3_records(paths, "E", setting, fix)
-    a = nav.values
-    if a.shape[1] < len(_LAYOUT):
-        raise SimbenchError(field, f"has Galileo records of {a.shape[1]} numbers, not {len(_LAYOUT)}", fix)
-    col = {name: k for k, name in enumerate(_LAYOUT) if name}
-    v = {key: a[:, col[key]] for key in _FIELDS}
-    week, toe_sow, health = a[:, col["week"]], a[:, col["toe"]], a[:, col["health"]]
-    src = np.nan_to_num(a[:, col["sources"]]).astype(np.int64)
+    c = record_columns(nav, _LAYOUT, "E", field, fix)
+    src = np.nan_to_num(c["sources"]).astype(np.int64)
     inav = ((src & _INAV_CLOCK_BIT) != 0) | (((src & _FNAV_CLOCK_BIT) == 0) & ((src & _INAV_SIGNAL_BITS) != 0))
-    bgd_e5a = a[:, col["bgd_e5a"]]
-    bgd_e5b = np.where(inav, a[:, col["bgd_e5b"]], np.nan)  # F/NAV's field holds 0, not a broadcast value
+    bgd_e5a = c["bgd_e5a"]
+    bgd_e5b = np.where(inav, c["bgd_e5b"], np.nan)  # F/NAV's field holds 0, not a broadcast value
     bgd = np.where(inav, bgd_e5b, bgd_e5a)
-    keep = (
-        np.all(np.isfinite(np.stack(list(v.values()))), axis=0)
-        & np.isfinite(week)
-        & np.isfinite(toe_sow)
-        & (health == 0)
-        & (v["sqrta"] > 1000.0)
-    )
+    keep = complete_kepler_records(c, _FIELDS) & (c["health"] == 0)
     # one message type per satellite, I/NAV first: the two clock models differ by the BGDs
     has_inav = {s for s, ok in zip(nav.sv.tolist(), keep & inav) if ok}
     keep &= inav | ~np.isin(nav.sv, list(has_inav))
     if not keep.any():
         raise SimbenchError(field, "has no complete healthy Galileo record", fix)
-    toe = week[keep] * SECONDS_PER_WEEK + toe_sow[keep]
+    toe = c["week"][keep] * SECONDS_PER_WEEK + c["toe"][keep]
     toc = datetime64_to_gps(nav.epoch[keep])
-    toe += SECONDS_PER_WEEK * np.round((toc - toe) / SECONDS_PER_WEEK)
-    check_coverage(toe, max_age_s, span, field, "E")
-    sats, sat_idx = np.unique(nav.sv[keep], return_inverse=True)
-    records = {k: x[keep] for k, x in v.items()}
-    records.update(sat=sat_idx, toe=toe, toc=toc, tgd=np.nan_to_num(bgd[keep]))
+    sats, sat_idx, records = kepler_records(
+        nav, c, _FIELDS, keep, toe, toc, max_age_s=max_age_s, span=span, field=field, system="E"
+    )
+    records["tgd"] = np.nan_to_num(bgd[keep])
     eph = GalileoEphemeris(sats, records, source=", ".join(os.path.basename(p) for p in paths), max_age_s=max_age_s)
     delays = {
         name: satellite_medians(sat_idx, x[keep], sats.size) for name, x in (("bgd_e5a", bgd_e5a), ("bgd_e5b", bgd_e5b))

@@ -16,7 +16,14 @@ import numpy as np
 from simbench.core.glonass_orbits import GLO_MAX_AGE_S, GlonassEphemeris
 from simbench.core.gpstime import utc_to_gps
 from simbench.errors import SimbenchError
-from simbench.gnss.navigation import NavPaths, check_coverage, files_field, nav_paths, read_rinex3_records
+from simbench.gnss.navigation import (
+    NavPaths,
+    check_coverage,
+    files_field,
+    nav_paths,
+    read_rinex3_records,
+    record_columns,
+)
 
 __all__ = ["read_glonass_navigation"]
 
@@ -63,10 +70,7 @@ def read_glonass_navigation(
     field = files_field(setting, paths)
     fix = "pass a RINEX 3 GLONASS or mixed navigation file (e.g. BRDC00IGS_R_<yyyydoy>0000_01D_MN.rnx)"
     nav = read_rinex3_records(paths, "R", setting, fix)
-    a = nav.values
-    if a.shape[1] < len(_LAYOUT):
-        raise SimbenchError(field, f"has GLONASS records of {a.shape[1]} numbers, not {len(_LAYOUT)}", fix)
-    v = {name: a[:, k] for k, name in enumerate(_LAYOUT)}
+    v = record_columns(nav, _LAYOUT, "R", field, fix)
     freq = v["freq"]
     bad = np.isfinite(freq) & ((freq != np.round(freq)) | (freq < -7) | (freq > 13))
     if bad.any():

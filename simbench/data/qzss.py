@@ -21,11 +21,13 @@ from simbench.errors import SimbenchError
 from simbench.gnss.navigation import (
     KEPLER_CLOCK_FIELDS,
     NavPaths,
-    check_coverage,
+    complete_kepler_records,
     files_field,
     kepler_layout,
+    kepler_records,
     nav_paths,
     read_rinex3_records,
+    record_columns,
 )
 
 __all__ = ["read_qzss_navigation"]
@@ -76,26 +78,14 @@ def read_qzss_navigation(
     field = files_field(setting, paths) if paths else setting
     fix = "pass a RINEX 3 mixed navigation file with QZSS (J) records (e.g. BRDC00IGS_R_<yyyydoy>0000_01D_MN.rnx)"
     nav = read_rinex3_records(paths, "J", setting, fix)
-    a = nav.values
-    if a.shape[1] < len(_LAYOUT):
-        raise SimbenchError(field, f"has QZSS records of {a.shape[1]} numbers, not {len(_LAYOUT)}", fix)
-    col = {name: k for k, name in enumerate(_LAYOUT)}
-    v = {key: a[:, col[key]] for key in _FIELDS}
-    week, toe_sow, health = a[:, col["week"]], a[:, col["toe"]], a[:, col["health"]]
-    keep = (
-        np.all(np.isfinite(np.stack(list(v.values()))), axis=0)
-        & np.isfinite(week)
-        & np.isfinite(toe_sow)
-        & (np.nan_to_num(health, nan=1.0).astype(np.int64) & ~_UNUSED_HEALTH_BITS == 0)
-        & (v["sqrta"] > 1000.0)
-    )
+    c = record_columns(nav, _LAYOUT, "J", field, fix)
+    health = np.nan_to_num(c["health"], nan=1.0).astype(np.int64)
+    keep = complete_kepler_records(c, _FIELDS) & (health & ~_UNUSED_HEALTH_BITS == 0)
     if not keep.any():
         raise SimbenchError(field, "has no complete healthy QZSS record", fix)
-    toe = week[keep] * SECONDS_PER_WEEK + toe_sow[keep]
+    toe = c["week"][keep] * SECONDS_PER_WEEK + c["toe"][keep]
     toc = datetime64_to_gps(nav.epoch[keep])
-    toe += SECONDS_PER_WEEK * np.round((toc - toe) / SECONDS_PER_WEEK)
-    check_coverage(toe, max_age_s, span, field, "J")
-    sats, sat_idx = np.unique(nav.sv[keep], return_inverse=True)
-    records = {k: x[keep] for k, x in v.items()}
-    records.update(sat=sat_idx, toe=toe, toc=toc)
+    sats, _, records = kepler_records(
+        nav, c, _FIELDS, keep, toe, toc, max_age_s=max_age_s, span=span, field=field, system="J"
+    )
     return BroadcastEphemeris(sats, records, source=", ".join(os.path.basename(p) for p in paths), max_age_s=max_age_s)

@@ -51,6 +51,9 @@ __all__ = [
     "GroupDelays",
     "KEPLER_CLOCK_FIELDS",
     "kepler_layout",
+    "record_columns",
+    "complete_kepler_records",
+    "kepler_records",
 ]
 
 #: Leading bytes of gzip, Unix compress, bzip2 and zip files.
@@ -442,6 +445,74 @@ def read_rinex_lines(path: str, field: str, fix: str) -> list[str]:
     if lines and not lines[-1]:
         lines.pop()
     return lines
+
+
+def record_columns(nav: NavRecords, layout: Sequence[str], system: str, field: str, fix: str) -> dict[str, np.ndarray]:
+    """Each named number of the records, by the system's ``layout`` ('' for a skipped one).
+
+    Raises
+    ------
+    SimbenchError
+        Naming ``field`` when the records hold fewer numbers than ``layout``.
+    """
+    a = nav.values
+    if a.shape[1] < len(layout):
+        raise SimbenchError(
+            field, f"has {SYSTEM_NAMES[system]} records of {a.shape[1]} numbers, not {len(layout)}", fix
+        )
+    return {name: a[:, k] for k, name in enumerate(layout) if name}
+
+
+def complete_kepler_records(columns: dict[str, np.ndarray], fields: Sequence[str]) -> np.ndarray:
+    """Records whose ``fields``, week and Toe are finite and whose sqrt(a) is an orbit's (> 1000 sqrt(m))."""
+    finite = np.all(np.isfinite(np.stack([columns[f] for f in fields])), axis=0)
+    return finite & np.isfinite(columns["week"]) & np.isfinite(columns["toe"]) & (columns["sqrta"] > 1000.0)
+
+
+def kepler_records(
+    nav: NavRecords,
+    columns: dict[str, np.ndarray],
+    fields: Sequence[str],
+    keep: np.ndarray,
+    toe: np.ndarray,
+    toc: np.ndarray,
+    *,
+    max_age_s: float,
+    span: tuple[float, float] | None,
+    field: str,
+    system: str,
+) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    """The kept records as an ephemeris takes them, Toe moved into Toc's week and their coverage checked.
+
+    Parameters
+    ----------
+    nav : NavRecords
+    columns : dict of str to ndarray
+        :func:`record_columns` of ``nav``.
+    fields : sequence of str
+        The columns the ephemeris reads.
+    keep : ndarray of bool
+        Records to use.
+    toe, toc : ndarray
+        Toe and Toc of the kept records [s, continuous GPS time].
+    max_age_s, span, field, system
+        As :func:`check_coverage` takes them.
+
+    Returns
+    -------
+    sats : ndarray of str
+        Satellite ids, sorted.
+    sat_idx : ndarray of int
+        Index into ``sats`` of each kept record.
+    records : dict of str to ndarray
+        ``fields`` of the kept records, with ``sat``, ``toe`` and ``toc``.
+    """
+    toe = toe + SECONDS_PER_WEEK * np.round((toc - toe) / SECONDS_PER_WEEK)
+    check_coverage(toe, max_age_s, span, field, system)
+    sats, sat_idx = np.unique(nav.sv[keep], return_inverse=True)
+    records = {k: columns[k][keep] for k in fields}
+    records.update(sat=sat_idx, toe=toe, toc=toc)
+    return sats, sat_idx, records
 
 
 def read_rinex3_records(path: NavPaths, system: str, setting: str, fix: str) -> NavRecords:
