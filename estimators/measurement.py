@@ -68,6 +68,8 @@ N_BASE_STATES = 5
 
 _REQUIRED = ("epoch", "t", "sat", "code_l1", "phase_l1", "lli_l1", "sat_x", "sat_y", "sat_z", "sat_clock", "el", "az")
 _REQUIRED_L2 = ("code_l2", "phase_l2", "lli_l2")
+#: Columns a code row needs, finite, to be used
+_CODE_COLUMNS = ("code_l1", "sat_x", "sat_y", "sat_z", "sat_clock", "el", "az", "t")
 #: Interval between the rough single-point positions used for the Klobuchar pierce points [s].
 _ROUGH_POSITION_INTERVAL_S = 60.0
 #: ``ionosphere=auto`` forms the ionosphere-free combination when every satellite above the mask
@@ -367,11 +369,10 @@ def prepare_ppp(
             "carry no carrier phase (e.g. a libRSF pseudorange log)",
             "set the estimator's measurements=auto or measurements=code",
         )
-    code_cols = ["code_l1", "sat_x", "sat_y", "sat_z", "sat_clock", "el", "az", "t"]
-    valid = np.isfinite(obs[code_cols].to_numpy(float)).all(axis=1)
+    valid = np.isfinite(obs[list(_CODE_COLUMNS)].to_numpy(float)).all(axis=1)
     second = _second_frequency(obs)
     above = obs["el"].to_numpy(float) > elevation_mask_deg
-    free = _decide_ionosphere_free(ionosphere, obs["sat"].to_numpy()[valid & above], second[valid & above])
+    free = ionosphere_free(obs, ionosphere, elevation_mask_deg)
     n_dropped = int((valid & above & ~second).sum()) if free else 0
     if free:
         valid &= second
@@ -583,41 +584,8 @@ def variance_factors(
         Factor per group on the code sigma (dimensionless), geometric mean over the rows 1.
     """
     key = _digest(epoch, sat_pos, code, sigma, group, system_index, el, np.array([doy, iterations], float))
-    if key not in _VC_CACHE:
-        if len(_VC_CACHE) >= _VC_CACHE_SIZE:
-            del _VC_CACHE[next(iter(_VC_CACHE))]
-        _VC_CACHE[key] = _helmert_factors(epoch, sat_pos, code, sigma, group, system_index, el, doy, iterations)
-    return _VC_CACHE[key].copy()
-
-
-#: :func:`variance_factors` of the last few inputs: every GNSS estimator of a job prepares the same
-#: rows, and one estimate costs ~10 s on the Hong Kong log
-_VC_CACHE: dict[str, np.ndarray] = {}
-_VC_CACHE_SIZE = 8
-
-
-def _digest(*arrays: np.ndarray) -> str:
-    """Content hash of arrays (dtype, shape and bytes)."""
-    h = hashlib.blake2b(digest_size=20)
-    for a in arrays:
-        a = np.ascontiguousarray(a)
-        h.update(f"{a.dtype.str}{a.shape}".encode())
-        h.update(a.tobytes())
-    return h.hexdigest()
-
-
-def _helmert_factors(
-    epoch: np.ndarray,
-    sat_pos: np.ndarray,
-    code: np.ndarray,
-    sigma: np.ndarray,
-    group: np.ndarray,
-    system_index: np.ndarray,
-    el: np.ndarray,
-    doy: float,
-    iterations: int,
-) -> np.ndarray:
-    """:func:`variance_factors`, computed."""
+    if key in _VC_CACHE:
+        return _VC_CACHE[key].copy()
     n_groups = int(group.max(initial=-1)) + 1
     factor = np.ones(n_groups)
     start = None
@@ -644,7 +612,27 @@ def _helmert_factors(
                 ratio = np.sum(np.minimum(square[mine], VC_CLIP**2 * r[mine])) / np.sum(r[mine])
                 factor[g] *= float(np.sqrt(ratio))
     # relative: the overall scale stays the a-priori model's (its row-weighted geometric mean 1)
-    return factor / np.exp(np.mean(np.log(factor[group])))
+    factor /= np.exp(np.mean(np.log(factor[group])))
+    if len(_VC_CACHE) >= _VC_CACHE_SIZE:
+        del _VC_CACHE[next(iter(_VC_CACHE))]
+    _VC_CACHE[key] = factor.copy()
+    return factor
+
+
+#: :func:`variance_factors` of the last few inputs: every GNSS estimator of a job prepares the same
+#: rows, and one estimate costs ~10 s on the Hong Kong log
+_VC_CACHE: dict[str, np.ndarray] = {}
+_VC_CACHE_SIZE = 8
+
+
+def _digest(*arrays: np.ndarray) -> str:
+    """Content hash of arrays (dtype, shape and bytes)."""
+    h = hashlib.blake2b(digest_size=20)
+    for a in arrays:
+        a = np.ascontiguousarray(a)
+        h.update(f"{a.dtype.str}{a.shape}".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
 
 
 def _variance_groups(
@@ -677,14 +665,13 @@ def ionosphere_free(obs: pd.DataFrame, mode: IonosphereMode, elevation_mask_deg:
         ``auto``: when every satellite above the mask has a second frequency on at least
         :data:`AUTO_FREE_MIN_FRACTION` of its rows.
     elevation_mask_deg : float
-        Rows at or below this elevation [deg] do not count.
+        Rows at or below this elevation [deg], and rows without a usable code, do not count.
 
     Returns
     -------
     bool
     """
-    code_cols = ["code_l1", "sat_x", "sat_y", "sat_z", "sat_clock", "el"]
-    used = np.isfinite(obs[code_cols].to_numpy(float)).all(axis=1)
+    used = np.isfinite(obs[list(_CODE_COLUMNS)].to_numpy(float)).all(axis=1)
     used &= obs["el"].to_numpy(float) > elevation_mask_deg
     return _decide_ionosphere_free(mode, obs["sat"].to_numpy()[used], _second_frequency(obs)[used])
 
