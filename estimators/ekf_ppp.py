@@ -216,7 +216,7 @@ class EkfPpp(Estimator):
         # ---- initialisation from a single point solution at the first epoch, or the nearest
         # trusted one among the first few (an NLOS-ridden fix, or fewer than 4 satellites), or
         # among all when none of those is
-        all_k = np.repeat(np.arange(obs.n_epochs), obs.epoch_stop - obs.epoch_start)
+        all_k = obs.row_epoch
         for rows in (slice(0, int(obs.epoch_stop[min(obs.n_epochs, _INIT_EPOCHS) - 1])), slice(None)):
             row_k = all_k[rows]
             try:

@@ -21,7 +21,6 @@ from estimators.ppp_config import IonosphereMode, MeasurementMode
 from simbench.contract import ReceiverData
 from simbench.core import atmosphere
 from simbench.core.frames import geodetic_from_ecef
-from simbench.gnss.spp import solve_epochs
 from simbench.gnss.troposphere import troposphere_terms
 
 __all__ = ["GnssEpoch", "GnssInsData", "SinglePointFix", "prepare_gnss_ins"]
@@ -94,17 +93,8 @@ def prepare_gnss_ins(data: ReceiverData, cfg: GnssInsConfig) -> GnssInsData:
     sat_vel = np.where(ok_rr[:, None], obs.sat_vel, 0.0)
 
     # one receiver clock for all rows, as in the window (no inter-system bias state)
-    k = np.repeat(np.arange(obs.n_epochs), obs.epoch_stop - obs.epoch_start)
-    spp = solve_epochs(
-        k,
-        obs.sat_pos,
-        obs.code,
-        n_epochs=obs.n_epochs,
-        sigma=obs.sigma_code,
-        el=obs.el,
-        doy=obs.doy,
-        fill_untrusted=True,
-    )
+    k = obs.row_epoch
+    spp = obs.single_point(system_index=None, fill_untrusted=True)
     lat, _, h = geodetic_from_ecef(spp.pos)
     hydro, m_w = troposphere_terms(obs.el, lat[k], h[k], obs.doy)
     zwd = atmosphere.saastamoinen_zenith_m(lat, h)[1]

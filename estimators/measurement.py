@@ -42,7 +42,7 @@ from simbench.errors import SimbenchError
 from simbench.gnss.arcs import arc_ids
 from simbench.gnss.geometry import sagnac_range_gradient
 from simbench.gnss.signals import L1_FREQUENCY_HZ, l1_wavelength_m
-from simbench.gnss.spp import solve_epochs
+from simbench.gnss.spp import SppSolution, solve_epochs
 from simbench.gnss.troposphere import troposphere_terms
 
 __all__ = [
@@ -268,6 +268,27 @@ class PppObservations:
     @property
     def n_obs(self) -> int:
         return len(self.code)
+
+    @property
+    def row_epoch(self) -> np.ndarray:
+        """int, (N,): solved-epoch index 0..n_epochs-1 of each row."""
+        return np.repeat(np.arange(self.n_epochs), self.epoch_stop - self.epoch_start)
+
+    def single_point(self, **solver: Any) -> SppSolution:
+        """Code-only single-point fix of every solved epoch on these rows, weights and clocks.
+
+        :func:`~simbench.gnss.spp.solve_epochs` with this table's rows, code sigmas, one clock per
+        system and the troposphere at ``el``/``doy``; ``solver`` adds or replaces its keywords
+        (e.g. ``huber_k``, ``max_rms_m``, or ``system_index=None`` for one clock).
+        """
+        kwargs: dict[str, Any] = {
+            "n_epochs": self.n_epochs,
+            "sigma": self.sigma_code,
+            "system_index": self.system_index,
+            "el": self.el,
+            "doy": self.doy,
+        }
+        return solve_epochs(self.row_epoch, self.sat_pos, self.code, **{**kwargs, **solver})
 
     def epoch_slice(self, k: int) -> slice:
         """Rows of the ``k``-th solved epoch (not GNSS epoch index ``k``)."""

@@ -33,7 +33,6 @@ from estimators.ppp_config import (
 )
 from simbench.contract import Need, ReceiverData
 from simbench.errors import require_at_least, require_elevation_mask, require_positive
-from simbench.gnss.spp import solve_epochs
 from simbench.typed import check_choices
 
 __all__ = ["HuberSpp", "HuberSppConfig", "WlsSpp", "WlsSppConfig"]
@@ -110,18 +109,7 @@ class WlsSpp(Estimator):
             cn0_ref_dbhz=cfg.cn0_ref_dbhz,
             variance_components=cfg.variance_components,
         )
-        k = np.repeat(np.arange(obs.n_epochs), obs.epoch_stop - obs.epoch_start)
-        sol = solve_epochs(
-            k,
-            obs.sat_pos,
-            obs.code,
-            n_epochs=obs.n_epochs,
-            sigma=obs.sigma_code,
-            system_index=obs.system_index,
-            el=obs.el,
-            doy=obs.doy,
-            **self._loss(),
-        )
+        sol = obs.single_point(**self._loss())
         ok = sol.trusted
         update_s = np.full(int(ok.sum()), (time.perf_counter() - start) / max(int(ok.sum()), 1))
         frame = solution_frame(obs.epoch_ids[ok], obs.epoch_t[ok], sol.pos[ok], update_s)

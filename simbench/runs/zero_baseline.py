@@ -31,7 +31,6 @@ from estimators.ppp_config import IonosphereMode, MeasurementMode, StochasticMod
 from simbench.analysis.metrics import enu_errors
 from simbench.analysis.published import DRIVE_SCENARIOS, ZERO_BASELINE_MEAN_3D_M, Receiver
 from simbench.contract import Scenario
-from simbench.gnss.spp import solve_epochs
 from simbench.runs.scenarios import simulate
 
 #: File name of the table in a run folder.
@@ -81,18 +80,7 @@ def single_point_positions(scenario: Scenario, keep: pd.MultiIndex | None = None
         elevation_mask_deg=noise.elevation_mask_deg,
         measurements=MeasurementMode.code,
     )
-    k = np.searchsorted(obs.epoch_ids, obs.epoch)
-    sol = solve_epochs(
-        k,
-        obs.sat_pos,
-        obs.code,
-        n_epochs=obs.n_epochs,
-        sigma=obs.sigma_code,
-        system_index=obs.system_index,
-        el=obs.el,
-        doy=obs.doy,
-        max_rms_m=MAX_RMS_M,
-    )
+    sol = obs.single_point(max_rms_m=MAX_RMS_M)
     ok = sol.trusted
     return pd.DataFrame({"epoch": obs.epoch_ids[ok], "x": sol.pos[ok, 0], "y": sol.pos[ok, 1], "z": sol.pos[ok, 2]})
 
