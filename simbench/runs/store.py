@@ -141,10 +141,15 @@ def is_finished(stem: Path) -> bool:
     ``overrides``): the aggregate must have every column in every row. A damaged
     result is recomputed after a warning naming the file.
     """
-    summary = read_job(stem, "recomputing the result")
-    if summary is None or set(SUMMARY_COLUMNS) - set(summary.columns):
-        return False
-    return bool((summary["status"] == "ok").all())
+    return _finished_summary(stem, "recomputing the result") is not None
+
+
+def _finished_summary(stem: Path, consequence: str) -> pd.DataFrame | None:
+    """The summary of a finished result (:func:`is_finished`), else None."""
+    summary = read_job(stem, consequence)
+    if summary is None or set(SUMMARY_COLUMNS) - set(summary.columns) or not (summary["status"] == "ok").all():
+        return None
+    return summary
 
 
 def write_result(
@@ -192,10 +197,9 @@ def adopt_result(stem: Path, found: Path, tags: Mapping[str, Any]) -> bool:
     bool
         False, writing nothing, when ``found`` is not a finished result (:func:`is_finished`).
     """
-    if not is_finished(found):
-        return False
-    summary = read_job(found, "computing the result instead")
-    epochs = read_table(found.with_suffix(".epochs.parquet"), "computing the result instead")
+    instead = "computing the result instead"
+    summary = _finished_summary(found, instead)
+    epochs = None if summary is None else read_table(found.with_suffix(".epochs.parquet"), instead)
     if summary is None or epochs is None:
         return False
     diagnostics = json.loads(found.with_suffix(".diagnostics.json").read_text())
