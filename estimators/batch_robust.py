@@ -122,8 +122,10 @@ class BatchGraphEstimator(Estimator):
         s = np.sqrt(self.config.prior_scale)
         return obs.sigma_code * s, obs.sigma_phase * s
 
-    def _solve(self, graph: gtsam.NonlinearFactorGraph, initial: gtsam.Values) -> gtsam.Values:
-        return solve(graph, initial, max_iterations=self.config.lm_max_iterations)
+    def _solve(
+        self, graph: gtsam.NonlinearFactorGraph, initial: gtsam.Values, ordering: gtsam.Ordering
+    ) -> gtsam.Values:
+        return solve(graph, initial, ordering=ordering, max_iterations=self.config.lm_max_iterations)
 
     def _a_priori_graph(self, g: PppGraph, structure: gtsam.NonlinearFactorGraph) -> gtsam.NonlinearFactorGraph:
         """Structure plus measurement factors with the a-priori noise model (scaled by ``prior_scale``)."""
@@ -132,8 +134,15 @@ class BatchGraphEstimator(Estimator):
         graph.push_back(g.measurement_factors(code_sigma=sc, phase_sigma=sp))
         return graph
 
-    def _l2(self, g: PppGraph, structure: gtsam.NonlinearFactorGraph) -> gtsam.Values:
-        return self._solve(self._a_priori_graph(g, structure), g.initial_values())
+    def _l2(self, g: PppGraph, structure: gtsam.NonlinearFactorGraph) -> tuple[gtsam.Values, gtsam.Ordering]:
+        """The batch L2 solution and the elimination ordering of the measurement graph.
+
+        Re-weighting changes noise models only, never which keys a factor touches, so the
+        robust re-solves eliminate in this ordering too.
+        """
+        graph = self._a_priori_graph(g, structure)
+        ordering = g.elimination_ordering(graph)
+        return self._solve(graph, g.initial_values(), ordering), ordering
 
     def _estimate(self, data: ReceiverData) -> tuple[pd.DataFrame, dict[str, Any]]:
         tic = time.perf_counter()
@@ -176,7 +185,7 @@ class L2Batch(BatchGraphEstimator):
     Config = L2Config
 
     def _run(self, data, obs, g, structure):
-        return self._l2(g, structure), {"iterations": 1}
+        return self._l2(g, structure)[0], {"iterations": 1}
 
 
 # --------------------------------------------------------------------------- DCS
@@ -205,7 +214,7 @@ class DcsBatch(BatchGraphEstimator):
 
     def _run(self, data, obs, g, structure):
         cfg: DcsConfig = self.config
-        values = self._l2(g, structure)
+        values, ordering = self._l2(g, structure)
         sc, sp = self._a_priori_sigmas(obs)
         graph = gtsam.NonlinearFactorGraph(structure)
         graph.push_back(
@@ -213,11 +222,10 @@ class DcsBatch(BatchGraphEstimator):
                 code_sigma=sc, phase_sigma=sp, robust=gtsam.noiseModel.mEstimator.DCS.Create(cfg.kernel_width)
             )
         )
-        ordering = g.elimination_ordering(graph)
         err = graph.error(values)
         stop, iterations = "max_iterations", 0
         for iterations in range(1, cfg.max_iterations + 1):  # noqa: B007 (the count is reported after the loop)
-            stepped, stepped_err = gauss_newton_step(graph, values, ordering)
+            stepped, stepped_err = gauss_newton_step(graph, values, ordering, error=err)
             reason = stop_reason(err, stepped_err, cfg.rel_tol, on_increase=True)
             if reason != "error increased":  # a rise is rejected, as Levenberg-Marquardt would
                 values, err = stepped, stepped_err
@@ -295,29 +303,30 @@ class MmBatch(BatchGraphEstimator):
 
     def _run(self, data, obs, g, structure):
         cfg: MmConfig = self.config
-        values = self._l2(g, structure)
+        values, ordering = self._l2(g, structure)
         sc, sp = self._a_priori_sigmas(obs)
         inflate = np.sqrt(cfg.outlier_scale)
-        ordering = None
-        prev_out = None
+        graph: gtsam.NonlinearFactorGraph | None = None
+        prev_out_c = prev_out_p = None
         prev_err = None
         history = []
         for it in range(cfg.max_iterations):
             r_c, r_p = g.residuals(values)
             out_c = max_mixture_outliers(r_c / sc, cfg.outlier_scale, cfg.outlier_weight)
             out_p = max_mixture_outliers(r_p / sp, cfg.outlier_scale, cfg.outlier_weight)
-            out = np.r_[out_c, out_p]
-            if prev_out is not None and np.array_equal(out, prev_out):
-                break
-            prev_out = out
-            graph = gtsam.NonlinearFactorGraph(structure)
-            graph.push_back(
-                g.measurement_factors(
-                    code_sigma=np.where(out_c, sc * inflate, sc), phase_sigma=np.where(out_p, sp * inflate, sp)
-                )
-            )
-            if ordering is None:  # every re-solve has this structure (only the noise models change)
-                ordering = g.elimination_ordering(graph)
+            code_sigma, phase_sigma = np.where(out_c, sc * inflate, sc), np.where(out_p, sp * inflate, sp)
+            if graph is None:
+                graph = gtsam.NonlinearFactorGraph(structure)
+                graph.push_back(g.measurement_factors(code_sigma=code_sigma, phase_sigma=phase_sigma))
+                slots = _measurement_slots(g, structure.size())
+            else:
+                changed_c, changed_p = out_c != prev_out_c, out_p != prev_out_p
+                if not (changed_c.any() or changed_p.any()):
+                    break
+                # only the rows that switched component get a new factor (the others are unchanged)
+                _replace(graph, slots[0], g, changed_c, code_sigma, phase_sigma, code=True)
+                _replace(graph, slots[1], g, changed_p, code_sigma, phase_sigma, code=False)
+            prev_out_c, prev_out_p = out_c, out_p
             values, err = gauss_newton_step(graph, values, ordering)
             history.append(
                 {
@@ -331,3 +340,38 @@ class MmBatch(BatchGraphEstimator):
                 break
             prev_err = err
         return values, {"iterations": len(history), "history": history}
+
+
+def _measurement_slots(g: PppGraph, start: int) -> tuple[np.ndarray, np.ndarray]:
+    """Factor index of each row's code and phase factor in a graph whose measurement factors
+    (:meth:`PppGraph.measurement_factors` of all rows) follow ``start`` other factors; -1 where a
+    row has no phase factor."""
+    n = g.obs.n_obs
+    phase = np.where(g.has_phase, start + n + np.cumsum(g.has_phase) - 1, -1)
+    return start + np.arange(n), phase
+
+
+def _replace(
+    graph: gtsam.NonlinearFactorGraph,
+    slots: np.ndarray,
+    g: PppGraph,
+    rows: np.ndarray,
+    code_sigma: np.ndarray,
+    phase_sigma: np.ndarray,
+    *,
+    code: bool,
+) -> None:
+    """Replace the code (``code``) or phase factors of the ``rows`` (bool mask) with ones of the given sigmas."""
+    rows = rows & (slots >= 0)
+    if not rows.any():
+        return
+    idx = np.flatnonzero(rows)
+    new = g.measurement_factors(
+        idx,
+        code_sigma=code_sigma[idx],
+        phase_sigma=phase_sigma[idx],
+        use_code=np.full(len(idx), code),
+        use_phase=np.full(len(idx), not code),
+    )
+    for position, slot in enumerate(slots[idx].tolist()):
+        graph.replace(slot, new.at(position))

@@ -176,10 +176,7 @@ class _IterativeCovariance(BatchGraphEstimator):
 
     def _run(self, data, obs, g: PppGraph, structure):
         cfg: BceConfig = self.config
-        graph = self._a_priori_graph(g, structure)
-        values = self._solve(graph, g.initial_values())  # batch L2
-        # every re-solve has this structure (only noise models and offsets change)
-        ordering = g.elimination_ordering(graph)
+        values, ordering = self._l2(g, structure)
         self._start(data, obs, np.random.default_rng(cfg.seed))
         prev_err = None
         stop = "max_iterations"

@@ -1,7 +1,8 @@
-"""Speed-ups change no output: generated tables bit for bit, CRT-LSS positions within 1 mm (issue 27).
+"""Speed-ups change no output: generated tables bit for bit, CRT-LSS and batch positions within 1 mm (issue 27).
 
 The stored values were computed with the code before the speed-ups of issue 27
-(commit e660b31). A digest is the sha256 of each table's canonical bytes: per
+(commit e660b31; the batch positions: before the sequential-Cholesky L2 solve and the
+max-mixtures factor replacement, commit 6d2995e). A digest is the sha256 of each table's canonical bytes: per
 column its name, dtype and raw values (strings joined), so a flipped bit, a
 changed dtype or a reordered column fails. When a change is *meant* to alter the
 generator's output, regenerate them with ``python tests/test_speed_identity.py``
@@ -17,6 +18,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+import estimators
 import simbench
 from estimators.crt_lss import CrtLss, CrtLssConfig
 
@@ -132,6 +134,44 @@ CRT_ERRORS: list[tuple[float, float, float]] = [
     (-0.41599, -4.96030, 5.55065),
 ]
 
+#: Batch graph estimators' position minus truth [m] at every 20th epoch of :data:`BATCH_CASE`.
+BATCH_CASE = ("urban", "low", 1000, {"scenario.duration_s": 120})
+BATCH_EPOCHS = slice(None, None, 20)
+BATCH_ERRORS: dict[str, list[tuple[float, float, float]]] = {
+    "l2": [
+        (-3.84324, -9.19806, 13.05317),
+        (-3.07691, -7.57388, 12.31185),
+        (-2.36906, -5.81185, 11.67435),
+        (-2.16432, -5.46214, 11.67341),
+        (-2.08249, -5.45717, 11.53511),
+        (-1.87728, -5.27530, 11.23652),
+    ],
+    "dcs": [
+        (-4.53480, -8.60444, 13.55421),
+        (-4.05164, -7.49881, 13.00931),
+        (-3.43352, -6.18625, 12.45408),
+        (-3.23880, -5.93124, 12.43709),
+        (-3.24082, -6.09518, 12.54034),
+        (-2.97465, -6.52236, 12.77814),
+    ],
+    "mm": [
+        (-4.09295, -8.62646, 13.53653),
+        (-3.57939, -7.54929, 12.98303),
+        (-3.08565, -6.48109, 12.46648),
+        (-2.88733, -6.26285, 12.35993),
+        (-2.81665, -6.41766, 12.29475),
+        (-2.48105, -6.88757, 12.33066),
+    ],
+    "bce": [
+        (-4.10252, -8.85228, 13.28758),
+        (-3.56848, -7.80993, 12.72881),
+        (-3.11483, -6.88100, 12.28151),
+        (-2.88662, -6.64465, 12.21393),
+        (-2.85413, -6.85585, 12.25416),
+        (-2.51400, -7.25437, 12.37600),
+    ],
+}
+
 
 def table_digest(table: pd.DataFrame) -> str:
     """sha256 of a table's canonical bytes: row count, then per column its name, dtype and values."""
@@ -162,6 +202,19 @@ def crt_lss_errors() -> np.ndarray:
     return sol[["x", "y", "z"]].to_numpy() - truth
 
 
+def batch_errors() -> dict[str, np.ndarray]:
+    """Each batch graph estimator's ECEF position minus truth [m] at :data:`BATCH_EPOCHS` of :data:`BATCH_CASE`."""
+    name, receiver, seed, overrides = BATCH_CASE
+    sc = simbench.simulate(name, receiver, seed=seed, **overrides)
+    data = sc.receiver_view()
+    out = {}
+    for est in ("l2", "dcs", "mm", "bce"):
+        sol = estimators.get(est)().estimate(data).epochs.iloc[BATCH_EPOCHS]
+        truth = sc.truth.set_index("epoch").loc[sol["epoch"], ["x", "y", "z"]].to_numpy()
+        out[est] = sol[["x", "y", "z"]].to_numpy() - truth
+    return out
+
+
 @pytest.mark.parametrize("label", sorted(CASES))
 def test_generator_output_is_bit_identical(label: str) -> None:
     assert scenario_digests(label) == DIGESTS[label]
@@ -173,6 +226,14 @@ def test_crt_lss_positions_within_a_millimetre() -> None:
     assert np.abs(errors - np.array(CRT_ERRORS)).max() <= 1e-3
 
 
+def test_batch_positions_within_a_millimetre() -> None:
+    errors = batch_errors()
+    assert set(errors) == set(BATCH_ERRORS)
+    for name, reference in BATCH_ERRORS.items():
+        assert errors[name].shape == (len(reference), 3), name
+        assert np.abs(errors[name] - np.array(reference)).max() <= 1e-3, name
+
+
 if __name__ == "__main__":
     print("DIGESTS: dict[str, dict[str, str]] = {")
     for case in CASES:
@@ -182,3 +243,10 @@ if __name__ == "__main__":
     for row in crt_lss_errors():
         print(f"    ({row[0]:.5f}, {row[1]:.5f}, {row[2]:.5f}),")
     print("]")
+    print("BATCH_ERRORS: dict[str, list[tuple[float, float, float]]] = {")
+    for name, rows in batch_errors().items():
+        print(f"    {name!r}: [")
+        for row in rows:
+            print(f"        ({row[0]:.5f}, {row[1]:.5f}, {row[2]:.5f}),")
+        print("    ],")
+    print("}")
