@@ -326,18 +326,31 @@ def job_stems(run_dir: Path) -> list[Path]:
     ]
 
 
-def aggregate(run_dir: Path, metadata: dict[str, Any]) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """Concatenate the run's intact job files (:func:`job_stems`, :func:`read_job`) into its summary
-    and epoch tables; a damaged job is left out with a one-line warning naming the file.
+def intact_jobs(run_dir: Path) -> list[tuple[Path, pd.DataFrame]]:
+    """Stem and summary rows of each of the run's jobs whose files are intact (:func:`job_stems`,
+    :func:`read_job`); a damaged job is left out with a one-line warning naming the file."""
+    jobs = []
+    for stem in job_stems(Path(run_dir)):
+        summary = read_job(stem, LEFT_OUT)
+        if summary is not None:
+            jobs.append((stem, summary))
+    return jobs
 
+
+def aggregate(
+    run_dir: Path, metadata: dict[str, Any], jobs: list[tuple[Path, pd.DataFrame]] | None = None
+) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Concatenate the run's intact job files into its summary and epoch tables; a damaged job is
+    left out with a one-line warning naming the file.
+
+    ``jobs`` is :func:`intact_jobs` of the run when the caller has it (read here otherwise).
     Written to ``run_dir/summary.parquet`` and ``run_dir/epochs.parquet``.
     """
     run_dir = Path(run_dir)
     summaries, frames = [], []
-    for stem in job_stems(run_dir):
-        summary = read_job(stem, LEFT_OUT)
-        epochs = None if summary is None else read_table(stem.with_suffix(".epochs.parquet"), LEFT_OUT)
-        if summary is None or epochs is None:
+    for stem, summary in intact_jobs(run_dir) if jobs is None else jobs:
+        epochs = read_table(stem.with_suffix(".epochs.parquet"), LEFT_OUT)
+        if epochs is None:
             continue
         summaries.append(summary)
         if len(epochs):
@@ -349,13 +362,13 @@ def aggregate(run_dir: Path, metadata: dict[str, Any]) -> tuple[pd.DataFrame, pd
     return summary, epochs
 
 
-def diagnostics(run_dir: Path) -> dict[str, list[dict[str, Any]]]:
-    """All diagnostics of a run's intact jobs, grouped by estimator name, each with its job's summary row."""
+def diagnostics(run_dir: Path, jobs: list[tuple[Path, pd.DataFrame]] | None = None) -> dict[str, list[dict[str, Any]]]:
+    """All diagnostics of a run's intact jobs, grouped by estimator name, each with its job's summary row.
+
+    ``jobs`` is :func:`intact_jobs` of the run when the caller has it (read here otherwise).
+    """
     out: dict[str, list[dict[str, Any]]] = {}
-    for stem in job_stems(run_dir):
-        summary = read_job(stem, LEFT_OUT)
-        if summary is None:
-            continue
+    for stem, summary in intact_jobs(run_dir) if jobs is None else jobs:
         estimator = stem.name.split("-")[0]
         path = stem.with_suffix(".diagnostics.json")
         try:
