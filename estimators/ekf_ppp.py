@@ -176,7 +176,8 @@ class EkfPpp(Estimator):
         track = self.run(obs, anchor)
         if anchor is not None:
             track.update_s += anchor.update_s
-        return solution_frame(obs.epoch_ids, obs.epoch_t, track.pos, track.update_s), track.diagnostics
+        # the filter's own position covariance goes out with the positions (the report's consistency check)
+        return solution_frame(obs.epoch_ids, obs.epoch_t, track.pos, track.update_s, track.pos_cov), track.diagnostics
 
     def run(self, obs: PppObservations, anchor: EkfTrack | None = None) -> EkfTrack:
         """Filter prepared observations epoch by epoch.
