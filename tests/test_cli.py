@@ -29,6 +29,7 @@ def _run(*args: str) -> subprocess.CompletedProcess:
     )
 
 
+@pytest.mark.slow
 def test_cli_writes_store_and_report(tmp_path: Path) -> None:
     out = tmp_path / "run"
     # 90 s as the smoke sweep: long enough for every estimator to run

@@ -80,6 +80,7 @@ def canyon_medians(canyons: list[simbench.Scenario]) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=["seed", "estimator", "median"])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ROBUST)
 def test_robust_beats_l2_on_code_only_canyon_data(name: str, canyon_medians: pd.DataFrame) -> None:
     mean = canyon_medians.groupby("estimator")["median"].mean()

@@ -261,6 +261,7 @@ def test_an_edited_estimator_is_recomputed_and_an_untouched_one_reused(
     assert new.name.endswith(f"-{code_identity(module.__name__)}.summary.parquet")
 
 
+@pytest.mark.slow
 def test_ten_concurrent_reports_of_one_run_all_succeed(intact: Path, tmp_path: Path) -> None:
     run_dir = tmp_path / "run"
     shutil.copytree(intact, run_dir)

@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 
 import pandas as pd
+import pytest
 
 from simbench.analysis.claims import CLAIM_COLUMNS
 from simbench.contract import read_parquet_metadata
@@ -45,6 +46,7 @@ def test_multirun_writes_store_claims_and_report(tmp_path: Path) -> None:
     assert "git_sha" in str(read_parquet_metadata(out / "summary.parquet"))
 
 
+@pytest.mark.slow
 def test_killed_sweep_resumes_without_recomputing(tmp_path: Path) -> None:
     out = tmp_path / "killed"
     args = [sys.executable, "-m", "simbench", "-m", "seed=0,1,2,3,4,5", f"results_dir={out}", *SHORT]
