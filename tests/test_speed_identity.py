@@ -193,13 +193,17 @@ def scenario_digests(label: str) -> dict[str, str]:
     return {table: table_digest(getattr(sc, table)) for table in TABLES}
 
 
+def position_errors(scenario: simbench.Scenario, epochs: pd.DataFrame) -> np.ndarray:
+    """ECEF position of each solution row minus the truth at its epoch [m], shape (rows, 3)."""
+    truth = scenario.truth.set_index("epoch").loc[epochs["epoch"], ["x", "y", "z"]].to_numpy()
+    return epochs[["x", "y", "z"]].to_numpy() - truth
+
+
 def crt_lss_errors() -> np.ndarray:
     """CRT-LSS (L = 20) ECEF position minus truth [m], shape (epochs, 3), on :data:`CRT_CASE`."""
     name, receiver, seed, overrides = CRT_CASE
     sc = simbench.simulate(name, receiver, seed=seed, **overrides)
-    sol = CrtLss(CrtLssConfig(window=20)).estimate(sc.receiver_view()).epochs
-    truth = sc.truth.set_index("epoch").loc[sol["epoch"], ["x", "y", "z"]].to_numpy()
-    return sol[["x", "y", "z"]].to_numpy() - truth
+    return position_errors(sc, CrtLss(CrtLssConfig(window=20)).estimate(sc.receiver_view()).epochs)
 
 
 def batch_errors() -> dict[str, np.ndarray]:
@@ -207,12 +211,10 @@ def batch_errors() -> dict[str, np.ndarray]:
     name, receiver, seed, overrides = BATCH_CASE
     sc = simbench.simulate(name, receiver, seed=seed, **overrides)
     data = sc.receiver_view()
-    out = {}
-    for est in ("l2", "dcs", "mm", "bce"):
-        sol = estimators.get(est)().estimate(data).epochs.iloc[BATCH_EPOCHS]
-        truth = sc.truth.set_index("epoch").loc[sol["epoch"], ["x", "y", "z"]].to_numpy()
-        out[est] = sol[["x", "y", "z"]].to_numpy() - truth
-    return out
+    return {
+        est: position_errors(sc, estimators.get(est)().estimate(data).epochs.iloc[BATCH_EPOCHS])
+        for est in ("l2", "dcs", "mm", "bce")
+    }
 
 
 @pytest.mark.parametrize("label", sorted(CASES))
@@ -234,19 +236,23 @@ def test_batch_positions_within_a_millimetre() -> None:
         assert np.abs(errors[name] - np.array(reference)).max() <= 1e-3, name
 
 
+def _print_rows(rows: np.ndarray, indent: str) -> None:
+    """Rows of position errors as the tuple literals of :data:`CRT_ERRORS` and :data:`BATCH_ERRORS`."""
+    for row in rows:
+        print(f"{indent}({row[0]:.5f}, {row[1]:.5f}, {row[2]:.5f}),")
+
+
 if __name__ == "__main__":
     print("DIGESTS: dict[str, dict[str, str]] = {")
     for case in CASES:
         print(f"    {case!r}: {scenario_digests(case)!r},")
     print("}")
     print("CRT_ERRORS: list[tuple[float, float, float]] = [")
-    for row in crt_lss_errors():
-        print(f"    ({row[0]:.5f}, {row[1]:.5f}, {row[2]:.5f}),")
+    _print_rows(crt_lss_errors(), "    ")
     print("]")
     print("BATCH_ERRORS: dict[str, list[tuple[float, float, float]]] = {")
     for name, rows in batch_errors().items():
         print(f"    {name!r}: [")
-        for row in rows:
-            print(f"        ({row[0]:.5f}, {row[1]:.5f}, {row[2]:.5f}),")
+        _print_rows(rows, "        ")
         print("    ],")
     print("}")
