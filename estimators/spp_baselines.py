@@ -22,7 +22,7 @@ import pandas as pd
 
 from estimators import register
 from estimators.base import Estimator, solution_frame
-from estimators.measurement import prepare_ppp
+from estimators.measurement import PppObservations, prepare_ppp
 from estimators.ppp_config import (
     GnssModelConfig,
     IonosphereMode,
@@ -33,6 +33,7 @@ from estimators.ppp_config import (
 )
 from simbench.contract import Need, ReceiverData
 from simbench.errors import require_at_least, require_elevation_mask, require_positive
+from simbench.gnss.spp import SppSolution
 from simbench.typed import check_choices
 
 __all__ = ["HuberSpp", "HuberSppConfig", "WlsSpp", "WlsSppConfig"]
@@ -91,9 +92,9 @@ class WlsSpp(Estimator):
     name = "wls_spp"
     Config = WlsSppConfig
 
-    def _loss(self) -> dict[str, Any]:
-        """Robust-loss keywords of :func:`~simbench.gnss.spp.solve_epochs`; none: plain weighted least squares."""
-        return {}
+    def _solve(self, obs: PppObservations) -> SppSolution:
+        """Per-epoch fixes on the prepared rows: plain weighted least squares (subclasses add a loss)."""
+        return obs.single_point()
 
     def _estimate(self, data: ReceiverData) -> tuple[pd.DataFrame, dict[str, Any]]:
         start, cfg = time.perf_counter(), self.config
@@ -109,7 +110,7 @@ class WlsSpp(Estimator):
             cn0_ref_dbhz=cfg.cn0_ref_dbhz,
             variance_components=cfg.variance_components,
         )
-        sol = obs.single_point(**self._loss())
+        sol = self._solve(obs)
         ok = sol.trusted
         update_s = np.full(int(ok.sum()), (time.perf_counter() - start) / max(int(ok.sum()), 1))
         frame = solution_frame(obs.epoch_ids[ok], obs.epoch_t[ok], sol.pos[ok], update_s)
@@ -131,5 +132,5 @@ class HuberSpp(WlsSpp):
     name = "huber_spp"
     Config = HuberSppConfig
 
-    def _loss(self) -> dict[str, Any]:
-        return {"huber_k": float(self.config.huber_k), "reweightings": int(self.config.reweightings)}
+    def _solve(self, obs: PppObservations) -> SppSolution:
+        return obs.single_point(huber_k=float(self.config.huber_k), reweightings=int(self.config.reweightings))

@@ -60,11 +60,12 @@ def test_installed_example_is_listed_and_configured_from_its_dataclass() -> None
     assert table.loc[EXAMPLE, "family"] == "simbench_example_estimator"
     assert (table.drop(EXAMPLE)["source"] == estimators.BUILT_IN).all()
     config = estimators.get(EXAMPLE).Config
-    # in the default run and the smoke sweep, with the dataclass defaults (its shipped YAML overrides none)
+    # in the default run and the smoke sweep, with the dataclass defaults (its shipped YAML overrides none;
+    # the shared sigma-model fields follow gnss_model, whose default preset has the same values)
     for overrides in ([], ["+sweep=smoke"]):
         composed = compose_config(overrides).estimator
         assert set(composed) == set(estimators.registered())
-        typed = to_typed(OmegaConf.to_container(composed[EXAMPLE]), config, EXAMPLE)
+        typed = to_typed(OmegaConf.to_container(composed[EXAMPLE], resolve=True), config, EXAMPLE)
         assert typed == config() and typed.cauchy_c == 2.385
     chosen = compose_config([f"estimator=[l2,{EXAMPLE}]", f"estimator.{EXAMPLE}.cauchy_c=3"]).estimator
     assert list(chosen) == ["l2", EXAMPLE] and chosen[EXAMPLE].cauchy_c == 3.0

@@ -7,7 +7,9 @@ One test per log, each on the shipped defaults (``python -m simbench scenario=<l
 * the best robust estimator (lowest median of ``dcs`` and ``mm``) beats ``huber_spp`` in median
   and 95th percentile, on the epochs both solved;
 * Hong Kong (GPS + BeiDou) also: best robust median <= 2.5 m and p95 <= 8 m, ``ekf_ppp`` median
-  at most twice the best, every estimator run here at availability >= 0.95, and so ``rtklib_spp``.
+  at most twice the best, every estimator run here at availability >= 0.95, and so ``rtklib_spp``;
+* Nagoya (open sky, ionosphere-free) also: every GNSS estimator, built-in or plug-in, at a
+  horizontal median <= 1.0 m.
 
 The real GNSS logs are Hong Kong (``hk_tst_2019``) and Nagoya (``nagoya_static``); the WVU
 drives are simulated worlds on real trajectories, and the ``librsf`` preset points at a test
@@ -27,6 +29,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+import estimators
 import simbench
 from simbench.contract import Scenario
 from simbench.runs.runner import run_estimators
@@ -179,10 +182,27 @@ def test_hong_kong_rtklib_baseline_is_available(hong_kong_log: Scenario) -> None
 # --------------------------------------------------------------------------- Nagoya
 
 
-def test_nagoya_batch_and_robust_beat_the_per_epoch_baselines(shared_data: Path) -> None:
-    log = run_log("nagoya_static", ("l2", *ROBUST, "wls_spp", "huber_spp"))
-    assert_all_ok(log)
-    assert check_baseline_inequalities(log) == []
+@pytest.fixture(scope="module")
+def nagoya(shared_data: Path) -> LogRun:
+    """Every registered estimator on the Nagoya log (the GNSS/INS ones and the oracle skip: no IMU, no labels)."""
+    return run_log("nagoya_static", sorted(estimators.registered()))
+
+
+def test_nagoya_batch_and_robust_beat_the_per_epoch_baselines(nagoya: LogRun) -> None:
+    assert check_baseline_inequalities(nagoya) == []
+
+
+def test_nagoya_every_gnss_estimator_within_a_metre(nagoya: LogRun) -> None:
+    """Open sky, ionosphere-free: every GNSS estimator's horizontal median <= 1.0 m (issue 24)."""
+    summary = nagoya.summary.set_index("estimator")
+    skipped = summary[summary["status"] == "skipped"]
+    assert set(skipped.index) == {"crt_lss", "ekf_ins", "iekf_ins", "oracle"}, skipped["message"].to_string()
+    ran = summary[summary["status"] != "skipped"]
+    assert (ran["status"] == "ok").all(), ran[["status", "message"]].to_string()
+    medians = {name: nagoya.median(name) for name in ran.index}
+    assert {"l2", "dcs", "mm", "bce", "ekf_ppp", "ice", "wls_spp", "rtklib_spp"} <= set(medians)
+    too_far = {name: round(m, 3) for name, m in medians.items() if not m <= 1.0}
+    assert not too_far, f"horizontal median above 1.0 m: {too_far}"
 
 
 # --------------------------------------------------------------------------- urban_deep
