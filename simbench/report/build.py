@@ -26,13 +26,10 @@ from __future__ import annotations
 
 import html
 import json
-import multiprocessing
-import os
 import re
 import time
 from collections.abc import Callable, Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, cast
@@ -40,9 +37,7 @@ from typing import Any, cast
 import numpy as np
 import pandas as pd
 
-from estimators import registered
 from simbench.analysis.claims import CLAIMS, NOT_MEASURED, NOT_RUN, claims_by_world, claims_table
-from simbench.analysis.metrics import local_enu
 from simbench.analysis.tables import (
     CONVERGENCE_S,
     GROUP,
@@ -57,28 +52,18 @@ from simbench.analysis.tables import (
     with_variant_columns,
 )
 from simbench.analysis.validation import MIN_ROWS_PER_CLOCK, comparison_table, residual_sample
-from simbench.analysis.variants import NO_OVERRIDES, config_defaults, display_names, override_value
+from simbench.analysis.variants import NO_OVERRIDES, display_names
 from simbench.contract import Scenario, read_parquet_metadata, write_bytes
 from simbench.errors import SimbenchError
 from simbench.report.figures import (
     LABELS_MARK,
     FigureFile,
     Format,
-    box_figure,
-    ecdf_figure,
     mixture_evolution_figure,
-    runtime_figure,
-    sensitivity_figure,
     validation_figure,
 )
+from simbench.report.group_figures import MIN_PARALLEL_GROUPS, GroupDrawing, GroupInputs, Item
 from simbench.report.style import UNDEFINED, families, sig3, with_ci
-from simbench.report.time_views import (
-    consistency_figure,
-    enu_error_figure,
-    signal_figure,
-    signal_per_epoch,
-    trajectory_figure,
-)
 from simbench.runs.checks import check_report_formats
 from simbench.runs.provenance import provenance
 from simbench.runs.runner import SUMMARY_COLUMNS
@@ -152,18 +137,26 @@ def finalize(
     check_report_formats(formats)
     run_dir = Path(run_dir)
     jobs = intact_jobs(run_dir)  # verified once for the tables and the diagnostics
-    summary, epochs = aggregate(run_dir, provenance(config or {"run_dir": str(run_dir)}), jobs)
-    # results written before a column existed (e.g. source) are shown with it empty
-    summary = summary.reindex(columns=list(dict.fromkeys([*SUMMARY_COLUMNS, *summary.columns])))
-    diag = diagnostics(run_dir, jobs)
-    epochs = _ok_epochs(epochs, summary)  # figures and claims use the results the tables use
-    # the report selects and groups the epoch rows many times: its labels as categories are an integer
-    # take each, not an Arrow string take (about 8 s of a 5-world thesis report)
-    text = epochs.select_dtypes(include=["string", "object"]).columns
-    epochs = epochs.astype(dict.fromkeys(text, "category"))
-    claims = claims_table(summary, epochs, diag)
-    write_bytes(run_dir / "claims.csv", claims.to_csv(index=False).encode())
-    return build_report(run_dir, summary, epochs, claims, diag, formats=formats, started=start, figures=figures)
+    # the drawing workers import while this process reads the store
+    with GroupDrawing(parallel=figures and len(jobs) >= MIN_PARALLEL_GROUPS) as drawing:
+        summary, epochs = aggregate(run_dir, provenance(config or {"run_dir": str(run_dir)}), jobs)
+        # results written before a column existed (e.g. source) are shown with it empty
+        summary = summary.reindex(columns=list(dict.fromkeys([*SUMMARY_COLUMNS, *summary.columns])))
+        diag = diagnostics(run_dir, jobs)
+        epochs = _ok_epochs(epochs, summary)  # figures and claims use the results the tables use
+        # the report selects and groups the epoch rows many times: its labels as categories are an integer
+        # take each, not an Arrow string take (about 8 s of a 5-world thesis report)
+        text = epochs.select_dtypes(include=["string", "object"]).columns
+        epochs = epochs.astype(dict.fromkeys(text, "category"))
+
+        def claims() -> pd.DataFrame:
+            table = claims_table(summary, epochs, diag)
+            write_bytes(run_dir / "claims.csv", table.to_csv(index=False).encode())
+            return table
+
+        return build_report(
+            run_dir, summary, epochs, claims, diag, formats=formats, started=start, figures=figures, drawing=drawing
+        )
 
 
 def _ok_epochs(epochs: pd.DataFrame, summary: pd.DataFrame) -> pd.DataFrame:
@@ -202,19 +195,23 @@ def build_report(
     run_dir: Path,
     summary: pd.DataFrame,
     epochs: pd.DataFrame,
-    claims: pd.DataFrame,
+    claims: pd.DataFrame | Callable[[], pd.DataFrame],
     diag: dict[str, list[dict]],
     formats: Sequence[Format] = ("png",),
     started: float | None = None,
     figures: bool = True,
+    drawing: GroupDrawing | None = None,
 ) -> Path:
     """Write ``report/`` of a run from its tables; return the directory.
 
     Parameters
     ----------
     run_dir : Path
-    summary, epochs, claims : pandas.DataFrame
-        The run's aggregate (:data:`~simbench.runs.runner.SUMMARY_COLUMNS`, ok epochs) and ``claims.csv``.
+    summary, epochs : pandas.DataFrame
+        The run's aggregate (:data:`~simbench.runs.runner.SUMMARY_COLUMNS`) and its ok epochs.
+    claims : pandas.DataFrame or callable
+        ``claims.csv``'s table, or a call that computes (and writes) it: called once the figures
+        are being drawn, so the two overlap.
     diag : dict
         Diagnostics by estimator (:func:`simbench.runs.store.diagnostics`).
     formats : sequence of str
@@ -223,6 +220,9 @@ def build_report(
         ``time.perf_counter()`` when the build began (the page gives the build time).
     figures : bool
         False: no figure is drawn (the page says so).
+    drawing : GroupDrawing, optional
+        Where the groups' figures are drawn (:class:`~simbench.report.group_figures.GroupDrawing`,
+        open for this call); None: in this process.
     """
     started = time.perf_counter() if started is None else started
     out = run_dir / "report"
@@ -237,6 +237,10 @@ def build_report(
     epochs = _named(epochs, names)
     stats = _named(seed_statistics(summary), names) if len(summary) else pd.DataFrame()
     scenarios = {d.name: d for d in cached_scenarios(run_dir)}
+    grouped = epochs.groupby(GROUP, dropna=False) if len(epochs) else []
+    groups = [_group_inputs(keys, group, summary, stats) for keys, group in grouped]
+    drawn = (drawing or GroupDrawing(parallel=False)).start(groups, out, page.formats, scenarios, draw=page.draw)
+    claims = claims() if callable(claims) else claims
     _provenance_box(page, run_dir, summary, scenarios)
     if len(stats):
         _leaderboard_section(page, summary, stats, oracles)
@@ -296,10 +300,7 @@ def build_report(
             cls="note",
         )
         page.table(pd.read_csv(zero))
-    grouped = epochs.groupby(GROUP, dropna=False) if len(epochs) else []
-    groups = [_group_inputs(keys, group, summary, stats) for keys, group in grouped]
-    drawn = _draw_groups(groups, out, page.formats, scenarios) if page.draw else [[] for _ in groups]
-    for inputs, items in zip(groups, drawn):
+    for inputs, items in zip(groups, drawn()):
         _group_section(page, inputs, items, summary)
     _study_times_section(page, run_dir, summary)
     _validation_section(page, run_dir, out, list(scenarios.values()))
@@ -309,20 +310,7 @@ def build_report(
     return page.write(out, started)
 
 
-@dataclass
-class _GroupInputs:
-    """What the figures and tables of one (sweep, scenario, receiver) group are drawn from."""
-
-    name: str  #: heading, e.g. 'urban, receiver low (sweep ch5_bce)'
-    tag: str  #: file-name part of its figures
-    group: pd.DataFrame  #: its ok epochs
-    shown: pd.DataFrame  #: the same, ``estimator`` replaced by the variant name
-    in_group: pd.DataFrame  #: its summary rows
-    n_reference: dict[str, int]  #: reference epochs per variant name
-    group_stats: pd.DataFrame  #: its rows of the statistics over seeds
-
-
-def _group_inputs(keys: tuple, group: pd.DataFrame, summary: pd.DataFrame, stats: pd.DataFrame) -> _GroupInputs:
+def _group_inputs(keys: tuple, group: pd.DataFrame, summary: pd.DataFrame, stats: pd.DataFrame) -> GroupInputs:
     sweep, scenario, receiver = keys
     in_group = summary[_in_group(summary, keys)]
     source = in_group["source"].iloc[0]
@@ -330,7 +318,7 @@ def _group_inputs(keys: tuple, group: pd.DataFrame, summary: pd.DataFrame, stats
     # file names too say what the data are: the source of a real log, the receiver of a simulation
     kind = receiver if data_source(source) == SIMULATED else data_source(source)
     tag = re.sub(r"[^A-Za-z0-9_-]+", "_", "_".join(str(k) for k in (sweep, scenario, kind) if k))
-    return _GroupInputs(
+    return GroupInputs(
         name,
         tag,
         group,
@@ -341,59 +329,7 @@ def _group_inputs(keys: tuple, group: pd.DataFrame, summary: pd.DataFrame, stats
     )
 
 
-#: What drawing a group's figures yields for the page, in order: a figure, or a note (text, class).
-_Item = FigureFile | tuple[str, str]
-
-
-class _Recorder:
-    """The figure part of :class:`_Page` for a worker process: records figures and notes in order."""
-
-    def __init__(self, formats: tuple[Format, ...]) -> None:
-        self.formats = formats
-        self.items: list[_Item] = []
-
-    @property
-    def fmt(self) -> dict[str, Any]:
-        return {"formats": self.formats}
-
-    def figure(self, figure: FigureFile) -> None:
-        self.items.append(figure)
-
-    def p(self, text: str, cls: str = "") -> None:
-        self.items.append((text, cls))
-
-
-def _draw_group(task: tuple[_GroupInputs, Path, tuple[Format, ...], Mapping[str, Path]]) -> list[_Item]:
-    """Draw one group's figures (:func:`_group_figures`); what they give the page, in order."""
-    inputs, out, formats, scenarios = task
-    recorder = _Recorder(formats)
-    _group_figures(recorder, out, inputs, scenarios)
-    return recorder.items
-
-
-#: Fewer groups are drawn in this process: a spawned worker costs ~3 s of imports, a group ~1-5 s of drawing.
-_MIN_PARALLEL_GROUPS = 6
-
-
-def _draw_groups(
-    groups: Sequence[_GroupInputs], out: Path, formats: tuple[Format, ...], scenarios: Mapping[str, Path]
-) -> list[list[_Item]]:
-    """Every group's figures, drawn in parallel over the CPUs this process may use.
-
-    Drawing is most of a large report's time (a 5-world thesis: 225 figures, ~80 of 107 s of
-    CPU) and the groups are independent; a worker is spawned, not forked, since the parent
-    holds pyarrow's and BLAS's threads.
-    """
-    tasks = [(g, out, formats, scenarios) for g in groups]
-    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-    workers = min(len(tasks), cpus)
-    if workers < 2 or len(tasks) < _MIN_PARALLEL_GROUPS:
-        return [_draw_group(t) for t in tasks]
-    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-        return list(pool.map(_draw_group, tasks))
-
-
-def _group_section(page: _Page, inputs: _GroupInputs, items: Sequence[_Item], summary: pd.DataFrame) -> None:
+def _group_section(page: _Page, inputs: GroupInputs, items: Sequence[Item], summary: pd.DataFrame) -> None:
     """Figures of one (sweep, scenario, receiver) group, then its detailed tables collapsed."""
     page.h2(inputs.name)
     for item in items:
@@ -402,48 +338,6 @@ def _group_section(page: _Page, inputs: _GroupInputs, items: Sequence[_Item], su
         else:
             page.p(*item)
     _group_tables(page, inputs.name, inputs.group, inputs.in_group, summary, inputs.group_stats)
-
-
-def _group_figures(page: _Recorder, out: Path, inputs: _GroupInputs, scenarios: Mapping[str, Path]) -> None:
-    """A group's figures: ECDFs, box plot, time views, prior-scale sensitivity and run time."""
-    tag, name, shown, n_reference, group_stats = (
-        inputs.tag,
-        inputs.name,
-        inputs.shown,
-        inputs.n_reference,
-        inputs.group_stats,
-    )
-    for metric, label in (("horizontal", "horizontal"), ("error_3d", "3-D")):
-        median_column = "horizontal_median_ref" if metric == "horizontal" else "error_3d_median_ref"
-        medians = dict(zip(group_stats["name"], group_stats[median_column]))
-        page.figure(
-            ecdf_figure(
-                shown,
-                metric,
-                out / f"ecdf_{metric}_{tag}.png",
-                f"ECDF of {label} error: {name}",
-                n_reference,
-                medians,
-                page.formats,
-            )
-        )
-    page.figure(
-        box_figure(shown, out / f"box_{tag}.png", f"Horizontal error per estimator: {name}", n_reference, **page.fmt)
-    )
-    _time_views(page, out, tag, name, shown, scenarios)
-    sensitivity = _sensitivity_curves(group_stats)
-    if sensitivity is not None:
-        page.figure(
-            sensitivity_figure(
-                sensitivity,
-                out / f"sensitivity_{tag}.png",
-                f"Sensitivity to the a priori covariance: {name}",
-                **page.fmt,
-            )
-        )
-    if group_stats["time_per_obs_s"].notna().any():
-        timed = group_stats.assign(estimator=group_stats["name"])
-        page.figure(runtime_figure(timed, out / f"runtime_{tag}.png", f"Run time: {name}", **page.fmt))
 
 
 def _group_tables(
@@ -491,60 +385,6 @@ def _group_tables(
         )
         page.table(gap.drop(columns=GROUP))
     page.details_close()
-
-
-def _time_views(
-    page: _Recorder, out: Path, tag: str, name: str, shown: pd.DataFrame, scenarios: Mapping[str, Path]
-) -> None:
-    """Trajectory, E/N/U error, signal and consistency against time of the group's first seed."""
-    seed = shown["seed"].min()
-    one = shown[shown["seed"] == seed]
-    key = str(one["scenario_key"].iloc[0])
-    one = one[one["scenario_key"] == key]
-    cache = scenarios.get(key)
-    truth = pd.read_parquet(cache / "truth.parquet", columns=["epoch", "t", "x", "y", "z"]) if cache else None
-    if truth is not None and len(truth):
-        reference = truth[["epoch", "t"]]
-        east, north, _ = local_enu(truth[["x", "y", "z"]].to_numpy(float), truth[["x", "y", "z"]].to_numpy(float)[0]).T
-        track: pd.DataFrame | None = pd.DataFrame({"east": east, "north": north})
-    else:  # not in this run's cache (e.g. a scored solution's run moved): the estimates alone
-        reference, track = one[["epoch", "t"]].drop_duplicates("epoch").sort_values("epoch"), None
-    where = f"{name}, seed {seed}" + ("" if shown["seed"].nunique() == 1 else " (the first seed)")
-    if {"east", "north"} <= set(one.columns) and one["east"].notna().any():
-        page.figure(trajectory_figure(one, track, out / f"trajectory_{tag}.png", f"Trajectory: {where}", **page.fmt))
-    page.figure(
-        enu_error_figure(one, reference, out / f"enu_time_{tag}.png", f"Error against time: {where}", **page.fmt)
-    )
-    if cache is not None:
-        observations = pd.read_parquet(cache / "observations.parquet", columns=["epoch", "sat", "cn0_l1"])
-        page.figure(
-            signal_figure(
-                signal_per_epoch(observations, reference),
-                one,
-                reference,
-                out / f"signal_time_{tag}.png",
-                f"Satellites, C/N0 and availability against time: {where}",
-                **page.fmt,
-            )
-        )
-    with_cov = one["nees"].notna().groupby(one["estimator"]).any() if "nees" in one else pd.Series(dtype=bool)
-    covered = sorted(with_cov[with_cov].index)
-    if covered:
-        page.figure(
-            consistency_figure(
-                one[one["estimator"].isin(covered)],
-                reference,
-                out / f"consistency_{tag}.png",
-                f"Consistency of the position covariance: {where}",
-                **page.fmt,
-            )
-        )
-    others = sorted(set(one["estimator"]) - set(covered))
-    if others:
-        page.p(
-            f"No position covariance (so no consistency check) from: {', '.join(others)}.",
-            cls="note",
-        )
 
 
 def _provenance_box(page: _Page, run_dir: Path, summary: pd.DataFrame, scenarios: Mapping[str, Path]) -> None:
@@ -766,24 +606,6 @@ def _unmeasured_claims_section(page: _Page, claims: pd.DataFrame) -> None:
 
 def _in_group(summary: pd.DataFrame, keys: tuple) -> np.ndarray:
     return np.logical_and.reduce([summary[k].fillna("") == (v if v == v else "") for k, v in zip(GROUP, keys)])
-
-
-def _sensitivity_curves(group_stats: pd.DataFrame) -> pd.DataFrame | None:
-    """Median against the a priori covariance scale, for a group that ran at least two scales."""
-    # a solution scored from a file (python -m simbench score) has no estimator class and no settings
-    defaults = {
-        name: config_defaults(name).get("prior_scale")
-        for name in group_stats["estimator"].unique()
-        if name in registered()
-    }
-    scaled = group_stats[group_stats["estimator"].map(defaults).notna()]
-    if override_value(scaled["overrides"], "prior_scale", None).notna().sum() < 2:
-        return None
-    scale = pd.concat(
-        [override_value(rows["overrides"], "prior_scale", defaults[name]) for name, rows in scaled.groupby("estimator")]
-    ).astype(float)
-    curves = scaled.assign(scale=scale)
-    return curves[["estimator", "scale", "horizontal_median_ref", "ci_low", "ci_high"]]
 
 
 def _diagnostics_section(page: _Page, diag: dict[str, list[dict]], out: Path) -> None:

@@ -19,6 +19,7 @@ from matplotlib.ticker import MaxNLocator
 from scipy import stats
 
 from simbench.report.figures import (
+    PANEL_TITLE_Y,
     PNG_DPI,
     SMALL_MULTIPLES_ABOVE,
     FigureFile,
@@ -96,7 +97,7 @@ def trajectory_figure(
                 )
             else:
                 ax.plot(rows["east"], rows["north"], lw=0.8, label=name, **styles[name])
-        ax.set_title(panel, fontsize=8)
+        ax.set_title(panel, fontsize=8, y=PANEL_TITLE_Y)
         if not by_error:
             ax.legend(fontsize=6, loc="best")
         ax.set_aspect("equal", adjustable="box")
