@@ -65,7 +65,7 @@ def test_more_solved_than_reference_epochs_is_one_line_error() -> None:
     with pytest.raises(SimbenchError, match="no reference epoch count for skipper"):
         ecdf_figure(
             pd.DataFrame({"estimator": "skipper", "horizontal": SKIPPER}),
-            "horizontal",
+            ["horizontal"],
             Path("/nonexistent/x.png"),
             "t",
             {},
@@ -152,7 +152,7 @@ def test_a_real_log_report_is_labelled_by_source_and_has_no_claims_table_on_top(
     md = (tmp_path / "report" / "README.md").read_text()
     assert "hk_tst_2019 (real log, RINEX)" in html and "low receiver" not in html
     figures = {f.name for f in (tmp_path / "report").glob("*.png")}
-    assert "ecdf_horizontal_hk_tst_2019_rinex.png" in figures and not any("low" in f for f in figures)
+    assert "ecdf_hk_tst_2019_rinex.png" in figures and not any("low" in f for f in figures)
     # no table of unmeasured claims first: one line at the end naming the sweeps that measure them
     assert html.index("Statistics over seeds") < html.index("Published claims")
     assert f"{len(CLAIMS)} of {len(CLAIMS)} published claims not measured" in html

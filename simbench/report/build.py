@@ -62,7 +62,7 @@ from simbench.report.figures import (
     mixture_evolution_figure,
     validation_figure,
 )
-from simbench.report.group_figures import MIN_PARALLEL_GROUPS, GroupDrawing, GroupInputs, Item
+from simbench.report.group_figures import MIN_PARALLEL_GROUPS, GroupDrawing, GroupInputs
 from simbench.report.style import UNDEFINED, families, sig3, with_ci
 from simbench.runs.checks import check_report_formats
 from simbench.runs.provenance import provenance
@@ -136,9 +136,9 @@ def finalize(
         formats = cast(Sequence[Format], ((config or {}).get("report") or {}).get("formats") or ("png",))
     check_report_formats(formats)
     run_dir = Path(run_dir)
-    jobs = intact_jobs(run_dir)  # verified once for the tables and the diagnostics
-    # the drawing workers import while this process reads the store
-    with GroupDrawing(parallel=figures and len(jobs) >= MIN_PARALLEL_GROUPS) as drawing:
+    # the drawing workers import while this process verifies and reads the store
+    with GroupDrawing(parallel=figures and len(job_stems(run_dir)) >= MIN_PARALLEL_GROUPS) as drawing:
+        jobs = intact_jobs(run_dir)  # verified once for the tables and the diagnostics
         summary, epochs = aggregate(run_dir, provenance(config or {"run_dir": str(run_dir)}), jobs)
         # results written before a column existed (e.g. source) are shown with it empty
         summary = summary.reindex(columns=list(dict.fromkeys([*SUMMARY_COLUMNS, *summary.columns])))
@@ -300,11 +300,23 @@ def build_report(
             cls="note",
         )
         page.table(pd.read_csv(zero))
-    for inputs, items in zip(groups, drawn()):
-        _group_section(page, inputs, items, summary)
-    _study_times_section(page, run_dir, summary)
-    _validation_section(page, run_dir, out, list(scenarios.values()))
-    _diagnostics_section(page, diag, out)
+    # what follows each group's figures is written while the workers draw them
+    tables = [page.part() for _ in groups]
+    for part, inputs in zip(tables, groups):
+        _group_tables(part, inputs.name, inputs.group, inputs.in_group, summary, inputs.group_stats)
+    tail = page.part()
+    _study_times_section(tail, run_dir, summary)
+    _validation_section(tail, run_dir, out, list(scenarios.values()))
+    _diagnostics_section(tail, diag, out)
+    for inputs, items, part in zip(groups, drawn(), tables):
+        page.h2(inputs.name)
+        for item in items:
+            if isinstance(item, FigureFile):
+                page.figure(item)
+            else:
+                page.p(*item)
+        page.extend(part)
+    page.extend(tail)
     if not measured.any():
         _unmeasured_claims_section(page, claims)
     return page.write(out, started)
@@ -327,17 +339,6 @@ def _group_inputs(keys: tuple, group: pd.DataFrame, summary: pd.DataFrame, stats
         _reference_epochs(in_group, group),
         stats[_in_group(stats, keys)],
     )
-
-
-def _group_section(page: _Page, inputs: GroupInputs, items: Sequence[Item], summary: pd.DataFrame) -> None:
-    """Figures of one (sweep, scenario, receiver) group, then its detailed tables collapsed."""
-    page.h2(inputs.name)
-    for item in items:
-        if isinstance(item, FigureFile):
-            page.figure(item)
-        else:
-            page.p(*item)
-    _group_tables(page, inputs.name, inputs.group, inputs.in_group, summary, inputs.group_stats)
 
 
 def _group_tables(
@@ -771,6 +772,18 @@ class _Page:
         self.formats: tuple[Format, ...] = tuple(dict.fromkeys(("png", *formats)))
         self.figures: list[FigureFile] = []
         self.open_details = 0
+
+    def part(self) -> _Page:
+        """An empty page with this one's formats, for a section written ahead of its place (:meth:`extend`)."""
+        return _Page(self.formats, draw=self.draw)
+
+    def extend(self, part: _Page) -> None:
+        """Append what ``part`` (from :meth:`part`) holds; its ``<details>`` must be closed."""
+        if part.open_details:
+            raise ValueError("a page part ends inside <details>")
+        self.html += part.html
+        self.md += part.md
+        self.figures += part.figures
 
     @property
     def fmt(self) -> dict[str, Any]:

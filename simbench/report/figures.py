@@ -147,74 +147,99 @@ def grid_axes(
 
 def ecdf_figure(
     epochs: pd.DataFrame,
-    metric: str,
+    metrics: Sequence[str],
     path: str | Path,
     title: str,
     n_reference: Mapping[str, int],
-    medians: Mapping[str, float] | None = None,
+    medians: Mapping[str, Mapping[str, float]] | None = None,
     formats: Sequence[Format] = ("png",),
 ) -> FigureFile:
-    """ECDF of one error metric per estimator over all reference epochs, log-scaled error axis.
+    """ECDF of each error metric per estimator over all reference epochs, log-scaled error axes: one
+    column per metric, side by side on one scale, one legend per row.
 
     Parameters
     ----------
     epochs : pandas.DataFrame
-        ``epochs.parquet`` rows (columns ``estimator``, the curve name, and ``metric``): the solved epochs.
-    metric : str
-        ``horizontal`` or ``error_3d``.
+        ``epochs.parquet`` rows (columns ``estimator``, the curve name, and each metric): the solved epochs.
+    metrics : sequence of str
+        ``horizontal`` and/or ``error_3d``, one column each.
     path : path-like
         PNG to write (other formats beside it).
     title : str
         Caption for the report (not drawn).
     n_reference : mapping of curve name to int
         Reference epochs of that curve's jobs in ``epochs`` (the summed ``n_epochs``): the
-        denominator, so a curve ends at the estimator's availability.
-    medians : mapping of curve name to float, optional
-        The median printed in the legend [m] (the report passes its leaderboard's, so both show
-        one number); '—' for inf (availability below 50 %). None: no median in the legend.
+        denominator, so a curve ends at the estimator's availability (the same in every column).
+    medians : mapping of metric to (mapping of curve name to float), optional
+        The medians printed in the legend [m], in the order of ``metrics`` (the report passes its
+        leaderboard's, so both show one number); '—' for inf (availability below 50 %). None: no
+        median in the legend. Curves are sorted by the first metric's median.
     formats : sequence of str
         File formats to write.
     """
     counts = _references(epochs, n_reference)
     styles = estimator_styles(epochs["estimator"])
-    curves = {}
+    curves: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]] = {}
     for name, group in epochs.groupby("estimator"):
-        x, p = reference_ecdf(group[metric].to_numpy(float), counts[str(name)])
-        if x.size:
-            curves[str(name)] = (x, p)
-    order = sorted(curves, key=lambda n: ((medians or {}).get(n, np.inf), -curves[n][1][-1], n))
+        for metric in metrics:
+            x, p = reference_ecdf(group[metric].to_numpy(float), counts[str(name)])
+            if x.size:
+                curves.setdefault(str(name), {})[metric] = (x, p)
+    first = (medians or {}).get(metrics[0], {})
+    order = sorted(curves, key=lambda n: (first.get(n, np.inf), -_solved(curves[n]), n))
     panels = _panels(order)
     beside = len(panels) == 1 and len(order) > LEGEND_INSIDE_MAX
-    fig, axes = grid_axes(len(panels), 7.6 if beside else 5.2, 3.4, sharex=True, sharey=True)
-    for ax, (panel, names) in zip(axes, panels):
-        for other in order if panel else []:  # the other families in grey: every panel on one scale
-            if other not in names:
-                x, p = curves[other]
-                ax.step(np.r_[x[0], x], np.r_[0.0, p], where="post", lw=0.6, color="0.85")
-        for name in names:
-            x, p = curves[name]
-            x = np.maximum(x, 1e-3)
-            median = "" if medians is None else f", median {sig3(medians.get(name, np.nan))} m"
-            ax.step(
-                np.r_[x[0], x],
-                np.r_[0.0, p],
-                where="post",
-                lw=1.5,
-                **styles[name],
-                label=f"{name} ({availability_text(p[-1])}{median})",
-            )
-            ax.plot(x[-1], p[-1], marker="o", ms=3, color=styles[name]["color"])  # where the curve stops
-        ax.set_xscale("log")
-        plain_log_ticks(ax.xaxis)
-        ax.set_xlabel(METRIC_LABELS.get(metric, metric))
-        ax.set_ylabel("fraction of reference epochs")
-        ax.set_ylim(0, 1.01)
-        ax.grid(True, which="both", alpha=0.3)
-        if panel:  # small multiples share their axes: the outer panels carry the labels
-            ax.set_title(panel, fontsize=9, y=PANEL_TITLE_Y)
-            ax.label_outer()
-        _legend(ax, len(names) if not panel else 1, "lower right")
+    fig, axes = grid_axes(
+        len(panels) * len(metrics), 4.4 if beside else 3.8, 3.4, ncols=len(metrics), sharex=True, sharey=True
+    )
+    rows = [axes[k * len(metrics) : (k + 1) * len(metrics)] for k in range(len(panels))]
+    for row, (panel, names) in zip(rows, panels):
+        for ax, metric in zip(row, metrics):
+            for other in order if panel else []:  # the other families in grey: every panel on one scale
+                if other not in names and metric in curves[other]:
+                    x, p = curves[other][metric]
+                    ax.step(np.r_[x[0], x], np.r_[0.0, p], where="post", lw=0.6, color="0.85")
+            for name in names:
+                if metric not in curves[name]:
+                    continue
+                x, p = curves[name][metric]
+                x = np.maximum(x, 1e-3)
+                ax.step(
+                    np.r_[x[0], x],
+                    np.r_[0.0, p],
+                    where="post",
+                    lw=1.5,
+                    **styles[name],
+                    label=_ecdf_label(
+                        name,
+                        p[-1],
+                        [(medians or {}).get(m, {}).get(name, np.nan) for m in metrics] if medians else None,
+                    ),
+                )
+                ax.plot(x[-1], p[-1], marker="o", ms=3, color=styles[name]["color"])  # where the curve stops
+            ax.set_xscale("log")
+            plain_log_ticks(ax.xaxis)
+            ax.set_xlabel(METRIC_LABELS.get(metric, metric))
+            ax.set_ylabel("fraction of reference epochs")
+            ax.set_ylim(0, 1.01)
+            ax.grid(True, which="both", alpha=0.3)
+            if panel:
+                ax.set_title(panel, fontsize=9, y=PANEL_TITLE_Y)
+            ax.label_outer()  # shared axes: the outer panels carry the labels
+        _legend(row[-1], len(names), "lower right")  # a row's legend beside it past a few entries
     return save_figure(fig, path, f"{title} ({REFERENCE_NOTE})", formats)
+
+
+def _solved(curves: Mapping[str, tuple[np.ndarray, np.ndarray]]) -> float:
+    """A curve's availability: where its ECDF ends (the same for every metric)."""
+    return float(next(iter(curves.values()))[1][-1])
+
+
+def _ecdf_label(name: str, availability: float, medians: Sequence[float] | None) -> str:
+    """``dcs (98 % solved, median 2.3 / 3.1 m)``: availability, then the median of each metric."""
+    if medians is None:
+        return f"{name} ({availability_text(availability)})"
+    return f"{name} ({availability_text(availability)}, median {' / '.join(sig3(m) for m in medians)} m)"
 
 
 def _legend(ax: plt.Axes, entries: int, inside: Literal["lower right", "upper right", "best"]) -> None:
