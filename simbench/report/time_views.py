@@ -107,7 +107,8 @@ def trajectory_figure(
         ax.set_ylabel("north [m]", fontsize=7)
         ax.label_outer()  # shared axes: the outer panels carry the labels
     if scatter is not None:
-        fig.colorbar(scatter, ax=axes, shrink=0.8, label="horizontal error [m]")
+        bar = fig.colorbar(scatter, ax=axes, shrink=0.8, label="horizontal error [m]")
+        plain_log_ticks(bar.ax.yaxis)
     how = "estimates coloured by horizontal error" if by_error else "one panel per family"
     return save_figure(
         fig, path, f"{title} (black: reference; local east/north at the first reference point; {how})", formats
