@@ -20,6 +20,7 @@ import hashlib
 import json
 import os
 import uuid
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from enum import Enum
 from pathlib import Path
@@ -460,9 +461,13 @@ def metadata_sha256(kv: dict[bytes, bytes]) -> str:
 
 def read_parquet_metadata(path: str | Path) -> dict[str, Any]:
     """Return the JSON key-value metadata written by :func:`write_parquet`."""
-    raw = pq.read_schema(path).metadata or {}
+    return decode_metadata(pq.read_schema(path).metadata)
+
+
+def decode_metadata(raw: Mapping[bytes, bytes] | None) -> dict[str, Any]:
+    """The ``simbench.*`` entries of an Arrow schema's key-value metadata, JSON-decoded."""
     out = {}
-    for k, v in raw.items():
+    for k, v in (raw or {}).items():
         key = k.decode()
         if key.startswith("simbench."):
             out[key] = json.loads(v)

@@ -186,8 +186,8 @@ def ecdf_figure(
             x, p = reference_ecdf(group[metric].to_numpy(float), counts[str(name)])
             if x.size:
                 curves.setdefault(str(name), {})[metric] = (x, p)
-    first = (medians or {}).get(metrics[0], {})
-    order = sorted(curves, key=lambda n: (first.get(n, np.inf), -_solved(curves[n]), n))
+    given = medians or {}
+    order = sorted(curves, key=lambda n: (given.get(metrics[0], {}).get(n, np.inf), -_solved(curves[n]), n))
     panels = _panels(order)
     beside = len(panels) == 1 and len(order) > LEGEND_INSIDE_MAX
     fig, axes = grid_axes(
@@ -212,9 +212,7 @@ def ecdf_figure(
                     lw=1.5,
                     **styles[name],
                     label=_ecdf_label(
-                        name,
-                        p[-1],
-                        [(medians or {}).get(m, {}).get(name, np.nan) for m in metrics] if medians else None,
+                        name, p[-1], None if medians is None else [given.get(m, {}).get(name, np.nan) for m in metrics]
                     ),
                 )
                 ax.plot(x[-1], p[-1], marker="o", ms=3, color=styles[name]["color"])  # where the curve stops

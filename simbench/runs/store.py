@@ -47,6 +47,7 @@ from simbench.contract import (
     MANIFEST,
     METADATA_SHA256,
     Scenario,
+    decode_metadata,
     file_sha256,
     json_default,
     metadata_sha256,
@@ -130,8 +131,7 @@ def read_job(stem: Path, consequence: str) -> pd.DataFrame | None:
     if table is None:
         return None
     # a summary written before checksums were recorded names none; its files must still be there
-    files = (table.schema.metadata or {}).get(b"simbench.files")
-    recorded = json.loads(files) if files else {}
+    recorded = decode_metadata(table.schema.metadata).get("simbench.files", {})
     for suffix in JOB_FILES:
         other = stem.with_suffix(suffix)
         if not other.is_file():
