@@ -55,6 +55,11 @@ def require_shared(path: Path, environ: Mapping[str, str] = os.environ) -> Path:
     pytest.fail(message, pytrace=False)
 
 
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Slow tests first (a stable sort): started last, one would keep a worker busy while the other idles."""
+    items.sort(key=lambda item: item.get_closest_marker("slow") is None)
+
+
 @pytest.fixture(scope="session")
 def shared_dir() -> Path:
     """``<repository root>/../shared`` (REFERENCE.md, data/, seeds/)."""

@@ -123,6 +123,7 @@ def assert_all_ok(log: LogRun) -> None:
 
 
 # --------------------------------------------------------------------------- Hong Kong
+# Each log's tests share one worker (``--dist loadgroup``): its module fixture runs once, not once per worker.
 
 
 @pytest.fixture(scope="module")
@@ -135,6 +136,7 @@ def hong_kong(hong_kong_log: Scenario) -> LogRun:
     return run_scenarios([hong_kong_log], ("l2", *ROBUST, "wls_spp", "huber_spp", "ekf_ppp"))
 
 
+@pytest.mark.xdist_group("hong_kong")
 def test_hong_kong_runs_gps_and_beidou(hong_kong: LogRun) -> None:
     """The preset is the issue's target configuration: GPS + BeiDou, every estimator available."""
     assert hong_kong.systems_used == ("GC",)
@@ -143,10 +145,12 @@ def test_hong_kong_runs_gps_and_beidou(hong_kong: LogRun) -> None:
     assert low.empty, low[["estimator", "availability"]].to_string()
 
 
+@pytest.mark.xdist_group("hong_kong")
 def test_hong_kong_batch_and_robust_beat_the_per_epoch_baselines(hong_kong: LogRun) -> None:
     assert check_baseline_inequalities(hong_kong) == []
 
 
+@pytest.mark.xdist_group("hong_kong")
 @pytest.mark.xfail(
     strict=True,
     reason="not met on the shipped defaults: best robust MM 2.67/8.32 m (median/p95), DCS 2.97/5.16 m; "
@@ -159,6 +163,7 @@ def test_hong_kong_best_robust_meets_the_target(hong_kong: LogRun) -> None:
     assert robust.median <= 2.5 and robust.p95 <= 8.0, f"best robust {best} {robust}"
 
 
+@pytest.mark.xdist_group("hong_kong")
 def test_hong_kong_ekf_within_twice_the_best_robust(hong_kong: LogRun) -> None:
     best = hong_kong.best_robust()
     ekf = hong_kong.median("ekf_ppp")
@@ -167,6 +172,7 @@ def test_hong_kong_ekf_within_twice_the_best_robust(hong_kong: LogRun) -> None:
     )
 
 
+@pytest.mark.xdist_group("hong_kong")
 @pytest.mark.xfail(
     strict=True, reason="rtklib_spp solves 29 % of the Hong Kong epochs (median 3.87 m, p95 16.0 m where it does)"
 )
@@ -188,10 +194,12 @@ def nagoya(shared_data: Path) -> LogRun:
     return run_log("nagoya_static", sorted(estimators.registered()))
 
 
+@pytest.mark.xdist_group("nagoya")
 def test_nagoya_batch_and_robust_beat_the_per_epoch_baselines(nagoya: LogRun) -> None:
     assert check_baseline_inequalities(nagoya) == []
 
 
+@pytest.mark.xdist_group("nagoya")
 def test_nagoya_every_gnss_estimator_within_a_metre(nagoya: LogRun) -> None:
     """Open sky, ionosphere-free: every GNSS estimator's horizontal median <= 1.0 m (issue 24)."""
     summary = nagoya.summary.set_index("estimator")

@@ -81,6 +81,7 @@ def canyon_medians(canyons: list[simbench.Scenario]) -> pd.DataFrame:
 
 
 @pytest.mark.slow
+@pytest.mark.xdist_group("canyons")  # one worker builds the canyon scenarios once (--dist loadgroup)
 @pytest.mark.parametrize("name", ROBUST)
 def test_robust_beats_l2_on_code_only_canyon_data(name: str, canyon_medians: pd.DataFrame) -> None:
     mean = canyon_medians.groupby("estimator")["median"].mean()
@@ -88,6 +89,7 @@ def test_robust_beats_l2_on_code_only_canyon_data(name: str, canyon_medians: pd.
     assert mean[name] < mean[l2], f"{name} {mean[name]:.2f} m against {l2} {mean[l2]:.2f} m\n{canyon_medians}"
 
 
+@pytest.mark.xdist_group("canyons")
 def test_odometry_lowers_the_dcs_p95_in_the_canyon(canyons: list[simbench.Scenario]) -> None:
     with_odo = np.mean([np.percentile(_horizontal("dcs", sc), 95) for sc in canyons])
     without = np.mean([np.percentile(_horizontal("dcs", sc, use_odometry=False), 95) for sc in canyons])

@@ -32,6 +32,7 @@ import pandas as pd
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.ticker import FuncFormatter, LogLocator, MaxNLocator
 from matplotlib.transforms import Affine2D, Bbox
+from PIL import Image
 
 from simbench.analysis.metrics import reference_ecdf
 from simbench.analysis.validation import ValidationSample, cn0_by_elevation
@@ -317,7 +318,9 @@ def save_figure(fig: plt.Figure, path: str | Path, title: str, formats: Sequence
     series, legend = drawn_series(fig), legend_texts(fig)
     rgba = np.asarray(canvas.buffer_rgba())
     # the drawn area from the pixels: Figure.get_tightbbox would lay out every tick and text again
-    inked = np.any(rgba != rgba[0, 0], axis=2)
+    # one 32-bit word per RGBA pixel: a quarter of the comparisons, and no reduction over 4-byte rows
+    pixels = rgba.view(np.uint32)[..., 0]
+    inked = pixels != pixels[0, 0]
     inked[[0, -1], [0, -1]] |= ~inked.any()  # a blank figure keeps its whole canvas
     rows, cols = np.flatnonzero(inked.any(axis=1)), np.flatnonzero(inked.any(axis=0))
     pad = int(np.ceil(PAD_INCHES * fig.dpi))
@@ -332,9 +335,10 @@ def save_figure(fig: plt.Figure, path: str | Path, title: str, formats: Sequence
     for fmt in dict.fromkeys(["png", *formats]):
         buffer = io.BytesIO()
         if fmt == "png" and on_canvas:
-            # zlib level 1: about 40 % less encoding time than the default 6, files 5-20 % larger
-            plt.imsave(
-                buffer, rgba[top:bottom, left:right], format="png", dpi=fig.dpi, pil_kwargs={"compress_level": 1}
+            # zlib level 1: about 40 % less encoding time than the default 6, files 5-20 % larger; RGB,
+            # not RGBA: the canvas is opaque, and a fourth channel is 20 % more to encode
+            Image.fromarray(rgba[top:bottom, left:right, :3]).save(
+                buffer, format="png", compress_level=1, dpi=(fig.dpi, fig.dpi)
             )
         else:
             # what is drawn past the canvas is measured by matplotlib (one more drawing)
