@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import re
+import shutil
 import warnings
 from pathlib import Path
 
@@ -17,6 +18,7 @@ import pandas as pd
 import pytest
 
 from estimators.base import COVARIANCE_COLUMNS
+from simbench.report import build, group_figures
 from simbench.report.build import finalize, leaderboard
 from simbench.report.style import sig3
 from simbench.runs.compose import compose_config
@@ -181,3 +183,25 @@ def test_no_blank_cell_and_no_nan_text(page: str) -> None:
     assert not re.search(r"\b(nan|NaN|None)\b", text)
     assert "<td></td>" not in page and "<td class='num'></td>" not in page
     assert "n/a = ci_low: no bootstrap CI" in page  # one seed: every CI is blank, and says why
+
+
+def test_worker_processes_draw_the_figures_drawn_in_process(
+    run_dir: Path, figures: list[dict], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A large run's figures are drawn by spawned workers (:class:`GroupDrawing`): same files, series, legends."""
+    started: list[bool] = []
+
+    class Recorded(group_figures.GroupDrawing):
+        def __init__(self, parallel: bool) -> None:
+            started.append(parallel)
+            super().__init__(parallel)
+
+    monkeypatch.setattr(build, "GroupDrawing", Recorded)
+    monkeypatch.setattr(build, "MIN_PARALLEL_GROUPS", 1)
+    monkeypatch.setattr(group_figures, "MIN_PARALLEL_GROUPS", 1)
+    copy = tmp_path / "run"
+    shutil.copytree(run_dir, copy)
+    finalize(copy, None, formats=("png", "pdf"))
+    assert started == [True]
+    drawn = json.loads((copy / "report" / "figures.json").read_text())
+    assert drawn == figures

@@ -136,8 +136,11 @@ def finalize(
         formats = cast(Sequence[Format], ((config or {}).get("report") or {}).get("formats") or ("png",))
     check_report_formats(formats)
     run_dir = Path(run_dir)
-    # the drawing workers import while this process verifies and reads the store
-    with GroupDrawing(parallel=figures and len(job_stems(run_dir)) >= MIN_PARALLEL_GROUPS) as drawing:
+    # the drawing workers import while this process verifies and reads the store. A group's jobs are in
+    # one scenario folder per seed or more (jobs/<scenario key>/), so fewer folders than
+    # MIN_PARALLEL_GROUPS cannot make enough groups to be worth the workers (a smoke sweep: 72 jobs, 4 folders)
+    folders = {stem.parent for stem in job_stems(run_dir)}
+    with GroupDrawing(parallel=figures and len(folders) >= MIN_PARALLEL_GROUPS) as drawing:
         jobs = intact_jobs(run_dir)  # verified once for the tables and the diagnostics
         summary, epochs = aggregate(run_dir, provenance(config or {"run_dir": str(run_dir)}), jobs)
         # results written before a column existed (e.g. source) are shown with it empty

@@ -1,7 +1,7 @@
 """The figures of one (sweep, scenario, receiver) group of a report, and the worker processes that draw them.
 
-Drawing is most of a large report's time (a 5-world thesis: 194 figures, about 80 of its
-110 s of CPU) and the groups are independent, so :class:`GroupDrawing` draws them in worker
+Drawing is most of a large report's time (a 5-world thesis: 194 figures, about 77 of its
+100 s of CPU) and the groups are independent, so :class:`GroupDrawing` draws them in worker
 processes. The workers start before the parent reads the results store, so their imports
 overlap that reading, and they draw while the parent computes the claims and tables.
 """
