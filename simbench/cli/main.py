@@ -105,13 +105,13 @@ def main() -> None:
     args = sys.argv[1:]
     if args and args[0] in SUBCOMMANDS:
         sys.exit(SUBCOMMANDS[args[0]](args[1:]))
-    if any(a in ("-h", "--help") for a in args):
-        print(help_text())
-        return
     try:
         register_schemas()  # a broken plug-in estimator stops here, in one line naming its package
         if "--estimators" in args:
             print(tabulate(estimator_table(), headers="keys", tablefmt="plain", showindex=False))
+            return
+        if any(a in ("-h", "--help") for a in args):
+            print(help_text())
             return
         # group options are checked for sweeps and flags too: Hydra would only say "Could not load"
         suggest_names(a for a in args if not a.startswith("-"))
