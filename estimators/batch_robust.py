@@ -12,7 +12,8 @@ noise models:
   (:func:`~estimators.ppp_graph.gauss_newton_step`) is one iteration of
   iteratively re-weighted least squares; the steps go on until the relative
   error decrease is below ``rel_tol`` or ``max_iterations`` is reached
-  (:func:`stop_reason`, GTSAM's ``checkConvergence``). That is the path
+  (:func:`stop_reason`, GTSAM's ``checkConvergence``); each iteration's total error and
+  largest position step [m] go to the diagnostics (``history``). That is the path
   Levenberg-Marquardt took (its damping fell to 1e-85 on a drive, and its
   trajectory matched the steps' to 4 digits) at a third less per iteration.
 * ``mm``: max-mixtures with a static two-component model per measurement (a-priori
@@ -224,11 +225,19 @@ class DcsBatch(BatchGraphEstimator):
         )
         err = graph.error(values)
         stop, iterations = "max_iterations", 0
-        for iterations in range(1, cfg.max_iterations + 1):  # noqa: B007 (the count is reported after the loop)
+        positions = g.positions(values)
+        history = []
+        for iterations in range(1, cfg.max_iterations + 1):
             stepped, stepped_err = gauss_newton_step(graph, values, ordering, error=err)
             reason = stop_reason(err, stepped_err, cfg.rel_tol, on_increase=True)
+            step = 0.0
             if reason != "error increased":  # a rise is rejected, as Levenberg-Marquardt would
                 values, err = stepped, stepped_err
+                moved = g.positions(values)
+                step, positions = float(np.linalg.norm(moved - positions, axis=1).max()), moved
+            # a run that stops at max_iterations while its steps still move epochs by decimetres has not
+            # converged: IRLS under a non-convex kernel can wander as rows are switched off one by one
+            history.append({"iteration": iterations, "error": float(err), "max_position_step_m": step})
             if reason is not None:
                 stop = reason
                 break
@@ -236,6 +245,7 @@ class DcsBatch(BatchGraphEstimator):
         return values, {
             "iterations": iterations,
             "stop_reason": stop,
+            "history": history,
             "downweighted_code": int(np.sum(np.abs(r_c / sc) > cfg.kernel_width)),
             "downweighted_phase": int(np.sum(np.abs(r_p / sp) > cfg.kernel_width)),
         }

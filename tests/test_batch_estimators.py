@@ -287,5 +287,13 @@ def test_dcs_gauss_newton_steps_reach_levenberg_marquardts_solution() -> None:
     assert np.abs(tight.epochs[["x", "y", "z"]].to_numpy() - reference).max() < 0.005
     default = DcsBatch(cfg).estimate(data)
     assert default.diagnostics["stop_reason"] == "converged" and default.diagnostics["iterations"] < 100
+    # the history says how the run got there: one record per iteration, the error never rising (a rise
+    # is rejected), and steps that add up to at least how far any epoch moved from the L2 solution
+    history = default.diagnostics["history"]
+    assert [h["iteration"] for h in history] == list(range(1, default.diagnostics["iterations"] + 1))
+    errors = [h["error"] for h in history]
+    assert all(b <= a for a, b in zip(errors, errors[1:]))
+    moved = np.linalg.norm(default.epochs[["x", "y", "z"]].to_numpy() - g.positions(start), axis=1).max()
+    assert moved > 1.0 and sum(h["max_position_step_m"] for h in history) >= moved - 1e-6
     gap = np.linalg.norm(default.epochs[["x", "y", "z"]].to_numpy() - reference, axis=1)
     assert np.median(gap) < 0.05 and gap.max() < 0.3
