@@ -42,8 +42,22 @@ def run_dir(tmp_path: Path) -> Path:
     claims_table(summary, pd.DataFrame(columns=list(EPOCH_COLUMNS)), {}).to_csv(tmp_path / "claims.csv", index=False)
     pd.DataFrame(
         [
-            {"study": "ch5_bce", "world": "morgantown1", "started": "", "wall_s": 138.2, "exit_code": 0},
-            {"study": "ch4_convergence", "world": "", "started": "", "wall_s": 20.0, "exit_code": 0},
+            {
+                "study": "ch5_bce",
+                "world": "morgantown1",
+                "started": "",
+                "wall_s": 138.2,
+                "peak_rss_mb": 1534.4,
+                "exit_code": 0,
+            },
+            {
+                "study": "ch4_convergence",
+                "world": "",
+                "started": "",
+                "wall_s": 20.0,
+                "peak_rss_mb": 612.0,
+                "exit_code": 0,
+            },
         ]
     ).to_csv(tmp_path / STUDY_TIMES, index=False)
     return tmp_path
@@ -64,6 +78,9 @@ def test_tables_only_one(run_dir: Path, capsys: pytest.CaptureFixture[str]) -> N
     assert tables.main([str(run_dir), "--only", "times"]) == 0
     out = capsys.readouterr().out
     assert "Wall time per study" in out and "Claims per world" not in out
+    assert "Peak memory per study and world [MB]" in out and "largest 1534 MB" in out
+    memory = out[out.index("Peak memory") :]
+    assert "| ch4_convergence |              612 |" in memory and "|          1534 |" in memory
 
 
 def test_tables_of_a_folder_without_results_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

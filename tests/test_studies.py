@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -11,6 +12,7 @@ import pytest
 import simbench.cli.studies
 from simbench.analysis.claims import claims_table
 from simbench.cli.main import config_overrides
+from simbench.cli.studies import StudyProcess, run_study_process
 from simbench.errors import SimbenchError
 from simbench.report.build import build_report
 from simbench.runs.compose import compose_config
@@ -157,11 +159,11 @@ def test_report_shows_one_claims_column_per_world_and_the_study_times(tmp_path: 
 def test_run_studies_records_every_study_and_keeps_earlier_invocations(tmp_path: Path, monkeypatch) -> None:
     calls: list[list[str]] = []
 
-    def fake_call(cmd: list[str]) -> int:  # a study process: fails on urban_deep
+    def fake_process(cmd: list[str]) -> StudyProcess:  # a study process: fails on urban_deep
         calls.append(cmd)
-        return 1 if "scenario=urban_deep" in cmd else 0
+        return StudyProcess(1 if "scenario=urban_deep" in cmd else 0, 100.0 + len(calls))
 
-    monkeypatch.setattr(simbench.cli.studies.subprocess, "call", fake_call)
+    monkeypatch.setattr(simbench.cli.studies, "run_study_process", fake_process)
     reported: list[list[str]] = []
 
     def fake_finalize(root: Path, config: dict, formats: list[str]) -> Path:
@@ -186,3 +188,22 @@ def test_run_studies_records_every_study_and_keeps_earlier_invocations(tmp_path:
         ("ch6_bce_ad", "urban_deep", 1),
     ]
     assert (times["wall_s"] >= 0).all()
+    assert times["peak_rss_mb"].tolist() == [101.0, 102.0, 103.0, 104.0]
+
+
+def test_a_study_process_reports_the_peak_memory_of_its_workers(tmp_path: Path) -> None:
+    """The peak of a worker process the study started counts, not only the study process's own."""
+    script = tmp_path / "study.py"
+    script.write_text(
+        "import multiprocessing as mp, sys\n"
+        "def work():\n"
+        "    block = bytearray(300 * 2**20)\n"
+        "    block[::4096] = b'x' * len(block[::4096])\n"  # touch every page: resident, not just reserved
+        "if __name__ == '__main__':\n"
+        "    p = mp.get_context('spawn').Process(target=work)\n"
+        "    p.start(); p.join()\n"
+        "    sys.exit(3)\n"
+    )
+    ended = run_study_process([sys.executable, str(script)])
+    assert ended.exit_code == 3
+    assert 300 < ended.peak_rss_mb < 1000

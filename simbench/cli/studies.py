@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import time
 from collections.abc import Sequence
 from datetime import datetime, timezone
 from pathlib import Path
+from typing import NamedTuple
 
 import pandas as pd
 
@@ -15,6 +17,32 @@ from simbench.cli.terminal import compact_summary
 from simbench.report.build import finalize
 from simbench.runs.checks import ReportFormat
 from simbench.runs.studies import STUDY_TIMES, StudiesConfig, plan
+
+
+class StudyProcess(NamedTuple):
+    """How a study's process ended."""
+
+    exit_code: int
+    #: peak resident memory of the largest process of the study's tree (the study process or one of its
+    #: launcher's workers) [MB]; NaN where the platform cannot say (no ``os.wait4``)
+    peak_rss_mb: float
+
+
+def run_study_process(cmd: Sequence[str]) -> StudyProcess:
+    """Run ``cmd`` and wait for it; its exit code and the peak memory of its process tree.
+
+    ``os.wait4`` returns the child's resource usage with that of every descendant it
+    waited for, and ``ru_maxrss`` is then the largest peak among them (Linux reports
+    kibibytes, macOS bytes): a joblib or submitit-local worker counts, which is the
+    per-worker peak a sweep has to fit into.
+    """
+    proc = subprocess.Popen(list(cmd))
+    if not hasattr(os, "wait4"):  # Windows
+        return StudyProcess(proc.wait(), float("nan"))
+    _, status, usage = os.wait4(proc.pid, 0)
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    unit = 1.0 if sys.platform == "darwin" else 1024.0
+    return StudyProcess(proc.returncode, usage.ru_maxrss * unit / 2**20)
 
 
 def run_studies(
@@ -44,14 +72,15 @@ def run_studies(
             file=sys.stderr,
         )
         started, start = datetime.now(timezone.utc).isoformat(timespec="seconds"), time.perf_counter()
-        code = subprocess.call([sys.executable, "-m", "simbench", *run.args])
+        ended = run_study_process([sys.executable, "-m", "simbench", *run.args])
         times.append(
             {
                 "study": run.study,
                 "world": run.world,
                 "started": started,
                 "wall_s": time.perf_counter() - start,
-                "exit_code": code,
+                "peak_rss_mb": ended.peak_rss_mb,
+                "exit_code": ended.exit_code,
                 "results_dir": str(run.results_dir),
             }
         )

@@ -99,12 +99,14 @@ def drives_section(run_dir: Path) -> str | None:
     return "\n\n".join(parts)
 
 
-def study_times_table(times: pd.DataFrame) -> pd.DataFrame:
-    """Wall time [s] per study (rows) and world (columns) when each pair ran once, else the rows as written."""
+def study_times_table(times: pd.DataFrame, values: str = "wall_s") -> pd.DataFrame:
+    """``values`` (a column of ``study_times.csv``: ``wall_s``, ``peak_rss_mb``) per study (rows) and world
+    (columns) when each pair ran once, else the rows as written."""
     times = times.assign(world=times["world"].replace("", "(own scenario)"))
     if times.duplicated(["study", "world"]).any():  # several invocations into one folder: show each
         return times.drop(columns=["results_dir"], errors="ignore")
-    table = times.pivot(index="study", columns="world", values="wall_s").round(0).reset_index()
+    table = times.pivot(index="study", columns="world", values=values)
+    table = table.apply(pd.to_numeric, errors="coerce").round(0).reset_index()
     table.columns.name = None
     return table.astype(object).where(table.notna(), "")
 
@@ -118,6 +120,13 @@ def times_section(run_dir: Path) -> str | None:
             f"## Wall time per study and world [s] (`{times_path}`; total {times['wall_s'].sum() / 60:.1f} min)"
             f"\n\n{markdown(study_times_table(times))}"
         )
+        # recorded since 2026-11-26: an older study_times.csv has no such column
+        if "peak_rss_mb" in times.columns and not times.duplicated(["study", "world"]).any():
+            peak = pd.to_numeric(times["peak_rss_mb"], errors="coerce").max()
+            parts.append(
+                f"## Peak memory per study and world [MB] (largest process of each study: a launcher worker "
+                f"or the study itself; largest {peak:.0f} MB)\n\n{markdown(study_times_table(times, 'peak_rss_mb'))}"
+            )
     if summary_path.is_file():
         budget = time_budget(pd.read_parquet(summary_path))
         parts.append(

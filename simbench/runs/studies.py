@@ -10,7 +10,7 @@ the study's scenario; the study's own scenario settings, e.g. ``ch7_ice``'s
 a drive through a world. A world listed in ``world_studies`` runs only the
 studies listed for it. Then one aggregate, ``claims.csv`` (one verdict per
 claim and world, :func:`simbench.analysis.claims.claims_table`) and report over all of
-them. The wall time of every study x world is appended to ``results_dir/study_times.csv``.
+them. The wall time and peak memory of every study x world are appended to ``results_dir/study_times.csv``.
 """
 
 from __future__ import annotations
@@ -28,7 +28,8 @@ from simbench.typed import to_typed
 
 __all__ = ["STUDY_TIMES", "StudiesConfig", "StudyRun", "plan", "study_dir", "study_dirs", "time_budget"]
 
-#: File of ``results_dir`` with one row per study x world: wall time and exit code.
+#: File of ``results_dir`` with one row per study x world: wall time, peak memory of the study's largest
+#: process [MB] (``peak_rss_mb``; a worker when the launcher has them) and exit code.
 STUDY_TIMES = "study_times.csv"
 
 
