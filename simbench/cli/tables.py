@@ -99,11 +99,16 @@ def drives_section(run_dir: Path) -> str | None:
     return "\n\n".join(parts)
 
 
+def ran_once(times: pd.DataFrame) -> bool:
+    """Each study x world of a ``study_times.csv`` ran once (several invocations into one folder repeat pairs)."""
+    return not times.duplicated(["study", "world"]).any()
+
+
 def study_times_table(times: pd.DataFrame, values: str = "wall_s") -> pd.DataFrame:
     """``values`` (a column of ``study_times.csv``: ``wall_s``, ``peak_rss_mb``) per study (rows) and world
-    (columns) when each pair ran once, else the rows as written."""
+    (columns) when each pair ran once (:func:`ran_once`), else the rows as written."""
     times = times.assign(world=times["world"].replace("", "(own scenario)"))
-    if times.duplicated(["study", "world"]).any():  # several invocations into one folder: show each
+    if not ran_once(times):  # show each invocation, every column
         return times.drop(columns=["results_dir"], errors="ignore")
     table = times.pivot(index="study", columns="world", values=values)
     table = table.apply(pd.to_numeric, errors="coerce").round(0).reset_index()
@@ -120,8 +125,8 @@ def times_section(run_dir: Path) -> str | None:
             f"## Wall time per study and world [s] (`{times_path}`; total {times['wall_s'].sum() / 60:.1f} min)"
             f"\n\n{markdown(study_times_table(times))}"
         )
-        # recorded since 2026-11-26: an older study_times.csv has no such column
-        if "peak_rss_mb" in times.columns and not times.duplicated(["study", "world"]).any():
+        # an older study_times.csv has no such column; repeated pairs already show it in the rows above
+        if "peak_rss_mb" in times.columns and ran_once(times):
             peak = pd.to_numeric(times["peak_rss_mb"], errors="coerce").max()
             parts.append(
                 f"## Peak memory per study and world [MB] (largest process of each study: a launcher worker "
