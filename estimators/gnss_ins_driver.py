@@ -114,6 +114,20 @@ class _Track:
     table_s_l1: float = -1.0
     table_epoch: int = -1
     outliers: list[dict[str, Any]] = field(default_factory=list)
+    lost_epoch: int = -1  #: first epoch whose normal equations could not be factorised; -1 when none
+    lost_reason: str = ""
+
+    def lose(self, epoch: int, n_epochs: int, reason: str) -> None:
+        """Record epochs ``epoch`` .. ``n_epochs - 1`` as unsolved (NaN): the filter has lost its state."""
+        del self.epoch[self.epoch.index(epoch) if epoch in self.epoch else len(self.epoch) :]
+        kept = len(self.epoch)
+        del self.pos[kept:], self.cov[kept:], self.update_s[kept:]
+        lost = range(epoch, n_epochs)
+        self.epoch.extend(lost)
+        self.pos.extend(np.full(3, np.nan) for _ in lost)
+        self.cov.extend(np.full((3, 3), np.nan) for _ in lost)
+        self.update_s.extend(np.nan for _ in lost)
+        self.lost_epoch, self.lost_reason = epoch, reason
 
 
 def run_gnss_ins(
@@ -157,19 +171,25 @@ def run_gnss_ins(
     solver = WindowSolver(cfg, window, lambdas, max_iterations, tol)
     track = _Track()
 
-    tic = time.perf_counter()
-    _initialise(solver, cfg, imu, prep.gnss[first], prep.fixes[first], prep.t[first])
-    _update(solver, track, mode, gate, first)
-    _record(solver, track, first, prep.gnss[first], tic)
-    imu.start_at(prep.t[first])
-    for e in range(first + 1, len(prep.t)):
+    e = first
+    try:
         tic = time.perf_counter()
-        gnss = prep.gnss.get(e)
-        solver.append(solver.predict(*imu.take_until(prep.t[e])), gnss)
-        if track.aligned_epoch < 0:
-            _align_heading_once_moving(solver, track, cfg, e, gnss)
-        _update(solver, track, mode, gate, e)
-        _record(solver, track, e, gnss, tic)
+        _initialise(solver, cfg, imu, prep.gnss[first], prep.fixes[first], prep.t[first])
+        _update(solver, track, mode, gate, first)
+        _record(solver, track, first, prep.gnss[first], tic)
+        imu.start_at(prep.t[first])
+        for e in range(first + 1, len(prep.t)):
+            tic = time.perf_counter()
+            gnss = prep.gnss.get(e)
+            solver.append(solver.predict(*imu.take_until(prep.t[e])), gnss)
+            if track.aligned_epoch < 0:
+                _align_heading_once_moving(solver, track, cfg, e, gnss)
+            _update(solver, track, mode, gate, e)
+            _record(solver, track, e, gnss, tic)
+    except np.linalg.LinAlgError as exc:
+        # a filter that has run away in a canyon ends with normal equations no Cholesky accepts; that is a
+        # divergence of the estimator (NaN from here on, scored as `diverged`), not a failure of the run
+        track.lose(e, len(prep.t), str(exc))
     return _solution(prep, track), _diagnostics(solver, track, cfg, prep, mode, first)
 
 
@@ -308,8 +328,8 @@ def _diagnostics(
         "n_epochs": len(track.epoch),
         "first_epoch": int(first),
         "gnss_epochs": len(prep.gnss),
-        "iterations_mean": float(np.mean(track.iterations)),
-        "iterations_max": int(np.max(track.iterations)),
+        "iterations_mean": float(np.mean(track.iterations)) if track.iterations else 0.0,
+        "iterations_max": max(track.iterations, default=0),
         "n_iteration_capped": int(track.n_capped),
         "heading_aligned_epoch": int(track.aligned_epoch),
         "heading_reset_deg": float(track.heading_reset_deg),
@@ -324,6 +344,8 @@ def _diagnostics(
         "final_accel_bias_mps2": [float(v) for v in last.bias[:3]],
         "final_gyro_bias_dph": [float(v / DEG_PER_HOUR) for v in last.bias[3:]],
         "config": asdict(cfg),
+        # only when the filter was lost: the report's diagnostics tables show no empty cells
+        **({"lost_epoch": track.lost_epoch, "lost_reason": track.lost_reason} if track.lost_epoch >= 0 else {}),
     }
 
 

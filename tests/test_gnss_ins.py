@@ -11,11 +11,13 @@ from estimators.gnss_ins_data import prepare_gnss_ins
 from estimators.gnss_ins_driver import run_gnss_ins
 from estimators.gnss_ins_ekf import EkfIns, EkfInsConfig, IekfIns, IekfInsConfig
 from estimators.ins_mechanisation import level_roll_pitch
+from estimators.window_solver import WindowSolver
 from simbench.analysis.metrics import enu_errors
 from simbench.contract import Need, ReceiverData
 from simbench.errors import SimbenchError
 from simbench.gnss.doppler import range_rate
 from simbench.gnss.geometry import sagnac_range
+from simbench.runs.runner import score_solution
 
 
 @pytest.fixture(scope="module")
@@ -77,6 +79,34 @@ def test_ekf_gate_rejects_an_injected_outlier(scenario: simbench.Scenario) -> No
     moved_open = np.linalg.norm(open_gate[xyz].to_numpy()[at] - ref.epochs[xyz].to_numpy()[at])
     assert moved_gated < 0.3  # dropping one satellite changes the geometry: decimetres
     assert moved_open > 1.0
+
+
+def test_a_filter_whose_normal_equations_break_is_lost_from_that_epoch(
+    scenario: simbench.Scenario, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A run-away filter ends in normal equations Cholesky refuses (seen in ``urban_deep``): the
+    epochs from there are NaN and the run is scored ``diverged``, not a ``failed`` row."""
+    data = scenario.receiver_view()
+    ref, _ = run_gnss_ins(data, EkfInsConfig(), mode="ekf", window=1)
+    update, calls = WindowSolver.ekf_update, []
+
+    def breaks_at_epoch_30(solver: WindowSolver, gate: float) -> int:  # one update per solved epoch
+        calls.append(gate)
+        if len(calls) > 30:
+            raise np.linalg.LinAlgError("banded Cholesky failed: LAPACK pbsv info 33")
+        return update(solver, gate)
+
+    monkeypatch.setattr(WindowSolver, "ekf_update", breaks_at_epoch_30)
+    lost, diagnostics = run_gnss_ins(data, EkfInsConfig(), mode="ekf", window=1)
+    xyz = ["x", "y", "z"]
+    assert lost["epoch"].tolist() == ref["epoch"].tolist()
+    np.testing.assert_array_equal(lost[xyz].to_numpy()[:30], ref[xyz].to_numpy()[:30])
+    assert np.isnan(lost[xyz].to_numpy()[30:]).all()
+    assert diagnostics["lost_epoch"] == ref["epoch"].iloc[30]
+    assert "pbsv info 33" in diagnostics["lost_reason"]
+    scores, _ = score_solution(scenario, lost, total_s=1.0)
+    assert scores["status"] == "diverged"
+    assert scores["availability"] == pytest.approx(30 / scenario.n_epochs)
 
 
 def test_prepared_code_is_range_plus_clock_after_the_troposphere(scenario: simbench.Scenario) -> None:
