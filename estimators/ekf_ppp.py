@@ -46,7 +46,7 @@ mean wheel speed updates the horizontal velocity halfway through the time
 update, where a mean over the interval applies for a steady acceleration
 (updating at the epoch instead lags by half an interval and made the velocity
 worse than the Doppler alone: 0.33 against 0.22 m/s median on urban seeds
-1000-1003): zero horizontal velocity when standing (``|s| < STANDSTILL_MPS``),
+1000-1003): zero velocity (all three axes) when standing (``|s| < STANDSTILL_MPS``),
 otherwise the speed along the filter's direction of travel (the graph takes it
 from a per-epoch Doppler fix; the filter's velocity is that fix plus the motion
 model; none slower than ``DIRECTION_MIN_SPEED_MPS``) and the non-holonomic
@@ -108,7 +108,7 @@ from estimators.ppp_config import (
 from simbench.contract import ReceiverData
 from simbench.core import atmosphere
 from simbench.core.frames import geodetic_from_ecef
-from simbench.errors import SimbenchError
+from simbench.errors import SimbenchError, require_positive
 from simbench.gnss.doppler import doppler_velocities, range_rate
 from simbench.gnss.geometry import enu_basis
 from simbench.gnss.spp import solve_epochs, system_clock_offsets
@@ -134,6 +134,18 @@ class EkfPppConfig(MotionModelConfig):
     #: with carrier phase, run the code-only filter too and fall back to it wherever the phase
     #: filter's position departs from it beyond its covariance (:meth:`EkfPpp.run`'s ``anchor``)
     phase_guard: bool = True
+    #: constant velocity with odometry: sigma of zero vertical velocity while the wheels stand still
+    #: [m/s]. A bound, not the wheel-speed sigma: with one or two satellites nothing else observes the
+    #: vertical velocity (urban_deep seed 4 climbed 13 km while parked), while a tight row made the
+    #: height stiff over long stops (urban seeds 1000-1002 median 3-10 % worse; 3 m/s: unchanged)
+    standstill_vertical_sigma_mps: float = 3.0
+
+    def validate(self, where: str) -> None:
+        """The shared checks, then the standstill bound."""
+        super().validate(where)
+        require_positive(
+            f"{where}.standstill_vertical_sigma_mps", self.standstill_vertical_sigma_mps, "give a positive sigma"
+        )
 
 
 @dataclass
@@ -455,14 +467,16 @@ class EkfPpp(Estimator):
         return int(use.sum())
 
     def _odometry_update(self, kf: ExtendedKalmanFilter, sample: np.ndarray, vel0: int) -> int:
-        """Wheel-speed update of the horizontal velocity (one epoch's mean odometry ``sample``:
+        """Wheel-speed update of the velocity (one epoch's mean odometry ``sample``:
         speed, yaw rate and their variances); returns 1 when an update was made."""
         speed, _, var_speed, _ = sample
         east, north, up = enu_basis(kf.x[_POS])
         vel = kf.x[vel0 : vel0 + 3]
         sig_s = float(np.sqrt(max(var_speed, 1e-6)))
         if abs(speed) < STANDSTILL_MPS:
-            rows, z, sigma = np.vstack([east, north]), np.zeros(2), np.array([sig_s, sig_s])
+            # wheels at rest: no velocity on any axis (the vertical one loosely, see the config)
+            rows, z = np.vstack([east, north, up]), np.zeros(3)
+            sigma = np.array([sig_s, sig_s, self.config.standstill_vertical_sigma_mps])
         else:
             horizontal = east * (east @ vel) + north * (north @ vel)
             moving = float(np.linalg.norm(horizontal))
@@ -471,7 +485,7 @@ class EkfPpp(Estimator):
             along = horizontal / moving
             rows, z = np.vstack([along, np.cross(up, along)]), np.array([abs(speed), 0.0])
             sigma = np.array([sig_s, self.config.nhc_sigma_mps])
-        H = np.zeros((2, kf.dim_x))
+        H = np.zeros((len(rows), kf.dim_x))
         H[:, vel0 : vel0 + 3] = rows
         kf.update(z, _const(H), _const(H @ kf.x), R=np.diag(sigma**2))
         return 1
