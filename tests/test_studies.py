@@ -83,6 +83,11 @@ def test_bad_worlds_are_one_line_errors() -> None:
         plan(StudiesConfig(studies=["ch5_bce"], worlds=["urban"], world_studies={"urban": ["ch7_ice"]}), ROOT, [])
     with pytest.raises(SimbenchError, match=r"^world_studies: unknown nosuch -- choose from .*urban"):
         plan(StudiesConfig(studies=["ch5_bce"], worlds=["urban"], world_studies={"nosuch": ["ch5_bce"]}), ROOT, [])
+    # Hydra merges an empty dict into the sweep file's: the thesis would still skip studies on the drives
+    with pytest.raises(
+        SimbenchError, match=r"^world_studies: an empty dict merges .* -- delete the key instead: '~world_studies'$"
+    ):
+        plan(StudiesConfig(studies=["ch5_bce"], worlds=["urban"]), ROOT, ["world_studies={}"])
 
 
 def test_config_overrides_drops_sweeps_only() -> None:

@@ -106,9 +106,18 @@ def plan(cfg: StudiesConfig, root: Path, args: Sequence[str]) -> list[StudyRun]:
     Raises
     ------
     SimbenchError
-        For a ``scenario=`` override together with ``worlds``.
+        For a ``scenario=`` override together with ``worlds``, and for ``world_studies={}`` or
+        ``study_args={}``, which Hydra merges into the sweep file's dict (changing nothing).
     """
     cfg.validate()
+    for arg in args:
+        key, _, value = arg.partition("=")
+        if not key.startswith("~") and _key(arg) in ("study_args", "world_studies") and value.strip() == "{}":
+            raise SimbenchError(
+                _key(arg),
+                "an empty dict merges into the sweep file's and changes nothing",
+                f"delete the key instead: '~{_key(arg)}'",
+            )
     passed = [a for a in args if _key(a) not in _OWN_KEYS]
     if cfg.worlds and any(_key(a) == "scenario" for a in passed):
         raise SimbenchError(
