@@ -108,7 +108,7 @@ from estimators.ppp_config import (
 from simbench.contract import ReceiverData
 from simbench.core import atmosphere
 from simbench.core.frames import geodetic_from_ecef
-from simbench.errors import SimbenchError, require_positive
+from simbench.errors import SimbenchError
 from simbench.gnss.doppler import doppler_velocities, range_rate
 from simbench.gnss.geometry import enu_basis
 from simbench.gnss.spp import solve_epochs, system_clock_offsets
@@ -134,18 +134,6 @@ class EkfPppConfig(MotionModelConfig):
     #: with carrier phase, run the code-only filter too and fall back to it wherever the phase
     #: filter's position departs from it beyond its covariance (:meth:`EkfPpp.run`'s ``anchor``)
     phase_guard: bool = True
-    #: constant velocity with odometry: sigma of zero vertical velocity while the wheels stand still
-    #: [m/s]. A bound, not the wheel-speed sigma: with one or two satellites nothing else observes the
-    #: vertical velocity (urban_deep seed 4 climbed 13 km while parked), while a tight row made the
-    #: height stiff over long stops (urban seeds 1000-1002 median 3-10 % worse; 3 m/s: unchanged)
-    standstill_vertical_sigma_mps: float = 3.0
-
-    def validate(self, where: str) -> None:
-        """The shared checks, then the standstill bound."""
-        super().validate(where)
-        require_positive(
-            f"{where}.standstill_vertical_sigma_mps", self.standstill_vertical_sigma_mps, "give a positive sigma"
-        )
 
 
 @dataclass

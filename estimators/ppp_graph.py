@@ -481,7 +481,8 @@ class PppGraph:
         With ``H`` the local east/north projection and ``s``, ``omega`` the mean speed and
         yaw rate since the previous epoch (all linear in the velocity keys):
 
-        * standstill (``|s| < 0.2 m/s``): ``H v_k = 0``;
+        * standstill (``|s| < 0.2 m/s``): ``H v_k = 0`` and, loosely, no vertical velocity
+          (``standstill_vertical_sigma_mps``);
         * moving, with a direction ``u`` from the epoch's Doppler velocity fix: ``u . v_k = |s|``
           and ``(up x u) . v_k = 0`` (no sideways motion, ``nhc_sigma_mps``);
         * turning: ``H v_k = (s_k / s_{k-1}) R(omega dt) H v_{k-1}`` (heading clockwise from
@@ -497,10 +498,11 @@ class PppGraph:
         sig_s = float(np.sqrt(max(var_speed, 1e-6)))
         zero = gtsam.Point3(0.0, 0.0, 0.0)
         if abs(speed) < STANDSTILL_MPS:
+            sigmas = np.array([sig_s, sig_s, self.cfg.standstill_vertical_sigma_mps])
             g.add(
                 _linear(
                     gtsam.JacobianFactor(
-                        vel_key(k), horizontal, np.zeros(2), gtsam.noiseModel.Isotropic.Sigma(2, sig_s)
+                        vel_key(k), self.enu[k], np.zeros(3), gtsam.noiseModel.Diagonal.Sigmas(sigmas)
                     ),
                     {vel_key(k): zero},
                 )
