@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import time
 from abc import abstractmethod
+from bisect import bisect_left
 from dataclasses import asdict, dataclass, field
 from typing import Any, Literal
 
@@ -119,9 +120,8 @@ class _Track:
 
     def lose(self, epoch: int, n_epochs: int, reason: str) -> None:
         """Record epochs ``epoch`` .. ``n_epochs - 1`` as unsolved (NaN): the filter has lost its state."""
-        del self.epoch[self.epoch.index(epoch) if epoch in self.epoch else len(self.epoch) :]
-        kept = len(self.epoch)
-        del self.pos[kept:], self.cov[kept:], self.update_s[kept:]
+        kept = bisect_left(self.epoch, epoch)  # epochs are recorded in order; ``epoch``'s may be partly written
+        del self.epoch[kept:], self.pos[kept:], self.cov[kept:], self.update_s[kept:]
         lost = range(epoch, n_epochs)
         self.epoch.extend(lost)
         self.pos.extend(np.full(3, np.nan) for _ in lost)

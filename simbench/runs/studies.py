@@ -111,12 +111,12 @@ def plan(cfg: StudiesConfig, root: Path, args: Sequence[str]) -> list[StudyRun]:
     """
     cfg.validate()
     for arg in args:
-        key, _, value = arg.partition("=")
-        if not key.startswith("~") and _key(arg) in ("study_args", "world_studies") and value.strip() == "{}":
+        key = _key(arg)
+        if key in ("study_args", "world_studies") and not arg.startswith("~") and arg.partition("=")[2].strip() == "{}":
             raise SimbenchError(
-                _key(arg),
+                key,
                 "an empty dict merges into the sweep file's and changes nothing",
-                f"delete the key instead: '~{_key(arg)}'",
+                f"delete the key instead: '~{key}'",
             )
     passed = [a for a in args if _key(a) not in _OWN_KEYS]
     if cfg.worlds and any(_key(a) == "scenario" for a in passed):
