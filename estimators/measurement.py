@@ -50,6 +50,7 @@ __all__ = [
     "PppObservations",
     "SAT_DCB_COLUMN",
     "VC_CLIP",
+    "VC_MIN_REDUNDANCY",
     "VC_MIN_ROWS",
     "arc_ids",
     "if_combination",
@@ -84,6 +85,8 @@ SAT_DCB_COLUMN = "sat_dcb"
 _F_GLONASS_L1_NOMINAL_HZ = 1_602.0e6
 #: Fewest usable rows a variance group needs for its own factor.
 VC_MIN_ROWS = 30
+#: Fewest degrees of freedom (sum of the redundancy numbers) a variance group needs for its own factor.
+VC_MIN_REDUNDANCY = 3.0
 #: Normalised residuals count at most this many sigmas in the variance estimate.
 VC_CLIP = 10.0
 #: Solve-and-rescale rounds of the variance components (two systems with 0.5 m and 1.5 m noise
@@ -574,7 +577,8 @@ def variance_factors(
     fits and follows the receiver where it does not (a geodetic receiver: 0.3-0.8;
     GLONASS with its inter-frequency biases: 2; the ionosphere-free combination under a
     sigma calibrated for one frequency: 2.5-3). A group with fewer than :data:`VC_MIN_ROWS`
-    usable rows keeps its factor of 1 before the normalisation.
+    usable rows, or less redundancy than :data:`VC_MIN_REDUNDANCY` (epochs of four satellites
+    and one clock have none), keeps its factor of 1 before the normalisation.
 
     The factors are relative: divided by their geometric mean over the rows, so they move
     weight between groups and leave the overall scale to the a-priori model. The absolute
@@ -626,10 +630,13 @@ def variance_factors(
         usable = np.isfinite(sol.residual_m)
         # Helmert: sum of squared normalised residuals over the sum of redundancy numbers
         square = (sol.residual_m[usable] / (sigma * factor[group])[usable]) ** 2
-        r = sol.redundancy[usable]
+        # an epoch without redundancy gives r = 1 - leverage of +-1e-16 by rounding; a group made
+        # of such epochs once divided one rounding error by another (a negative ratio, every sigma
+        # NaN: urban seed 3's first 40 s, four satellites or fewer per epoch)
+        r = np.clip(sol.redundancy[usable], 0.0, 1.0)
         for g in range(n_groups):
             mine = group[usable] == g
-            if mine.sum() >= VC_MIN_ROWS and r[mine].sum() > 0:
+            if mine.sum() >= VC_MIN_ROWS and r[mine].sum() >= VC_MIN_REDUNDANCY:
                 ratio = np.sum(np.minimum(square[mine], VC_CLIP**2 * r[mine])) / np.sum(r[mine])
                 factor[g] *= float(np.sqrt(ratio))
     # relative: the overall scale stays the a-priori model's (its row-weighted geometric mean 1)

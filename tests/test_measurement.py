@@ -350,3 +350,35 @@ def test_variance_components_recover_each_systems_noise() -> None:
     assert by_bin["E 45-50 dB-Hz"] == pytest.approx(factors["E"], rel=1e-6)
     plain = prepare_ppp(two_systems, **kw)
     assert plain.variance_factors == {} and np.allclose(plain.sigma_code, 1.0)
+
+
+def test_variance_components_leave_a_log_without_redundancy_at_its_a_priori_sigmas() -> None:
+    """Three GPS and two Galileo satellites per epoch and two clocks: every redundancy number is
+    zero up to rounding (+-1e-16), and the Helmert ratio would divide one rounding error by another
+    (on a canyon drive with four satellites it made every sigma NaN and ekf_ppp fail). Both factors
+    stay 1; with five Galileo satellites the log has redundancy (three per epoch) and the weight moves
+    away from the noisier system (1.5 m against 0.5 m; measured factor ratio 1.5 with these few rows)."""
+    data, _ = synthetic_data(120, dual=False, code_noise_m=0.0)
+    o = data.observations
+    rng = np.random.default_rng(3)
+    rank = o.groupby("epoch").cumcount()
+    gps = o[rank < 3].assign(code_l1=lambda d: d["code_l1"] + 0.5 * rng.standard_normal(len(d)))
+    galileo = o[(rank >= 3) & (rank < 8)]
+    galileo = galileo.assign(
+        sat="E" + galileo["sat"].str[1:], code_l1=galileo["code_l1"] + 1.5 * rng.standard_normal(len(galileo))
+    )
+    kw = dict(
+        ionosphere=IonosphereMode.broadcast,
+        code_sigma_m=1.0,
+        phase_sigma_m=0.01,
+        elevation_mask_deg=10.0,
+        measurements=MeasurementMode.code,
+        sigma_model=SigmaModel.cn0,
+        variance_components=VarianceComponents.system,
+    )
+    two_galileo = galileo[galileo.groupby("epoch").cumcount() < 2]
+    none = prepare_ppp(ReceiverData(pd.concat([gps, two_galileo], ignore_index=True), data.imu, data.nav), **kw)
+    assert none.variance_factors == {"G": 1.0, "E": 1.0}
+    np.testing.assert_allclose(none.sigma_code, 1.0)
+    some = prepare_ppp(ReceiverData(pd.concat([gps, galileo], ignore_index=True), data.imu, data.nav), **kw)
+    assert some.variance_factors["E"] / some.variance_factors["G"] > 1.3
