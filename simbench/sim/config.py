@@ -236,7 +236,6 @@ class CycleSlipConfig:
     enabled: bool = True
     cn0_threshold_dbhz: float = 35.0
     low_cn0_probability: float = 0.2  #: per epoch below the threshold
-    pll_jitter_threshold_deg: float = 15.0
     rate_per_s: float = 1e-4  #: random slips on healthy channels (Poisson)
     flagged_fraction: float = 0.9  #: slips the receiver flags with LLI
     max_jump_cycles: int = 20
@@ -345,6 +344,9 @@ class ReceiverConfig:
     lock_threshold_dbhz: float = 25.0
     #: time a signal must stay above the acquisition threshold before it is tracked again [s]
     reacquisition_s: float = 1.0
+    #: the PLL holds carrier lock, and the receiver reports phase, while its 1-sigma jitter plus a
+    #: third of the dynamic stress error stays below this (Kaplan's 3 sigma + theta_e <= 45 deg) [deg]
+    carrier_lock_threshold_deg: float = 15.0
 
     def validate(self, where: str = "receiver") -> None:
         """Raise a one-line :class:`SimbenchError` for the first value the tracking models cannot use.
@@ -364,6 +366,7 @@ class ReceiverConfig:
             "dll_bw_hz",
             "pll_bw_hz",
             "integration_s",
+            "carrier_lock_threshold_deg",
         ):
             require_positive(f"{where}.{name}", getattr(self, name), "see conf/receiver/ for presets")
         if not self.correlator_spacing_chips < 2.0:

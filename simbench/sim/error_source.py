@@ -72,6 +72,7 @@ class Lock:
     """The receiver's tracking state, from the final C/N0; arrays (n, m)."""
 
     tracked: np.ndarray  #: bool: the channel delivers an observation
+    carrier_locked: np.ndarray  #: bool: tracked, and the PLL holds lock: the observation has a phase
     sigma_code_m: np.ndarray  #: DLL thermal jitter std [m]
     pll_jitter_rad: np.ndarray  #: PLL thermal jitter std [rad]
     pll_stress_rad: np.ndarray  #: PLL jitter plus a third of the dynamic stress error [rad]

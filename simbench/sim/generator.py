@@ -133,7 +133,9 @@ def _lock(state: SimState) -> Lock:
 
     A channel is tracked from ``reacquisition_s`` after C/N0 first holds the
     acquisition threshold until it falls below the lock threshold or the DLL rule
-    ``3 sigma_DLL <= D / 2`` fails (Kaplan & Hegarty, 2nd ed., sec. 5.6).
+    ``3 sigma_DLL <= D / 2`` fails (Kaplan & Hegarty, 2nd ed., sec. 5.6). A tracked
+    channel has a phase while the PLL rule holds (``receiver.carrier_lock_threshold_deg``):
+    a weak signal keeps its code and Doppler (the DLL and FLL hold longer) but loses its carrier.
     """
     rx, cn0, spacing = state.receiver, state.cn0_dbhz, state.spacing_chips
     sig_code = tracking.dll_jitter_m(cn0, rx.dll_bw_hz, spacing, state.front_end_bw_hz, rx.integration_s)
@@ -142,11 +144,18 @@ def _lock(state: SimState) -> Lock:
     tracked = tracking.channel_lock_states(
         cn0 >= rx.acquisition_threshold_dbhz, in_lock, 1 + int(round(rx.reacquisition_s / state.dt_s))
     )
-    # Kaplan's PLL rule of thumb 3 sigma_j + theta_e <= 45 deg, in the 1-sigma form the slip model tests.
+    # Kaplan's PLL rule of thumb 3 sigma_j + theta_e <= 45 deg, in its 1-sigma form
     traj = state.traj
     jerk = np.einsum("nk,nmk->nm", np.gradient(traj.acc, traj.t, axis=0)[state.idx], state.los.los_unit)
     pll_stress_rad = pll_rad + np.radians(tracking.pll_dynamic_stress_deg(jerk, rx.pll_bw_hz)) / 3.0
-    return Lock(tracked=tracked, sigma_code_m=sig_code, pll_jitter_rad=pll_rad, pll_stress_rad=pll_stress_rad)
+    carrier_locked = tracked & (pll_stress_rad <= np.radians(rx.carrier_lock_threshold_deg))
+    return Lock(
+        tracked=tracked,
+        carrier_locked=carrier_locked,
+        sigma_code_m=sig_code,
+        pll_jitter_rad=pll_rad,
+        pll_stress_rad=pll_stress_rad,
+    )
 
 
 def _observation_tables(state: SimState) -> tuple[pd.DataFrame, pd.DataFrame]:

@@ -1,10 +1,11 @@
 """Carrier-phase arcs, cycle slips and integer ambiguities.
 
-A new arc (new random ambiguity, loss-of-lock flag set) starts whenever a
-satellite is (re)acquired. Within an arc, slips happen when C/N0 is below a
-threshold (with some probability per epoch), when PLL jitter exceeds its
-threshold, and at a small Poisson rate; a slip adds a non-zero integer to the
-ambiguity and is flagged by the receiver with a configurable probability.
+A new arc (new random ambiguity, loss-of-lock flag set) starts whenever the PLL
+(re)gains carrier lock on a satellite. Within an arc, slips happen when C/N0 is
+below a threshold (with some probability per epoch) and at a small Poisson rate;
+a slip adds a non-zero integer to the ambiguity and is flagged by the receiver
+with a configurable probability. Where the PLL's jitter breaks its lock rule the
+receiver has no phase at all (:func:`simbench.sim.generator` decides the lock).
 """
 
 from __future__ import annotations
@@ -32,7 +33,6 @@ class PhaseArcs:
 def phase_arcs(
     tracked: np.ndarray,
     cn0_dbhz: np.ndarray,
-    pll_jitter_rad: np.ndarray,
     cfg: CycleSlipConfig,
     dt_s: float,
     rng: np.random.Generator,
@@ -43,11 +43,9 @@ def phase_arcs(
     Parameters
     ----------
     tracked : ndarray of bool, shape (n, m)
-        The receiver tracks the satellite at this epoch.
+        The PLL holds carrier lock on the satellite at this epoch.
     cn0_dbhz : ndarray, shape (n, m)
         Carrier-to-noise density [dB-Hz].
-    pll_jitter_rad : ndarray, shape (n, m)
-        PLL thermal jitter std [rad].
     cfg : CycleSlipConfig
     dt_s : float
         Epoch interval [s].
@@ -64,9 +62,8 @@ def phase_arcs(
     arc_start = tracked & ~previous
     if cfg.enabled:
         weak = (cn0_dbhz < cfg.cn0_threshold_dbhz) & (rng.random((n, m)) < cfg.low_cn0_probability)
-        jittery = np.degrees(pll_jitter_rad) > cfg.pll_jitter_threshold_deg
         poisson = rng.random((n, m)) < -np.expm1(-cfg.rate_per_s * dt_s)
-        slip = tracked & ~arc_start & (weak | jittery | poisson)
+        slip = tracked & ~arc_start & (weak | poisson)
         flagged = slip & (rng.random((n, m)) < cfg.flagged_fraction)
     else:
         slip = np.zeros((n, m), bool)
