@@ -56,6 +56,13 @@ def full_window(clean: simbench.Scenario) -> WindowSolver:
 
     L = 4, thresholds low enough that S is non-zero.
     """
+    return _last_full_window(clean, _cfg(), 4, (0.5, 0.7))
+
+
+def _last_full_window(
+    sc: simbench.Scenario, cfg: CrtLssConfig, window: int, lambdas: tuple[float, float]
+) -> WindowSolver:
+    """A copy of the solver as Algorithm 1 starts on the last full window of a run."""
     seen: list[WindowSolver] = []
     orig = WindowSolver.solve
 
@@ -69,7 +76,7 @@ def full_window(clean: simbench.Scenario) -> WindowSolver:
 
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(WindowSolver, "solve", spy)
-        run_gnss_ins(clean.receiver_view(), _cfg(), mode="lss", window=4, lambdas=(0.5, 0.7))
+        run_gnss_ins(sc.receiver_view(), cfg, mode="lss", window=window, lambdas=lambdas)
     return seen[0]
 
 
@@ -245,6 +252,43 @@ def test_window_normal_equations_are_the_cost_gradient_and_solve_banded(full_win
     np.testing.assert_allclose(H, H.T, rtol=0, atol=1e-12 * np.abs(H).max())
     dx = ne.solve()
     assert np.linalg.norm(H @ dx - ne.eta) < 1e-9 * np.linalg.norm(ne.eta)
+
+
+@pytest.fixture(scope="module")
+def urban_window() -> WindowSolver:
+    """The default CRT-LSS (L = 10, lambda = 1) as Algorithm 1 starts on its window 46 s into an urban drive."""
+    sc = simbench.simulate("urban", "low", seed=1000, **{"scenario.duration_s": 46, "imu.rate_hz": 100.0})
+    cfg = _cfg()
+    return _last_full_window(sc, cfg, cfg.window, (cfg.lambda_rho, cfg.lambda_d))
+
+
+def _copy(window: WindowSolver) -> WindowSolver:
+    s = copy.copy(window)
+    s.nodes = [n.copy() for n in window.nodes]
+    s._factors_changed()
+    return s
+
+
+def test_algorithm_1_stops_on_its_tolerance_at_the_huber_minimum(urban_window: WindowSolver) -> None:
+    """With the S step's X step taken on min_S C (Huber), Algorithm 1 stops on its tolerance in 6 iterations
+    on a window with outliers, where the alternation with S fixed runs into the cap of 20 (|dS| still
+    above the tolerance), and ends no higher in cost, where the gradient of min_S C vanishes."""
+
+    def gradient_norm(s: WindowSolver) -> float:
+        factors = s._stacked_factors()
+        lin = s._linearise(s.nodes, factors)
+        assert lin.gnss is not None
+        return float(np.linalg.norm(s._normal_equations(s.nodes, lin, factors, s=s._thresholded(lin.gnss)).eta))
+
+    huber, fixed = _copy(urban_window), _copy(urban_window)
+    fixed.huber_step = fixed.x_step  # type: ignore[method-assign]  # Algorithm 1 with S fixed in every X step
+    start = gradient_norm(huber)
+    iterations, table = huber.solve(record=True)
+    assert any(row[4] > 0 for row in table), "an S step moved S: the window has outliers"
+    assert iterations <= 10 < huber.max_iterations
+    assert fixed.solve()[0] == fixed.max_iterations
+    assert huber.cost() <= fixed.cost()
+    assert gradient_norm(huber) < 1e-3 * start
 
 
 def test_a_window_without_gnss_rows_solves_on_the_imu_and_clock_alone(full_window: WindowSolver) -> None:
