@@ -1,10 +1,10 @@
-"""Per-epoch update time of every incremental estimator (issue 4 performance target).
+"""Per-epoch update time of every incremental estimator (issue 4's and issue 27's targets).
 
 One hour at 1 Hz under the broadcast constellation of 2018-12-21 from 18:00 GPST (~10 satellites),
 open sky, low-quality receiver, single-frequency L1 (the Ch. 7 setting). Prints the
 median and 95th percentile update time of each registered incremental estimator,
-ICE's median over the incremental L2's (``isam2_ppp``; target <= 2) and whether
-ICE's median is under 10 ms. Timings on a shared machine are noisy.
+ICE's median over the incremental L2's (``isam2_ppp``; issue 4's target <= 2, issue 27's
+<= 1) and whether ICE's median is under 10 ms. Timings on a shared machine are noisy.
 
     python benchmarks/incremental_timing.py [--duration 3600] [--seed 0]
 """
@@ -24,6 +24,8 @@ import simbench
 from estimators.incremental import IncrementalGraphEstimator
 
 TARGET_RATIO = 2.0
+#: Issue 27's: ICE no slower than the incremental L2 it adapts.
+TARGET_RATIO_27 = 1.0
 TARGET_ICE_MS = 10.0
 
 
@@ -62,8 +64,9 @@ def main() -> None:
         print(f"{name:12s} {med[name]:10.2f} {np.percentile(u, 95):8.2f} {np.median(tail):19.2f} {sol.total_s:8.1f}")
     ratio = med["ice"] / med["isam2_ppp"]
     print(
-        f"ICE median / incremental L2 median = {ratio:.2f} (target <= {TARGET_RATIO}): "
-        f"{'met' if ratio <= TARGET_RATIO else 'NOT met'}"
+        f"ICE median / incremental L2 median = {ratio:.3f} (issue 4's target <= {TARGET_RATIO:g}: "
+        f"{'met' if ratio <= TARGET_RATIO else 'NOT met'}; issue 27's <= {TARGET_RATIO_27:g}: "
+        f"{'met' if ratio <= TARGET_RATIO_27 else 'NOT met'})"
     )
     print(
         f"ICE median {med['ice']:.2f} ms (target < {TARGET_ICE_MS} ms): "
