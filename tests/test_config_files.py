@@ -133,6 +133,7 @@ def test_composed_estimator_configs_are_the_dataclass_defaults_but_for_the_gnss_
         "outlier_scale": 10.0,
         "ionosphere": IonosphereMode.auto,
         "variance_components": VarianceComponents.system,
+        "iono_sigma_m": 1.0,
     }
     table = {
         "motion_model": MotionModel.random_walk,
@@ -143,6 +144,7 @@ def test_composed_estimator_configs_are_the_dataclass_defaults_but_for_the_gnss_
         "outlier_scale": 10.0,
         "ionosphere": IonosphereMode.broadcast,
         "variance_components": VarianceComponents.none,
+        "iono_sigma_m": 2.0,
     }
     shared = 0
     for name in NAMES:
