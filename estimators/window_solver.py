@@ -350,9 +350,9 @@ def _gnss_blocks(
     if curvature is None:
         JtJ = Jt @ J
     else:
-        Jc = np.zeros((np.prod(shape), NS))
-        Jc[lay.padded] = g.J * curvature[:, None]
-        Jc = Jc.reshape(*shape, NS)
+        keep = np.zeros(r.size)
+        keep[lay.padded] = curvature
+        Jc = J * keep.reshape(shape)[..., None]
         JtJ = Jc.swapaxes(-1, -2) @ Jc
     return JtJ[:, 0] + JtJ[:, 1], Jtb[:, 0] + Jtb[:, 1], bb[:, 0] + bb[:, 1]
 

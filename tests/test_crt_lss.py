@@ -59,6 +59,14 @@ def full_window(clean: simbench.Scenario) -> WindowSolver:
     return _last_full_window(clean, _cfg(), 4, (0.5, 0.7))
 
 
+def _copy(window: WindowSolver) -> WindowSolver:
+    """An independent copy of a solver (its own nodes; it computes its own linearisation)."""
+    s = copy.copy(window)
+    s.nodes = [n.copy() for n in window.nodes]
+    s._factors_changed()
+    return s
+
+
 def _last_full_window(
     sc: simbench.Scenario, cfg: CrtLssConfig, window: int, lambdas: tuple[float, float]
 ) -> WindowSolver:
@@ -68,10 +76,7 @@ def _last_full_window(
 
     def spy(self: WindowSolver, record: bool = False) -> tuple[int, list[tuple[float, ...]]]:
         if self.full:
-            snap = copy.copy(self)
-            snap.nodes = [n.copy() for n in self.nodes]
-            snap._factors_changed()  # the copy computes its own linearisation
-            seen[:] = [snap]
+            seen[:] = [_copy(self)]
         return orig(self, record)
 
     with pytest.MonkeyPatch.context() as mp:
@@ -260,13 +265,6 @@ def urban_window() -> WindowSolver:
     sc = simbench.simulate("urban", "low", seed=1000, **{"scenario.duration_s": 46, "imu.rate_hz": 100.0})
     cfg = _cfg()
     return _last_full_window(sc, cfg, cfg.window, (cfg.lambda_rho, cfg.lambda_d))
-
-
-def _copy(window: WindowSolver) -> WindowSolver:
-    s = copy.copy(window)
-    s.nodes = [n.copy() for n in window.nodes]
-    s._factors_changed()
-    return s
 
 
 def test_algorithm_1_stops_on_its_tolerance_at_the_huber_minimum(urban_window: WindowSolver) -> None:
