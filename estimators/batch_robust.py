@@ -5,11 +5,12 @@ All three solve the whole data set at once on
 noise models:
 
 * ``l2``: the a-priori Gaussian model (elevation-weighted sigmas), solved by
-  Levenberg-Marquardt.
+  Gauss-Newton steps (:meth:`~estimators.gauss_newton.GaussNewton.solve`;
+  Levenberg-Marquardt where an undamped step would raise the error).
 * ``dcs``: the same wrapped in GTSAM's dynamic covariance scaling m-estimator
   (kernel width ``kernel_width``, phi in the DCS papers, whitened units). GTSAM re-weights at every
   linearisation, so each Gauss-Newton step
-  (:func:`~estimators.ppp_graph.gauss_newton_step`) is one iteration of
+  (:class:`~estimators.gauss_newton.GaussNewton`) is one iteration of
   iteratively re-weighted least squares; the steps go on until the relative
   error decrease is below ``rel_tol`` or ``max_iterations`` is reached
   (:func:`stop_reason`, GTSAM's ``checkConvergence``); each iteration's total error and
@@ -47,9 +48,10 @@ import pandas as pd
 
 from estimators import register
 from estimators.base import Estimator, solution_frame
+from estimators.gauss_newton import GaussNewton
 from estimators.measurement import PppObservations, prepare_ppp
 from estimators.ppp_config import GnssModelConfig
-from estimators.ppp_graph import PppGraph, PppGraphConfig, gauss_newton_step, solve
+from estimators.ppp_graph import PppGraph, PppGraphConfig, solve
 from simbench.contract import ReceiverData
 from simbench.errors import SimbenchError, require_at_least, require_positive
 
@@ -73,7 +75,7 @@ class BatchConfig(PppGraphConfig):
     prior_scale: float = 1.0  #: s, multiplies the a-priori measurement covariance (Fig. 5.3.7 sensitivity)
     max_iterations: int = 100  #: robust re-weighting iterations at most
     rel_tol: float = 1e-5  #: stop when the relative change of the total error is below this
-    lm_max_iterations: int = 100  #: Levenberg-Marquardt iterations of the L2 solve
+    lm_max_iterations: int = 100  #: iterations of the L2 solve (Gauss-Newton, else Levenberg-Marquardt)
 
     def validate(self, where: str) -> None:
         """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
@@ -83,6 +85,11 @@ class BatchConfig(PppGraphConfig):
         )
         for name in ("max_iterations", "lm_max_iterations"):
             require_at_least(f"{where}.{name}", getattr(self, name), 1, "give an iteration limit, e.g. the default 100")
+
+
+#: The L2 solve stops when the relative error decrease is below this (Levenberg-Marquardt's default
+#: in :func:`~estimators.ppp_graph.solve`).
+L2_RELATIVE_TOL = 1e-6
 
 
 def stop_reason(previous: float, current: float, rel_tol: float, *, on_increase: bool) -> str | None:
@@ -123,11 +130,6 @@ class BatchGraphEstimator(Estimator):
         s = np.sqrt(self.config.prior_scale)
         return obs.sigma_code * s, obs.sigma_phase * s
 
-    def _solve(
-        self, graph: gtsam.NonlinearFactorGraph, initial: gtsam.Values, ordering: gtsam.Ordering
-    ) -> gtsam.Values:
-        return solve(graph, initial, ordering=ordering, max_iterations=self.config.lm_max_iterations)
-
     def _a_priori_graph(self, g: PppGraph, structure: gtsam.NonlinearFactorGraph) -> gtsam.NonlinearFactorGraph:
         """Structure plus measurement factors with the a-priori noise model (scaled by ``prior_scale``)."""
         sc, sp = self._a_priori_sigmas(g.obs)
@@ -135,15 +137,28 @@ class BatchGraphEstimator(Estimator):
         graph.push_back(g.measurement_factors(code_sigma=sc, phase_sigma=sp))
         return graph
 
-    def _l2(self, g: PppGraph, structure: gtsam.NonlinearFactorGraph) -> tuple[gtsam.Values, gtsam.Ordering]:
-        """The batch L2 solution and the elimination ordering of the measurement graph.
+    def _l2(self, g: PppGraph, structure: gtsam.NonlinearFactorGraph) -> tuple[gtsam.Values, GaussNewton]:
+        """The batch L2 solution and the Gauss-Newton stepper of the robust re-solves.
 
-        Re-weighting changes noise models only, never which keys a factor touches, so the
-        robust re-solves eliminate in this ordering too.
+        The a-priori graph is solved by Gauss-Newton steps (nearly linear: 2-3 steps from the
+        single point start), Levenberg-Marquardt taking over where an undamped step raises the
+        error. Re-weighting changes noise models only, never which keys a factor touches, so
+        the robust re-solves share one elimination ordering and one symbolic factorisation.
         """
+        cfg = self.config
         graph = self._a_priori_graph(g, structure)
-        ordering = g.elimination_ordering(graph)
-        return self._solve(graph, g.initial_values(), ordering), ordering
+        steps = GaussNewton(g.elimination_ordering(graph))
+        initial = g.initial_values()
+        values = steps.solve(graph, initial, relative_tol=L2_RELATIVE_TOL, max_iterations=cfg.lm_max_iterations)
+        if values is None:
+            values = solve(
+                graph,
+                initial,
+                ordering=steps.ordering,
+                max_iterations=cfg.lm_max_iterations,
+                relative_tol=L2_RELATIVE_TOL,
+            )
+        return values, steps
 
     def _estimate(self, data: ReceiverData) -> tuple[pd.DataFrame, dict[str, Any]]:
         tic = time.perf_counter()
@@ -215,7 +230,7 @@ class DcsBatch(BatchGraphEstimator):
 
     def _run(self, data, obs, g, structure):
         cfg: DcsConfig = self.config
-        values, ordering = self._l2(g, structure)
+        values, steps = self._l2(g, structure)
         sc, sp = self._a_priori_sigmas(obs)
         graph = gtsam.NonlinearFactorGraph(structure)
         graph.push_back(
@@ -228,7 +243,7 @@ class DcsBatch(BatchGraphEstimator):
         positions = g.positions(values)
         history = []
         for iterations in range(1, cfg.max_iterations + 1):
-            stepped, stepped_err = gauss_newton_step(graph, values, ordering, error=err)
+            stepped, stepped_err = steps.step(graph, values)
             reason = stop_reason(err, stepped_err, cfg.rel_tol, on_increase=True)
             step = 0.0
             if reason != "error increased":  # a rise is rejected, as Levenberg-Marquardt would
@@ -313,7 +328,7 @@ class MmBatch(BatchGraphEstimator):
 
     def _run(self, data, obs, g, structure):
         cfg: MmConfig = self.config
-        values, ordering = self._l2(g, structure)
+        values, steps = self._l2(g, structure)
         sc, sp = self._a_priori_sigmas(obs)
         inflate = np.sqrt(cfg.outlier_scale)
         graph: gtsam.NonlinearFactorGraph | None = None
@@ -337,7 +352,7 @@ class MmBatch(BatchGraphEstimator):
                 _replace(graph, slots[0], g, changed_c, code_sigma, phase_sigma, code=True)
                 _replace(graph, slots[1], g, changed_p, code_sigma, phase_sigma, code=False)
             prev_out_c, prev_out_p = out_c, out_p
-            values, err = gauss_newton_step(graph, values, ordering)
+            values, err = steps.step(graph, values)
             history.append(
                 {
                     "iteration": it + 1,

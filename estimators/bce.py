@@ -5,7 +5,7 @@ BCE iterates
 1. solve the PPP graph (:mod:`estimators.ppp_graph`); the first solve is batch L2
    (Levenberg-Marquardt from the single point solution, a-priori model scaled by
    ``prior_scale``), every re-solve one Gauss-Newton step from the previous solution
-   (:func:`~estimators.ppp_graph.gauss_newton_step`: the graph is linear but for the
+   (:class:`~estimators.gauss_newton.GaussNewton`: the graph is linear but for the
    range's micrometre-level curvature, so one step is the least-squares solution),
 2. form the 2-D residual ``(code, phase)`` of every satellite-epoch,
 3. fit a variational Dirichlet-process GMM to the raw residuals
@@ -81,7 +81,7 @@ from estimators import register
 from estimators.batch_robust import BatchConfig, BatchGraphEstimator, stop_reason
 from estimators.clustering import Mixture, code_marginal_labels, fit_dpgmm, select_features
 from estimators.measurement import PppObservations
-from estimators.ppp_graph import PppGraph, gauss_newton_step
+from estimators.ppp_graph import PppGraph
 from simbench.contract import ReceiverData
 from simbench.errors import SimbenchError, require_at_least
 
@@ -176,7 +176,7 @@ class _IterativeCovariance(BatchGraphEstimator):
 
     def _run(self, data, obs, g: PppGraph, structure):
         cfg: BceConfig = self.config
-        values, ordering = self._l2(g, structure)
+        values, steps = self._l2(g, structure)
         self._start(data, obs, np.random.default_rng(cfg.seed))
         prev_err = None
         stop = "max_iterations"
@@ -186,7 +186,7 @@ class _IterativeCovariance(BatchGraphEstimator):
             noise, record = self._noise(data, obs, np.c_[r_c, r_p], it)
             graph = gtsam.NonlinearFactorGraph(structure)
             graph.push_back(g.measurement_factors(**noise))
-            values, err = gauss_newton_step(graph, values, ordering)
+            values, err = steps.step(graph, values)
             history.append({"iteration": it + 1, "error": err, **record})
             if prev_err is not None:
                 reason = stop_reason(prev_err, err, cfg.rel_tol, on_increase=cfg.stop_on_increase)

@@ -61,7 +61,7 @@ by a 2.5 cm phase sigma: 1.2e10 per second, against order 1-100 for everything
 else). Multifrontal Cholesky of the normal equations (GTSAM's default) squares that
 spread and fails (GTSAM reports an indeterminate system; LM then raises lambda for
 100 iterations). Sequential Cholesky (one variable per elimination step) does not
-fail: :func:`solve` (Levenberg-Marquardt) and :func:`gauss_newton_step` use it, in the
+fail: :func:`solve` (Levenberg-Marquardt) uses it, in the
 clocks-first ordering of :meth:`PppGraph.elimination_ordering`. Against the multifrontal
 QR that :func:`solve` used before, the L2 solve of the Hong Kong log took 3.0 s instead of
 5.6 s (the same 3 iterations, positions within 3e-7 m).
@@ -136,7 +136,6 @@ __all__ = [
     "drift_key",
     "MotionModel",
     "clock_key",
-    "gauss_newton_step",
     "insert_double",
     "iono_key",
     "pos_key",
@@ -818,7 +817,7 @@ class PppGraph:
 
         Computing it costs about a tenth of a linear solve; iterative batch estimators
         compute it once (the structure does not change between their solves). With the
-        clocks first, sequential Cholesky (:func:`gauss_newton_step`) eliminates their
+        clocks first, sequential Cholesky (:func:`solve`) eliminates their
         ``c``-sized columns before anything else and was slightly faster than plain COLAMD.
         """
         clocks = gtsam.KeyVector(
@@ -939,39 +938,3 @@ def solve(
     params.setRelativeErrorTol(relative_tol)
     params.setAbsoluteErrorTol(0.0)
     return gtsam.LevenbergMarquardtOptimizer(graph, initial, params).optimize()
-
-
-def gauss_newton_step(
-    graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, ordering: gtsam.Ordering, *, error: float | None = None
-) -> tuple[gtsam.Values, float]:
-    """One Gauss-Newton step: the exact re-solve of a PPP graph from a nearby warm start.
-
-    The model is linear in everything but the position, and the range's curvature
-    over a step of ``d`` metres is ``d^2 / (2 * 2e7 m)`` (a few micrometres for 10 m), so
-    one linearisation reaches the least-squares solution to numerical precision. The
-    step eliminates the normal equations by *sequential* Cholesky in ``ordering``
-    (:meth:`PppGraph.elimination_ordering`): about twice as fast as multifrontal QR on an
-    hour of 1 Hz data. (Multifrontal Cholesky fails here, see the module notes: its
-    cliques put a clock's ``c``-sized pivot next to metre-sized ones.) Where Cholesky
-    reports an indeterminate system or its step raises the error (an ill-conditioned
-    noise model), the step is redone with QR. ``error`` is ``graph.error(values)`` when the
-    caller knows it (computed here otherwise).
-
-    Returns
-    -------
-    values : gtsam.Values
-        The stepped values.
-    error : float
-        ``graph.error`` at the stepped values.
-    """
-    before = graph.error(values) if error is None else error
-    linear = graph.linearize(values)
-    try:
-        stepped = values.retract(linear.eliminateSequential(ordering).optimize())
-        after = graph.error(stepped)
-        if after <= before * (1.0 + 1e-9):
-            return stepped, after
-    except RuntimeError:  # gtsam's IndeterminantLinearSystemException
-        pass
-    stepped = values.retract(linear.eliminateMultifrontal(ordering, gtsam.EliminateQR).optimize())
-    return stepped, graph.error(stepped)

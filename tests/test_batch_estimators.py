@@ -18,10 +18,11 @@ from estimators.batch_robust import (
 from estimators.bce import FEATURES, Bce, BceAd, BceAdConfig, BceConfig
 from estimators.clustering import fit_dpgmm, mcfs_scores, select_features
 from estimators.ekf_ppp import EkfPpp, EkfPppConfig
+from estimators.gauss_newton import GaussNewton
 from estimators.measurement import prepare_ppp
 from estimators.oracle import Oracle
 from estimators.ppp_config import IonosphereMode, VarianceComponents
-from estimators.ppp_graph import PppGraph, PppGraphConfig, gauss_newton_step, solve
+from estimators.ppp_graph import PppGraph, PppGraphConfig, solve
 from simbench.analysis.metrics import enu_errors
 from simbench.contract import Scenario
 from simbench.gnss.geometry import sagnac_range
@@ -120,14 +121,20 @@ def test_one_gauss_newton_step_resolves_a_reweighted_graph(solved) -> None:
         )
     )
     ordering = g.elimination_ordering(reweighted)
-    stepped, err = gauss_newton_step(reweighted, values, ordering)
+    steps = GaussNewton(ordering)
+    stepped, err = steps.step(reweighted, values)
+    assert steps.fallbacks == 0  # the sparse LDL' step, not GTSAM's
     assert err == pytest.approx(reweighted.error(stepped), rel=1e-12)
+    # the same step as GTSAM's sequential Cholesky (the clock's c-sized column is scaled away)
+    gtsam_step = values.retract(reweighted.linearize(values).eliminateSequential(ordering).optimize())
+    assert np.abs(g.positions(stepped) - g.positions(gtsam_step)).max() < 1e-6
     assert err < 0.8 * reweighted.error(values)
     # one step is the solution: Levenberg-Marquardt to convergence and a second step find no better
     reference = solve(reweighted, values)
     assert err <= reweighted.error(reference) * (1 + 1e-8)
     assert np.abs(g.positions(stepped) - g.positions(reference)).max() < 0.01
-    again, err2 = gauss_newton_step(reweighted, stepped, ordering)
+    again, err2 = steps.step(reweighted, stepped)
+    assert steps.fallbacks == 0
     assert err2 == pytest.approx(err, rel=1e-8)
     assert np.abs(g.positions(again) - g.positions(stepped)).max() < 1e-3
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from simbench.core.constants import C_LIGHT, OMEGA_EARTH
+from simbench.gnss.normal_equations import pinv_solve
 
 __all__ = ["range_rate", "doppler_velocity", "doppler_velocities"]
 
@@ -120,8 +121,8 @@ def doppler_velocities(
     N = np.add.reduceat(A[:, :, None] * A[:, None, :] * w[:, None, None], starts, axis=0)
     b = np.add.reduceat(A * (w * (range_rate_obs[rows] - rdot0))[:, None], starts, axis=0)
     solvable = counts >= 4
-    # pinv: rows with negligible weight must leave a minimum-norm answer, not an error
-    x = np.einsum("kij,kj->ki", np.linalg.pinv(N[solvable]), b[solvable])
+    # rows with negligible weight must leave a minimum-norm answer, not an error
+    x = pinv_solve(N[solvable], b[solvable])
     vel[present[solvable]] = x[:, :3]
     drift[present[solvable]] = x[:, 3]
     return vel, drift

@@ -24,6 +24,7 @@ import numpy as np
 from simbench.core.frames import geodetic_from_ecef
 from simbench.errors import SimbenchError
 from simbench.gnss.geometry import sagnac_range_gradient
+from simbench.gnss.normal_equations import pinv_solve, pinv_stack
 from simbench.gnss.troposphere import troposphere_terms
 
 __all__ = ["SppSolution", "solve_epochs", "system_clock_offsets", "ROUGH_FIX_MAX_RMS_M"]
@@ -195,9 +196,9 @@ def solve_epochs(
             res = c - _predicted(s, pos, clock, e, sy, el_r, doy, A)
             N = _normal_matrices(A, wr * robust, starts)
             b = np.add.reduceat(A * (wr * robust * res)[:, None], starts, axis=0)
-            # pinv: an absent system's clock column is zero and stays 0; a degenerate geometry
-            # must not stop the other epochs
-            dx = np.einsum("kij,kj->ki", np.linalg.pinv(N), b)
+            # an absent system's clock column is zero and stays 0; a degenerate geometry must not
+            # stop the other epochs
+            dx = pinv_solve(N, b)
             dx[~solvable[present]] = 0.0
             pos[present] += dx[:, :3]
             clock[present] += dx[:, 3:]
@@ -211,7 +212,7 @@ def solve_epochs(
     rms = np.full(nk, np.nan)
     rms[present] = np.sqrt(np.add.reduceat(res * res, starts) / n_rows_present)
     # redundancy numbers 1 - w_i a_i^T N^-1 a_i of the final weighted fit
-    n_inv = np.linalg.pinv(_normal_matrices(A, wr * robust, starts))
+    n_inv = pinv_stack(_normal_matrices(A, wr * robust, starts))
     index = np.repeat(np.arange(len(present)), n_rows_present)
     leverage = wr * robust * np.einsum("ri,rij,rj->r", A, n_inv[index], A)
     height = _lat_height(pos)[1]

@@ -1,0 +1,176 @@
+"""Gauss-Newton steps of a batch PPP graph by a sparse LDL' factorisation of its normal equations.
+
+A batch robust estimator (BCE, DCS, MM) re-solves the same graph structure 10-100
+times with new noise models. GTSAM's sequential Cholesky redoes its symbolic work
+and allocates every conditional at each solve: 0.29 s per step on an hour of 1 Hz
+urban data (53k unknowns, 127k whitened rows), most of a BCE iteration. Here GTSAM
+still linearises (native factors, robust weights applied) and hands over its
+whitened sparse Jacobian ``[A | b]``; the normal equations ``A'A dx = A'b`` are
+factored by qdldl (the OSQP team's sparse LDL', AMD ordering). Its symbolic
+analysis (ordering, elimination tree, fill pattern) is done once and reused while
+the sparsity pattern holds, so a re-weighted step refactors numerically only: 0.03 s
+on the same hour, 0.2 s for the whole step against 0.45 s.
+
+Conditioning: the clock is in seconds and enters with Jacobian ``c`` (1.2e10 per
+second once whitened by a phase sigma, against 1-100 for the rest), which squared
+in ``A'A`` defeats a plain Cholesky (see :mod:`estimators.ppp_graph`). Every column
+of ``A`` is scaled to unit norm first (Jacobi scaling), which removes that spread;
+the step agrees with GTSAM's sequential Cholesky to 1e-6 m on the hour above.
+
+Where the factorisation fails (an indeterminate system) or its step does not lower
+the linearised error, the step is redone with GTSAM's sequential Cholesky in the
+caller's ordering, then with multifrontal QR.
+"""
+
+from __future__ import annotations
+
+import gtsam
+import numpy as np
+import qdldl
+import scipy.sparse as sp
+
+__all__ = ["GaussNewton"]
+
+
+class GaussNewton:
+    """Gauss-Newton steps of one graph structure, sharing the symbolic factorisation between steps.
+
+    Parameters
+    ----------
+    ordering : gtsam.Ordering
+        Elimination ordering of the GTSAM fall-back (:meth:`PppGraph.elimination_ordering`).
+
+    Notes
+    -----
+    One instance serves the steps of one estimator run: the factors may change their
+    noise models (and measurement offsets) between steps, not the keys they touch.
+    A step whose sparsity pattern differs from the analysed one is analysed afresh.
+    """
+
+    def __init__(self, ordering: gtsam.Ordering) -> None:
+        self.ordering = ordering  #: elimination ordering of the GTSAM fall-back
+        self._keys: list[int] = []
+        self._offsets = np.zeros(1, np.int64)
+        self._solver: qdldl.Solver | None = None
+        self._pattern: tuple[np.ndarray, np.ndarray] | None = None
+        #: steps that fell back to GTSAM (an indeterminate system or a rising error)
+        self.fallbacks = 0
+
+    def step(self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> tuple[gtsam.Values, float]:
+        """One Gauss-Newton step of ``graph`` from ``values``: the exact re-solve of a PPP graph.
+
+        The model is linear in everything but the position, and the range's curvature
+        over a step of ``d`` metres is ``d^2 / (2 * 2e7 m)`` (a few micrometres for 10 m),
+        so one linearisation from a nearby warm start reaches the least-squares solution
+        to numerical precision. Whether the step raises the error is the caller's test
+        (this one only checks that the linear solve lowered the linearised error).
+
+        Parameters
+        ----------
+        graph : gtsam.NonlinearFactorGraph
+        values : gtsam.Values
+            Linearisation point (every key of ``graph``).
+
+        Returns
+        -------
+        values : gtsam.Values
+            The stepped values.
+        error : float
+            ``graph.error`` at the stepped values (dimensionless, GTSAM's
+            ``0.5 * sum of squared whitened residuals``).
+        """
+        linear = graph.linearize(values)
+        delta = self._sparse_delta(linear, values)
+        if delta is not None:
+            stepped = values.retract(delta)
+            return stepped, graph.error(stepped)
+        self.fallbacks += 1
+        before = graph.error(values)
+        try:
+            stepped = values.retract(linear.eliminateSequential(self.ordering).optimize())
+            after = graph.error(stepped)
+            if after <= before * (1.0 + 1e-9):
+                return stepped, after
+        except RuntimeError:  # gtsam's IndeterminantLinearSystemException
+            pass
+        stepped = values.retract(linear.eliminateMultifrontal(self.ordering, gtsam.EliminateQR).optimize())
+        return stepped, graph.error(stepped)
+
+    def solve(
+        self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, *, relative_tol: float, max_iterations: int
+    ) -> gtsam.Values | None:
+        """Gauss-Newton steps from ``values`` until the relative error decrease is below ``relative_tol``.
+
+        Returns the solution, or None where a step raised the error (a start too far for an
+        undamped step: the caller damps, e.g. by Levenberg-Marquardt).
+        """
+        err = graph.error(values)
+        for _ in range(max_iterations):
+            stepped, stepped_err = self.step(graph, values)
+            if stepped_err > err * (1.0 + 1e-9):
+                return None
+            converged = err - stepped_err <= relative_tol * err
+            values, err = stepped, stepped_err
+            if converged:
+                break
+        return values
+
+    def _sparse_delta(self, linear: gtsam.GaussianFactorGraph, values: gtsam.Values) -> gtsam.VectorValues | None:
+        """The Gauss-Newton increment by qdldl, None where the factorisation fails."""
+        # columns: the graph's keys in ascending order, each key's dimensions together; the
+        # augmented column b last (GaussianFactorGraph::sparseJacobian, 1-based indices)
+        ijv = linear.sparseJacobian_()
+        rows = ijv[0].astype(np.int64) - 1
+        cols = ijv[1].astype(np.int64) - 1
+        n = int(cols.max())
+        if n != self._offsets[-1]:
+            self._layout(linear, values)
+            if n != self._offsets[-1]:
+                return None
+        rhs = cols == n
+        b = np.bincount(rows[rhs], weights=ijv[2][rhs], minlength=int(rows.max()) + 1)
+        a = sp.csc_matrix((ijv[2][~rhs], (rows[~rhs], cols[~rhs])), shape=(len(b), n))
+        scale = 1.0 / np.sqrt(np.asarray(a.multiply(a).sum(axis=0)).ravel())
+        if not np.all(np.isfinite(scale)):  # a key no factor constrains
+            return None
+        a = a @ sp.diags(scale)
+        normal = sp.triu(a.T @ a, format="csc")
+        normal.sort_indices()
+        try:
+            if self._pattern is not None and _same_pattern(normal, self._pattern):
+                assert self._solver is not None
+                self._solver.update(normal, upper=True)
+            else:
+                self._solver = qdldl.Solver(normal, upper=True)
+                self._pattern = (normal.indptr.copy(), normal.indices.copy())
+            gradient = a.T @ b
+            y = self._solver.solve(gradient)
+            # one step of iterative refinement: A'A squares the condition number, and without it a
+            # step from the solution itself raised the error by 1e-9 (relative)
+            y += self._solver.solve(gradient - a.T @ (a @ y))
+            # the linearised error 0.5 |A dx - b|^2 must fall below its value at dx = 0 unless the
+            # factorisation lost its precision (the nonlinear graph adds micrometre curvature only)
+            if np.sum((a @ y - b) ** 2) > np.dot(b, b) * (1.0 + 1e-9):
+                return None
+            dx = scale * y
+            if not np.all(np.isfinite(dx)):
+                return None
+        except RuntimeError:  # qdldl: a zero pivot (an indeterminate system)
+            self._pattern = None
+            return None
+        delta = gtsam.VectorValues()
+        for key, lo, hi in zip(self._keys, self._offsets[:-1].tolist(), self._offsets[1:].tolist(), strict=True):
+            delta.insert(key, dx[lo:hi])
+        return delta
+
+    def _layout(self, linear: gtsam.GaussianFactorGraph, values: gtsam.Values) -> None:
+        self._keys = sorted(linear.keys())
+        zero = values.zeroVectors()
+        dims = [zero.at(key).shape[0] for key in self._keys]
+        self._offsets = np.r_[0, np.cumsum(dims)].astype(np.int64)
+        self._pattern = None
+
+
+def _same_pattern(matrix: sp.csc_matrix, pattern: tuple[np.ndarray, np.ndarray]) -> bool:
+    indptr, indices = pattern
+    return np.array_equal(matrix.indptr, indptr) and np.array_equal(matrix.indices, indices)
