@@ -82,6 +82,7 @@ from estimators.batch_robust import BatchConfig, BatchGraphEstimator, stop_reaso
 from estimators.clustering import Mixture, code_marginal_labels, fit_dpgmm, select_features
 from estimators.measurement import PppObservations
 from estimators.ppp_graph import PppGraph
+from estimators.whitened_rows import WhitenedRows
 from simbench.contract import ReceiverData
 from simbench.errors import SimbenchError, require_at_least
 
@@ -177,16 +178,21 @@ class _IterativeCovariance(BatchGraphEstimator):
     def _run(self, data, obs, g: PppGraph, structure):
         cfg: BceConfig = self.config
         values, steps = self._l2(g, structure)
+        rows = WhitenedRows(g, structure, steps, values)
         self._start(data, obs, np.random.default_rng(cfg.seed))
         prev_err = None
         stop = "max_iterations"
         history: list[dict[str, Any]] = []
         for it in range(cfg.max_iterations):
-            r_c, r_p = g.residuals(values)
-            noise, record = self._noise(data, obs, np.c_[r_c, r_p], it)
-            graph = gtsam.NonlinearFactorGraph(structure)
-            graph.push_back(g.measurement_factors(**noise))
-            values, err = steps.step(graph, values)
+            noise, record = self._noise(data, obs, np.c_[rows.residuals], it)
+            stepped = rows.step(noise)
+            if stepped is None:  # the sparse factorisation failed: the rebuilt graph, GTSAM's elimination
+                graph = gtsam.NonlinearFactorGraph(structure)
+                graph.push_back(g.measurement_factors(**noise))
+                stepped = steps.step(graph, values)[0]
+            values = stepped
+            rows.linearize(values)
+            err = rows.error(noise)
             history.append({"iteration": it + 1, "error": err, **record})
             if prev_err is not None:
                 reason = stop_reason(prev_err, err, cfg.rel_tol, on_increase=cfg.stop_on_increase)

@@ -117,10 +117,21 @@ class GaussNewton:
 
     def _sparse_delta(self, linear: gtsam.GaussianFactorGraph, values: gtsam.Values) -> gtsam.VectorValues | None:
         """The Gauss-Newton increment by qdldl, None where the factorisation fails."""
-        # columns: the graph's keys in ascending order, each key's dimensions together; the
-        # augmented column b last (GaussianFactorGraph::sparseJacobian, 1-based indices)
+        system = self.jacobian(linear, values)
+        dx = None if system is None else self.increment(*system)
+        return None if dx is None else self.vector_values(dx)
+
+    def jacobian(
+        self, linear: gtsam.GaussianFactorGraph, values: gtsam.Values
+    ) -> tuple[sp.csr_matrix, np.ndarray] | None:
+        """Whitened Jacobian ``A`` and right-hand side ``b`` of a linearised graph.
+
+        Rows follow the graph's factors in order (each factor's whitened rows together);
+        columns the graph's keys in ascending order, each key's dimensions together
+        (GaussianFactorGraph::sparseJacobian). None when the keys do not match ``values``.
+        """
         ijv = linear.sparseJacobian_()
-        rows = ijv[0].astype(np.int64) - 1
+        rows = ijv[0].astype(np.int64) - 1  # 1-based, the augmented column b last
         cols = ijv[1].astype(np.int64) - 1
         n = int(cols.max())
         if n != self._offsets[-1]:
@@ -129,11 +140,14 @@ class GaussNewton:
                 return None
         rhs = cols == n
         b = np.bincount(rows[rhs], weights=ijv[2][rhs], minlength=int(rows.max()) + 1)
-        a = sp.csc_matrix((ijv[2][~rhs], (rows[~rhs], cols[~rhs])), shape=(len(b), n))
+        return sp.csr_matrix((ijv[2][~rhs], (rows[~rhs], cols[~rhs])), shape=(len(b), n)), b
+
+    def increment(self, a: sp.spmatrix, b: np.ndarray) -> np.ndarray | None:
+        """``argmin |A dx - b|`` by qdldl (columns as :meth:`jacobian`'s), None where the factorisation fails."""
         scale = 1.0 / np.sqrt(np.asarray(a.multiply(a).sum(axis=0)).ravel())
         if not np.all(np.isfinite(scale)):  # a key no factor constrains
             return None
-        a = a @ sp.diags(scale)
+        a = sp.csc_matrix(a @ sp.diags(scale))
         normal = sp.triu(a.T @ a, format="csc")
         normal.sort_indices()
         try:
@@ -148,19 +162,22 @@ class GaussNewton:
             # one step of iterative refinement: A'A squares the condition number, and without it a
             # step from the solution itself raised the error by 1e-9 (relative)
             y += self._solver.solve(gradient - a.T @ (a @ y))
-            # the linearised error 0.5 |A dx - b|^2 must fall below its value at dx = 0 unless the
-            # factorisation lost its precision (the nonlinear graph adds micrometre curvature only)
-            if np.sum((a @ y - b) ** 2) > np.dot(b, b) * (1.0 + 1e-9):
-                return None
-            dx = scale * y
-            if not np.all(np.isfinite(dx)):
-                return None
         except RuntimeError:  # qdldl: a zero pivot (an indeterminate system)
             self._pattern = None
             return None
+        # the linearised error 0.5 |A dx - b|^2 must fall below its value at dx = 0 unless the
+        # factorisation lost its precision (the nonlinear graph adds micrometre curvature only)
+        if not np.sum((a @ y - b) ** 2) <= np.dot(b, b) * (1.0 + 1e-9):
+            return None
+        dx = scale * y
+        return dx if np.all(np.isfinite(dx)) else None
+
+    def vector_values(self, dx: np.ndarray) -> gtsam.VectorValues:
+        """``dx`` (columns as :meth:`jacobian`'s) as GTSAM's per-key increment."""
         delta = gtsam.VectorValues()
-        for key, lo, hi in zip(self._keys, self._offsets[:-1].tolist(), self._offsets[1:].tolist(), strict=True):
-            delta.insert(key, dx[lo:hi])
+        insert = delta.insert
+        for key, block in zip(self._keys, np.split(dx, self._offsets[1:-1]), strict=True):
+            insert(key, block)
         return delta
 
     def _layout(self, linear: gtsam.GaussianFactorGraph, values: gtsam.Values) -> None:

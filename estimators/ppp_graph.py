@@ -136,6 +136,7 @@ __all__ = [
     "drift_key",
     "MotionModel",
     "clock_key",
+    "conditional_split",
     "insert_double",
     "iono_key",
     "pos_key",
@@ -658,23 +659,7 @@ class PppGraph:
         sat = obs.sat_pos[idx]
         mw = self.wet_mapping[idx].tolist()
 
-        # code marginal + phase conditional (rho_p) or phase marginal + code conditional (rho_c)
-        rho_c = np.zeros(m)  # code | phase
-        rho_p = np.zeros(m)  # phase | code
-        if code_phase_cov is not None:
-            cov = np.broadcast_to(np.asarray(code_phase_cov, float), (m,))
-            a, b = sc**2, sp**2
-            code_first = np.abs(cov / a) <= np.abs(cov / b)
-            both = uc & up
-            rho_p = np.where(both & code_first, cov / a, 0.0)
-            rho_c = np.where(both & ~code_first, cov / b, 0.0)
-            # rho -> 1 (code and phase errors equal, e.g. an NLOS delay on both) makes the
-            # conditional's geometry coefficient 1 - rho vanish: clip rho to 1 -/+ _RHO_GAP,
-            # i.e. shrink the covariance towards zero there (keeps it positive definite)
-            rho_p = _clip_rho(rho_p)
-            rho_c = _clip_rho(rho_c)
-            sp = np.where(rho_p != 0, np.sqrt(np.maximum(b - rho_p**2 * a, 1e-12)), sp)
-            sc = np.where(rho_c != 0, np.sqrt(np.maximum(a - rho_c**2 * b, 1e-12)), sc)
+        sc, rho_c, sp, rho_p = conditional_split(sc, sp, code_phase_cov, uc & up)
 
         # rows of one cluster share their sigma: one noise model per distinct value, and plain
         # Python lists in the loop (numpy scalar access per argument dominates the build time)
@@ -898,6 +883,50 @@ def _linear(factor: gtsam.GaussianFactor, at: dict[int, Any]) -> gtsam.LinearCon
         else:
             values.insert(key, value)
     return gtsam.LinearContainerFactor(factor, values)
+
+
+def conditional_split(
+    code_sigma: np.ndarray, phase_sigma: np.ndarray, code_phase_cov: np.ndarray | None, both: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Each row's (code, phase) covariance as a marginal and a conditional (see :meth:`PppGraph.measurement_factors`).
+
+    Parameters
+    ----------
+    code_sigma, phase_sigma : ndarray, shape (n,)
+        Standard deviations [m].
+    code_phase_cov : ndarray, shape (n,), optional
+        Code-phase covariance [m^2]; None: uncorrelated.
+    both : bool ndarray, shape (n,)
+        Rows with a code and a phase factor (the others keep their sigmas).
+
+    Returns
+    -------
+    code_sigma, rho_c, phase_sigma, rho_p : ndarray, shape (n,)
+        The code factor is ``(code - rho_c phase)`` with ``code_sigma`` (conditional where
+        ``rho_c != 0``), the phase factor ``(phase - rho_p code)`` with ``phase_sigma``; at most
+        one of ``rho_c``, ``rho_p`` is non-zero per row.
+    """
+    n = len(both)
+    sc = np.broadcast_to(np.asarray(code_sigma, float), (n,))
+    sp = np.broadcast_to(np.asarray(phase_sigma, float), (n,))
+    rho_c = np.zeros(n)  # code | phase
+    rho_p = np.zeros(n)  # phase | code
+    if code_phase_cov is None:
+        return sc, rho_c, sp, rho_p
+    # code marginal + phase conditional (rho_p) or phase marginal + code conditional (rho_c)
+    cov = np.broadcast_to(np.asarray(code_phase_cov, float), (n,))
+    a, b = sc**2, sp**2
+    code_first = np.abs(cov / a) <= np.abs(cov / b)
+    rho_p = np.where(both & code_first, cov / a, 0.0)
+    rho_c = np.where(both & ~code_first, cov / b, 0.0)
+    # rho -> 1 (code and phase errors equal, e.g. an NLOS delay on both) makes the
+    # conditional's geometry coefficient 1 - rho vanish: clip rho to 1 -/+ _RHO_GAP,
+    # i.e. shrink the covariance towards zero there (keeps it positive definite)
+    rho_p = _clip_rho(rho_p)
+    rho_c = _clip_rho(rho_c)
+    sp = np.where(rho_p != 0, np.sqrt(np.maximum(b - rho_p**2 * a, 1e-12)), sp)
+    sc = np.where(rho_c != 0, np.sqrt(np.maximum(a - rho_c**2 * b, 1e-12)), sc)
+    return sc, rho_c, sp, rho_p
 
 
 #: Smallest |1 - rho| of a conditional code/phase factor (see measurement_factors).

@@ -1,0 +1,107 @@
+"""Re-weighting a batch PPP graph on its linearised rows instead of rebuilding its factors.
+
+BCE gives every satellite-epoch a new 2x2 (code, phase) covariance and a new mean at
+every iteration. Rebuilding the 2 x n_obs native factors for that (Python loop,
+0.11 s per iteration on an hour of 1 Hz urban data), evaluating the graph's error
+twice and the residuals once more cost more than the factorisation itself. Here the
+graph is built once with *unit* measurement noise: GTSAM still linearises every
+native factor at every iteration (Jacobians and residuals exactly as the factors
+define them), and the iteration's noise model is applied to the linearised rows in
+numpy: each observation's (code, phase) row pair is whitened by its covariance and
+shifted by its mean. The normal equations, the error and the step are those of the
+graph that :meth:`PppGraph.measurement_factors` builds from the same arguments,
+including its exact factorisation of the pair into a marginal and a conditional and
+the clipping of ``rho`` near 1 (``tests/test_batch_estimators.py`` compares errors
+and steps).
+"""
+
+from __future__ import annotations
+
+import gtsam
+import numpy as np
+import scipy.sparse as sp
+
+from estimators.gauss_newton import GaussNewton
+from estimators.ppp_graph import PppGraph, conditional_split
+
+__all__ = ["WhitenedRows"]
+
+
+class WhitenedRows:
+    """The batch graph with unit measurement noise, linearised at one point at a time.
+
+    Parameters
+    ----------
+    g : PppGraph
+    structure : gtsam.NonlinearFactorGraph
+        Priors and motion factors (:meth:`PppGraph.structure_factors`).
+    steps : GaussNewton
+        Solver of the normal equations (its symbolic factorisation is reused).
+    values : gtsam.Values
+        First linearisation point.
+    """
+
+    def __init__(
+        self, g: PppGraph, structure: gtsam.NonlinearFactorGraph, steps: GaussNewton, values: gtsam.Values
+    ) -> None:
+        n = g.obs.n_obs
+        self._graph = gtsam.NonlinearFactorGraph(structure)
+        self._graph.push_back(g.measurement_factors(code_sigma=np.ones(n), phase_sigma=np.ones(n)))
+        self._has_phase = g.has_phase.copy()
+        self._n_structure = None
+        self._steps = steps
+        self.linearize(values)
+
+    def linearize(self, values: gtsam.Values) -> None:
+        """Linearise at ``values`` (the point of :attr:`residuals`, :meth:`error` and :meth:`step`)."""
+        system = self._steps.jacobian(self._graph.linearize(values), values)
+        if system is None:
+            raise RuntimeError("the unit-noise graph's keys differ from the values'")
+        a, b = system
+        n, phase = len(self._has_phase), np.flatnonzero(self._has_phase)
+        ns = a.shape[0] - n - len(phase)
+        self._values = values
+        self._struct_a, self._struct_b = a[:ns], b[:ns]
+        self._code_a, self._code_b = a[ns : ns + n], b[ns : ns + n]
+        # phase rows expanded to one per observation (empty rows where a row has no phase)
+        expand = sp.csr_matrix((np.ones(len(phase)), (phase, np.arange(len(phase)))), shape=(n, len(phase)))
+        self._phase_a = sp.csr_matrix(expand @ a[ns + n :])
+        self._phase_b = np.full(n, np.nan)
+        self._phase_b[phase] = b[ns + n :]
+
+    @property
+    def residuals(self) -> tuple[np.ndarray, np.ndarray]:
+        """Code and phase residuals ``measured - predicted`` per row [m] at the linearisation point (NaN: no phase)."""
+        return self._code_b, self._phase_b
+
+    def _whitened(self, noise: dict[str, np.ndarray]) -> tuple[sp.csr_matrix, np.ndarray]:
+        """Measurement rows and right-hand side whitened by ``noise`` (:meth:`PppGraph.measurement_factors`'s
+        per-row arguments)."""
+        n = len(self._has_phase)
+        zeros = np.zeros(n)
+        code_sigma, rho_c, phase_sigma, rho_p = conditional_split(
+            noise["code_sigma"], noise["phase_sigma"], noise.get("code_phase_cov"), self._has_phase
+        )
+        bc = self._code_b - noise.get("code_offset", zeros)
+        bp = np.where(self._has_phase, self._phase_b - noise.get("phase_offset", zeros), 0.0)
+        # code row (code - rho_c phase) / sigma_c|p, phase row (phase - rho_p code) / sigma_p|c
+        wc, wp = 1.0 / code_sigma, 1.0 / phase_sigma
+        code = sp.diags(wc) @ self._code_a - sp.diags(wc * rho_c) @ self._phase_a
+        phase = sp.diags(wp) @ self._phase_a - sp.diags(wp * rho_p) @ self._code_a
+        keep = np.flatnonzero(self._has_phase)
+        a = sp.vstack([code, phase[keep]], format="csr")
+        b = np.r_[wc * (bc - rho_c * bp), (wp * (bp - rho_p * bc))[keep]]
+        return a, b
+
+    def error(self, noise: dict[str, np.ndarray]) -> float:
+        """GTSAM's error of the graph with ``noise`` at the linearisation point (``0.5 * sum`` of squared
+        whitened residuals, dimensionless)."""
+        _, b = self._whitened(noise)
+        return 0.5 * float(np.dot(b, b) + np.dot(self._struct_b, self._struct_b))
+
+    def step(self, noise: dict[str, np.ndarray]) -> gtsam.Values | None:
+        """One Gauss-Newton step of the graph with ``noise`` from the linearisation point; None where the
+        factorisation fails (the caller then builds the graph and steps it with GTSAM)."""
+        a, b = self._whitened(noise)
+        dx = self._steps.increment(sp.vstack([self._struct_a, a], format="csr"), np.r_[self._struct_b, b])
+        return None if dx is None else self._values.retract(self._steps.vector_values(dx))
