@@ -24,7 +24,9 @@ noise models:
   each iteration every code and every phase measurement takes its most likely
   component given the current residual (eq. 3.20), then the graph is re-solved by
   one Gauss-Newton step from the previous solution (exact: the graph is Gaussian
-  and linear but for the range's micrometre curvature), until the relative change
+  and linear but for the range's micrometre curvature) on its linearised rows
+  (:class:`~estimators.whitened_rows.WhitenedRows`: the outlier rows' sigmas change, no
+  factor is rebuilt), until the relative change
   of the total error is below ``rel_tol`` or the assignment no longer changes or
   ``max_iterations`` is reached.
 
@@ -52,6 +54,7 @@ from estimators.gauss_newton import GaussNewton
 from estimators.measurement import PppObservations, prepare_ppp
 from estimators.ppp_config import GnssModelConfig
 from estimators.ppp_graph import PppGraph, PppGraphConfig, solve
+from estimators.whitened_rows import WhitenedRows
 from simbench.contract import ReceiverData
 from simbench.errors import SimbenchError, require_at_least, require_positive
 
@@ -329,30 +332,22 @@ class MmBatch(BatchGraphEstimator):
     def _run(self, data, obs, g, structure):
         cfg: MmConfig = self.config
         values, steps = self._l2(g, structure)
+        rows = WhitenedRows(g, structure, steps, values)
         sc, sp = self._a_priori_sigmas(obs)
         inflate = np.sqrt(cfg.outlier_scale)
-        graph: gtsam.NonlinearFactorGraph | None = None
-        prev_out_c = prev_out_p = None
+        prev_out: tuple[np.ndarray, np.ndarray] | None = None
         prev_err = None
         history = []
         for it in range(cfg.max_iterations):
-            r_c, r_p = g.residuals(values)
+            r_c, r_p = rows.residuals
             out_c = max_mixture_outliers(r_c / sc, cfg.outlier_scale, cfg.outlier_weight)
             out_p = max_mixture_outliers(r_p / sp, cfg.outlier_scale, cfg.outlier_weight)
-            code_sigma, phase_sigma = np.where(out_c, sc * inflate, sc), np.where(out_p, sp * inflate, sp)
-            if graph is None:
-                graph = gtsam.NonlinearFactorGraph(structure)
-                graph.push_back(g.measurement_factors(code_sigma=code_sigma, phase_sigma=phase_sigma))
-                slots = _measurement_slots(g, structure.size())
-            else:
-                changed_c, changed_p = out_c != prev_out_c, out_p != prev_out_p
-                if not (changed_c.any() or changed_p.any()):
-                    break
-                # only the rows that switched component get a new factor (the others are unchanged)
-                _replace(graph, slots[0], g, changed_c, code_sigma, phase_sigma, code=True)
-                _replace(graph, slots[1], g, changed_p, code_sigma, phase_sigma, code=False)
-            prev_out_c, prev_out_p = out_c, out_p
-            values, err = steps.step(graph, values)
+            if prev_out is not None and np.array_equal(out_c, prev_out[0]) and np.array_equal(out_p, prev_out[1]):
+                break
+            prev_out = out_c, out_p
+            noise = {"code_sigma": np.where(out_c, sc * inflate, sc), "phase_sigma": np.where(out_p, sp * inflate, sp)}
+            rows.step(noise)
+            err = rows.error(noise)
             history.append(
                 {
                     "iteration": it + 1,
@@ -364,39 +359,4 @@ class MmBatch(BatchGraphEstimator):
             if prev_err is not None and stop_reason(prev_err, err, cfg.rel_tol, on_increase=False):
                 break
             prev_err = err
-        return values, {"iterations": len(history), "history": history}
-
-
-def _measurement_slots(g: PppGraph, start: int) -> tuple[np.ndarray, np.ndarray]:
-    """Factor index of each row's code and phase factor in a graph whose measurement factors
-    (:meth:`PppGraph.measurement_factors` of all rows) follow ``start`` other factors; -1 where a
-    row has no phase factor."""
-    n = g.obs.n_obs
-    phase = np.where(g.has_phase, start + n + np.cumsum(g.has_phase) - 1, -1)
-    return start + np.arange(n), phase
-
-
-def _replace(
-    graph: gtsam.NonlinearFactorGraph,
-    slots: np.ndarray,
-    g: PppGraph,
-    rows: np.ndarray,
-    code_sigma: np.ndarray,
-    phase_sigma: np.ndarray,
-    *,
-    code: bool,
-) -> None:
-    """Replace the code (``code``) or phase factors of the ``rows`` (bool mask) with ones of the given sigmas."""
-    rows = rows & (slots >= 0)
-    if not rows.any():
-        return
-    idx = np.flatnonzero(rows)
-    new = g.measurement_factors(
-        idx,
-        code_sigma=code_sigma[idx],
-        phase_sigma=phase_sigma[idx],
-        use_code=np.full(len(idx), code),
-        use_phase=np.full(len(idx), not code),
-    )
-    for position, slot in enumerate(slots[idx].tolist()):
-        graph.replace(slot, new.at(position))
+        return rows.values, {"iterations": len(history), "history": history}

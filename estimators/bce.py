@@ -72,7 +72,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-import gtsam
 import numpy as np
 import pandas as pd
 from sklearn.mixture import BayesianGaussianMixture
@@ -185,13 +184,7 @@ class _IterativeCovariance(BatchGraphEstimator):
         history: list[dict[str, Any]] = []
         for it in range(cfg.max_iterations):
             noise, record = self._noise(data, obs, np.c_[rows.residuals], it)
-            stepped = rows.step(noise)
-            if stepped is None:  # the sparse factorisation failed: the rebuilt graph, GTSAM's elimination
-                graph = gtsam.NonlinearFactorGraph(structure)
-                graph.push_back(g.measurement_factors(**noise))
-                stepped = steps.step(graph, values)[0]
-            values = stepped
-            rows.linearize(values)
+            rows.step(noise)
             err = rows.error(noise)
             history.append({"iteration": it + 1, "error": err, **record})
             if prev_err is not None:
@@ -200,7 +193,7 @@ class _IterativeCovariance(BatchGraphEstimator):
                     stop = reason
                     break
             prev_err = err
-        return values, {"iterations": len(history), "stop_reason": stop, "history": history}
+        return rows.values, {"iterations": len(history), "stop_reason": stop, "history": history}
 
 
 def _component_noise(mix_means: np.ndarray, mix_cov: np.ndarray, labels: np.ndarray) -> dict[str, np.ndarray]:
