@@ -8,8 +8,9 @@ noise models:
   Gauss-Newton steps (:meth:`~estimators.gauss_newton.GaussNewton.solve`;
   Levenberg-Marquardt where an undamped step would raise the error).
 * ``dcs``: the same wrapped in GTSAM's dynamic covariance scaling m-estimator
-  (kernel width ``kernel_width``, phi in the DCS papers, whitened units). GTSAM re-weights at every
-  linearisation, so each Gauss-Newton step
+  (kernel width ``kernel_width``, phi in the DCS papers, whitened units), applied as GTSAM
+  applies it when it linearises a robust factor, on the linearised rows
+  (:class:`~estimators.whitened_rows.DcsKernel`), so each Gauss-Newton step
   (:class:`~estimators.gauss_newton.GaussNewton`) is one iteration of
   iteratively re-weighted least squares; the steps go on until the relative
   error decrease is below ``rel_tol`` or ``max_iterations`` is reached
@@ -54,7 +55,7 @@ from estimators.gauss_newton import GaussNewton
 from estimators.measurement import PppObservations, prepare_ppp
 from estimators.ppp_config import GnssModelConfig
 from estimators.ppp_graph import PppGraph, PppGraphConfig, solve
-from estimators.whitened_rows import WhitenedRows
+from estimators.whitened_rows import DcsKernel, WhitenedRows
 from simbench.contract import ReceiverData
 from simbench.errors import SimbenchError, require_at_least, require_positive
 
@@ -234,32 +235,31 @@ class DcsBatch(BatchGraphEstimator):
     def _run(self, data, obs, g, structure):
         cfg: DcsConfig = self.config
         values, steps = self._l2(g, structure)
+        rows = WhitenedRows(g, structure, steps, values)
         sc, sp = self._a_priori_sigmas(obs)
-        graph = gtsam.NonlinearFactorGraph(structure)
-        graph.push_back(
-            g.measurement_factors(
-                code_sigma=sc, phase_sigma=sp, robust=gtsam.noiseModel.mEstimator.DCS.Create(cfg.kernel_width)
-            )
-        )
-        err = graph.error(values)
+        noise, kernel = {"code_sigma": sc, "phase_sigma": sp}, DcsKernel(cfg.kernel_width)
+        err = rows.error(noise, kernel)
         stop, iterations = "max_iterations", 0
         positions = g.positions(values)
         history = []
         for iterations in range(1, cfg.max_iterations + 1):
-            stepped, stepped_err = steps.step(graph, values)
+            stepped = rows.step(noise, kernel)
+            stepped_err = rows.error(noise, kernel)
             reason = stop_reason(err, stepped_err, cfg.rel_tol, on_increase=True)
             step = 0.0
             if reason != "error increased":  # a rise is rejected, as Levenberg-Marquardt would
                 values, err = stepped, stepped_err
                 moved = g.positions(values)
                 step, positions = float(np.linalg.norm(moved - positions, axis=1).max()), moved
+            else:
+                rows.linearize(values)
             # a run that stops at max_iterations while its steps still move epochs by decimetres has not
             # converged: IRLS under a non-convex kernel can wander as rows are switched off one by one
             history.append({"iteration": iterations, "error": float(err), "max_position_step_m": step})
             if reason is not None:
                 stop = reason
                 break
-        r_c, r_p = g.residuals(values)
+        r_c, r_p = rows.residuals
         return values, {
             "iterations": iterations,
             "stop_reason": stop,

@@ -1,18 +1,19 @@
 """Re-weighting a batch PPP graph on its linearised rows instead of rebuilding its factors.
 
-Used by BCE / BCE-AD and batch max-mixtures. BCE gives every satellite-epoch a new 2x2 (code, phase) covariance and a new mean at
-every iteration. Rebuilding the 2 x n_obs native factors for that (Python loop,
-0.11 s per iteration on an hour of 1 Hz urban data), evaluating the graph's error
-twice and the residuals once more cost more than the factorisation itself. Here the
-graph is built once with *unit* measurement noise: GTSAM still linearises every
-native factor at every iteration (Jacobians and residuals exactly as the factors
-define them), and the iteration's noise model is applied to the linearised rows in
-numpy: each observation's (code, phase) row pair is whitened by its covariance and
-shifted by its mean. The normal equations, the error and the step are those of the
-graph that :meth:`PppGraph.measurement_factors` builds from the same arguments,
-including its exact factorisation of the pair into a marginal and a conditional and
-the clipping of ``rho`` near 1 (``tests/test_batch_estimators.py`` compares errors
-and steps).
+Used by BCE / BCE-AD, DCS and batch max-mixtures. BCE gives every satellite-epoch
+a new 2x2 (code, phase) covariance and a new mean at every iteration. Rebuilding
+the 2 x n_obs native factors for that (Python loop, 0.11 s per iteration on an hour
+of 1 Hz urban data), evaluating the graph's error twice and the residuals once more
+cost more than the factorisation itself. Here the graph is built once with *unit*
+measurement noise: GTSAM still linearises every native factor at every iteration
+(Jacobians and residuals exactly as the factors define them), and the iteration's
+noise model is applied to the linearised rows in numpy: each observation's (code,
+phase) row pair is whitened by its covariance and shifted by its mean, and a robust
+kernel (:class:`DcsKernel`) scales each row as GTSAM's robust linearisation does.
+The normal equations, the error and the step are those of the graph that
+:meth:`PppGraph.measurement_factors` builds from the same arguments, including its
+exact factorisation of the pair into a marginal and a conditional and the clipping
+of ``rho`` near 1 (``tests/test_batch_estimators.py`` compares errors and steps).
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ import scipy.sparse as sp
 from estimators.gauss_newton import GaussNewton
 from estimators.ppp_graph import PppGraph, conditional_split
 
-__all__ = ["WhitenedRows"]
+__all__ = ["DcsKernel", "WhitenedRows"]
 
 
 class WhitenedRows:
@@ -100,26 +101,63 @@ class WhitenedRows:
         """The linearisation point."""
         return self._values
 
-    def error(self, noise: dict[str, Any]) -> float:
-        """GTSAM's error of the graph with ``noise`` at the linearisation point (``0.5 * sum`` of squared
-        whitened residuals, dimensionless)."""
+    def error(self, noise: dict[str, Any], kernel: DcsKernel | None = None) -> float:
+        """GTSAM's error of the graph with ``noise`` (and ``kernel`` on every measurement factor) at the
+        linearisation point (``0.5 * sum`` of squared whitened residuals, or the kernel's loss of them;
+        dimensionless)."""
         _, b = self._whitened(noise)
-        return 0.5 * float(np.dot(b, b) + np.dot(self._struct_b, self._struct_b))
+        measurement = 0.5 * np.dot(b, b) if kernel is None else np.sum(kernel.loss(np.abs(b)))
+        return float(measurement + 0.5 * np.dot(self._struct_b, self._struct_b))
 
-    def step(self, noise: dict[str, Any]) -> gtsam.Values:
-        """One Gauss-Newton step of the graph with ``noise`` from the linearisation point, which then moves
-        to the stepped values (returned).
+    def step(self, noise: dict[str, Any], kernel: DcsKernel | None = None) -> gtsam.Values:
+        """One Gauss-Newton step of the graph with ``noise`` (and ``kernel``) from the linearisation point,
+        which then moves to the stepped values (returned).
 
-        Where the sparse factorisation fails, the graph is built with ``noise`` and stepped by
-        GTSAM's elimination (:meth:`GaussNewton.step`).
+        With a kernel the step is GTSAM's robust linearisation: each measurement row and its
+        residual scaled by the square root of the kernel's weight (one IRLS iteration). Where the
+        sparse factorisation fails, the graph is built with ``noise`` and stepped by GTSAM's
+        elimination (:meth:`GaussNewton.step`).
         """
         a, b = self._whitened(noise)
+        if kernel is not None:
+            root = np.sqrt(kernel.weight(np.abs(b)))
+            a, b = sp.csr_matrix(sp.diags(root) @ a), root * b
         dx = self._steps.increment(sp.vstack([self._struct_a, a], format="csr"), np.r_[self._struct_b, b])
         if dx is not None:
             stepped = self._values.retract(self._steps.vector_values(dx))
         else:
             graph = gtsam.NonlinearFactorGraph(self._structure)
-            graph.push_back(self._g.measurement_factors(**noise))
+            robust = None if kernel is None else kernel.model
+            graph.push_back(self._g.measurement_factors(**noise, robust=robust))
             stepped = self._steps.step(graph, self._values)[0]
         self.linearize(stepped)
         return stepped
+
+
+class DcsKernel:
+    """GTSAM's dynamic covariance scaling m-estimator, vectorised over rows.
+
+    ``weight(d) = (2 c / (c + d^2))^2`` and ``loss(d) = c (3 d^2 - c) / (2 (c + d^2))`` where
+    ``d^2 > c``, else 1 and ``d^2 / 2`` (``gtsam.noiseModel.mEstimator.DCS``; ``c`` the kernel
+    width, phi in the DCS papers; ``d`` a whitened residual). The test compares both with GTSAM's.
+
+    Parameters
+    ----------
+    width : float
+        Kernel width ``c`` [whitened units, squared].
+    """
+
+    def __init__(self, width: float) -> None:
+        self.width = float(width)
+        #: the same kernel as a GTSAM noise-model wrapper (for graphs GTSAM evaluates)
+        self.model = gtsam.noiseModel.mEstimator.DCS.Create(self.width)
+
+    def weight(self, d: np.ndarray) -> np.ndarray:
+        """IRLS weight of whitened residuals ``d``."""
+        c, d2 = self.width, np.square(d)
+        return np.where(d2 > c, np.square(2.0 * c / (c + d2)), 1.0)
+
+    def loss(self, d: np.ndarray) -> np.ndarray:
+        """Loss of whitened residuals ``d`` (GTSAM's factor error)."""
+        c, d2 = self.width, np.square(d)
+        return np.where(d2 > c, c * (3.0 * d2 - c) / (2.0 * (c + d2)), 0.5 * d2)

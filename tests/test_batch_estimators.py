@@ -23,7 +23,7 @@ from estimators.measurement import prepare_ppp
 from estimators.oracle import Oracle
 from estimators.ppp_config import IonosphereMode, VarianceComponents
 from estimators.ppp_graph import PppGraph, PppGraphConfig, solve
-from estimators.whitened_rows import WhitenedRows
+from estimators.whitened_rows import DcsKernel, WhitenedRows
 from simbench.analysis.metrics import enu_errors
 from simbench.contract import Scenario
 from simbench.gnss.geometry import sagnac_range
@@ -170,6 +170,30 @@ def test_whitened_rows_are_the_reweighted_graph(solved) -> None:
     assert np.abs(g.positions(stepped) - g.positions(reference)).max() < 1e-6
     rows.linearize(stepped)
     assert rows.error(noise) == pytest.approx(reference_err, rel=1e-7)
+
+
+def test_dcs_on_whitened_rows_is_gtsams_robust_graph(solved) -> None:
+    g, _, values = solved
+    kernel = DcsKernel(2.5)
+    d = np.linspace(0.0, 50.0, 401)
+    assert np.abs(kernel.weight(d) - [kernel.model.weight(x) for x in d]).max() < 1e-12
+    assert np.abs(kernel.loss(d) - [kernel.model.loss(x) for x in d]).max() < 1e-12
+    noise = {
+        "code_sigma": g.obs.sigma_code * 0.3,
+        "phase_sigma": g.obs.sigma_phase * 0.3,
+    }  # some rows beyond the kernel
+    structure = g.structure_factors()
+    graph = gtsam.NonlinearFactorGraph(structure)
+    graph.push_back(g.measurement_factors(**noise, robust=kernel.model))
+    steps = GaussNewton(g.elimination_ordering(graph))
+    rows = WhitenedRows(g, structure, steps, values)
+    r_c, _ = rows.residuals
+    assert np.sum(np.abs(r_c / noise["code_sigma"]) ** 2 > 2.5) > 10
+    assert rows.error(noise, kernel) == pytest.approx(graph.error(values), rel=1e-9)
+    stepped = rows.step(noise, kernel)
+    reference, reference_err = steps.step(graph, values)
+    assert np.abs(g.positions(stepped) - g.positions(reference)).max() < 1e-6
+    assert rows.error(noise, kernel) == pytest.approx(reference_err, rel=1e-9)
 
 
 def test_incremental_pieces_rebuild_the_batch_graph(solved) -> None:
