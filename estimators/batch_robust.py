@@ -5,7 +5,7 @@ All three solve the whole data set at once on
 noise models:
 
 * ``l2``: the a-priori Gaussian model (elevation-weighted sigmas), solved by
-  Gauss-Newton steps (:meth:`~estimators.gauss_newton.GaussNewton.solve`;
+  Gauss-Newton steps (:meth:`~estimators.whitened_rows.WhitenedRows.solve`;
   Levenberg-Marquardt where an undamped step would raise the error).
 * ``dcs``: the same wrapped in GTSAM's dynamic covariance scaling m-estimator
   (kernel width ``kernel_width``, phi in the DCS papers, whitened units), applied as GTSAM
@@ -141,28 +141,31 @@ class BatchGraphEstimator(Estimator):
         graph.push_back(g.measurement_factors(code_sigma=sc, phase_sigma=sp))
         return graph
 
-    def _l2(self, g: PppGraph, structure: gtsam.NonlinearFactorGraph) -> tuple[gtsam.Values, GaussNewton]:
-        """The batch L2 solution and the Gauss-Newton stepper of the robust re-solves.
+    def _l2(self, g: PppGraph, structure: gtsam.NonlinearFactorGraph) -> WhitenedRows:
+        """The batch graph on its linearised rows, linearised at the batch L2 solution.
 
-        The a-priori graph is solved by Gauss-Newton steps (nearly linear: 2-3 steps from the
+        The a-priori model is solved by Gauss-Newton steps (nearly linear: 2-3 steps from the
         single point start), Levenberg-Marquardt taking over where an undamped step raises the
         error. Re-weighting changes noise models only, never which keys a factor touches, so
-        the robust re-solves share one elimination ordering and one symbolic factorisation.
+        the robust estimators' re-solves go on from here on the same rows and share one
+        symbolic factorisation.
         """
         cfg = self.config
-        graph = self._a_priori_graph(g, structure)
-        steps = GaussNewton(g.elimination_ordering(graph))
         initial = g.initial_values()
-        values = steps.solve(graph, initial, relative_tol=L2_RELATIVE_TOL, max_iterations=cfg.lm_max_iterations)
-        if values is None:
-            values = solve(
+        rows = WhitenedRows(g, structure, GaussNewton(g.elimination_ordering), initial)
+        sc, sp = self._a_priori_sigmas(g.obs)
+        noise = {"code_sigma": sc, "phase_sigma": sp}
+        if not rows.solve(noise, relative_tol=L2_RELATIVE_TOL, max_iterations=cfg.lm_max_iterations):
+            graph = self._a_priori_graph(g, structure)
+            lm = solve(
                 graph,
                 initial,
-                ordering=steps.ordering,
+                ordering=g.elimination_ordering(graph),
                 max_iterations=cfg.lm_max_iterations,
                 relative_tol=L2_RELATIVE_TOL,
             )
-        return values, steps
+            rows.linearize(lm)
+        return rows
 
     def _estimate(self, data: ReceiverData) -> tuple[pd.DataFrame, dict[str, Any]]:
         tic = time.perf_counter()
@@ -205,7 +208,7 @@ class L2Batch(BatchGraphEstimator):
     Config = L2Config
 
     def _run(self, data, obs, g, structure):
-        return self._l2(g, structure)[0], {"iterations": 1}
+        return self._l2(g, structure).values, {"iterations": 1}
 
 
 # --------------------------------------------------------------------------- DCS
@@ -234,8 +237,8 @@ class DcsBatch(BatchGraphEstimator):
 
     def _run(self, data, obs, g, structure):
         cfg: DcsConfig = self.config
-        values, steps = self._l2(g, structure)
-        rows = WhitenedRows(g, structure, steps, values)
+        rows = self._l2(g, structure)
+        values = rows.values
         sc, sp = self._a_priori_sigmas(obs)
         noise, kernel = {"code_sigma": sc, "phase_sigma": sp}, DcsKernel(cfg.kernel_width)
         err = rows.error(noise, kernel)
@@ -331,8 +334,7 @@ class MmBatch(BatchGraphEstimator):
 
     def _run(self, data, obs, g, structure):
         cfg: MmConfig = self.config
-        values, steps = self._l2(g, structure)
-        rows = WhitenedRows(g, structure, steps, values)
+        rows = self._l2(g, structure)
         sc, sp = self._a_priori_sigmas(obs)
         inflate = np.sqrt(cfg.outlier_scale)
         prev_out: tuple[np.ndarray, np.ndarray] | None = None

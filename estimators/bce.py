@@ -81,7 +81,6 @@ from estimators.batch_robust import BatchConfig, BatchGraphEstimator, stop_reaso
 from estimators.clustering import Mixture, code_marginal_labels, fit_dpgmm, select_features
 from estimators.measurement import PppObservations
 from estimators.ppp_graph import PppGraph
-from estimators.whitened_rows import WhitenedRows
 from simbench.contract import ReceiverData
 from simbench.errors import SimbenchError, require_at_least
 
@@ -176,8 +175,7 @@ class _IterativeCovariance(BatchGraphEstimator):
 
     def _run(self, data, obs, g: PppGraph, structure):
         cfg: BceConfig = self.config
-        values, steps = self._l2(g, structure)
-        rows = WhitenedRows(g, structure, steps, values)
+        rows = self._l2(g, structure)
         self._start(data, obs, np.random.default_rng(cfg.seed))
         prev_err = None
         stop = "max_iterations"

@@ -24,6 +24,8 @@ caller's ordering, then with multifrontal QR.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import gtsam
 import numpy as np
 import qdldl
@@ -37,8 +39,9 @@ class GaussNewton:
 
     Parameters
     ----------
-    ordering : gtsam.Ordering
-        Elimination ordering of the GTSAM fall-back (:meth:`PppGraph.elimination_ordering`).
+    ordering : callable
+        Elimination ordering of a graph for the GTSAM fall-back, e.g.
+        :meth:`PppGraph.elimination_ordering`; computed at the first fall-back only.
 
     Notes
     -----
@@ -47,8 +50,9 @@ class GaussNewton:
     A step whose sparsity pattern differs from the analysed one is analysed afresh.
     """
 
-    def __init__(self, ordering: gtsam.Ordering) -> None:
-        self.ordering = ordering  #: elimination ordering of the GTSAM fall-back
+    def __init__(self, ordering: Callable[[gtsam.NonlinearFactorGraph], gtsam.Ordering]) -> None:
+        self._ordering_of = ordering
+        self._ordering: gtsam.Ordering | None = None
         self._keys: list[int] = []
         self._offsets = np.zeros(1, np.int64)
         self._solver: qdldl.Solver | None = None
@@ -85,35 +89,18 @@ class GaussNewton:
             stepped = values.retract(delta)
             return stepped, graph.error(stepped)
         self.fallbacks += 1
+        if self._ordering is None:  # the structure never changes within a run: one ordering
+            self._ordering = self._ordering_of(graph)
         before = graph.error(values)
         try:
-            stepped = values.retract(linear.eliminateSequential(self.ordering).optimize())
+            stepped = values.retract(linear.eliminateSequential(self._ordering).optimize())
             after = graph.error(stepped)
             if after <= before * (1.0 + 1e-9):
                 return stepped, after
         except RuntimeError:  # gtsam's IndeterminantLinearSystemException
             pass
-        stepped = values.retract(linear.eliminateMultifrontal(self.ordering, gtsam.EliminateQR).optimize())
+        stepped = values.retract(linear.eliminateMultifrontal(self._ordering, gtsam.EliminateQR).optimize())
         return stepped, graph.error(stepped)
-
-    def solve(
-        self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, *, relative_tol: float, max_iterations: int
-    ) -> gtsam.Values | None:
-        """Gauss-Newton steps from ``values`` until the relative error decrease is below ``relative_tol``.
-
-        Returns the solution, or None where a step raised the error (a start too far for an
-        undamped step: the caller damps, e.g. by Levenberg-Marquardt).
-        """
-        err = graph.error(values)
-        for _ in range(max_iterations):
-            stepped, stepped_err = self.step(graph, values)
-            if stepped_err > err * (1.0 + 1e-9):
-                return None
-            converged = err - stepped_err <= relative_tol * err
-            values, err = stepped, stepped_err
-            if converged:
-                break
-        return values
 
     def _sparse_delta(self, linear: gtsam.GaussianFactorGraph, values: gtsam.Values) -> gtsam.VectorValues | None:
         """The Gauss-Newton increment by qdldl, None where the factorisation fails."""

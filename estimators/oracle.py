@@ -94,7 +94,7 @@ class Oracle(BatchGraphEstimator):
         return code * s, phase * s
 
     def _run(self, data, obs, g, structure):
-        values, _ = self._l2(g, structure)
+        values = self._l2(g, structure).values
         sc, sp = self._a_priori_sigmas(obs)
         return values, {
             "iterations": 1,

@@ -109,6 +109,25 @@ class WhitenedRows:
         measurement = 0.5 * np.dot(b, b) if kernel is None else np.sum(kernel.loss(np.abs(b)))
         return float(measurement + 0.5 * np.dot(self._struct_b, self._struct_b))
 
+    def solve(self, noise: dict[str, Any], *, relative_tol: float, max_iterations: int) -> bool:
+        """Gauss-Newton steps with ``noise`` until the relative error decrease is below ``relative_tol``.
+
+        Returns False, back at the start, where a step raised the error (a start too far for an
+        undamped step: the caller damps, e.g. by Levenberg-Marquardt).
+        """
+        start, err = self._values, self.error(noise)
+        for _ in range(max_iterations):
+            self.step(noise)
+            stepped_err = self.error(noise)
+            if stepped_err > err * (1.0 + 1e-9):
+                self.linearize(start)
+                return False
+            converged = err - stepped_err <= relative_tol * err
+            err = stepped_err
+            if converged:
+                break
+        return True
+
     def step(self, noise: dict[str, Any], kernel: DcsKernel | None = None) -> gtsam.Values:
         """One Gauss-Newton step of the graph with ``noise`` (and ``kernel``) from the linearisation point,
         which then moves to the stepped values (returned).
