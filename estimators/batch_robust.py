@@ -165,6 +165,7 @@ class BatchGraphEstimator(Estimator):
                 relative_tol=L2_RELATIVE_TOL,
             )
             rows.linearize(lm)
+        self._rows = rows
         return rows
 
     def _estimate(self, data: ReceiverData) -> tuple[pd.DataFrame, dict[str, Any]]:
@@ -180,6 +181,8 @@ class BatchGraphEstimator(Estimator):
             "n_epochs": int(obs.n_epochs),
             "n_observations": int(obs.n_obs),
             "n_arcs": int(obs.n_arcs),
+            # steps that GTSAM's elimination took over from the sparse LDL' (indeterminate systems)
+            "gauss_newton_fallbacks": self._rows.fallbacks,
             "inter_system_bias_m": isb,
             **diag,
             "config": asdict(self.config),

@@ -97,6 +97,11 @@ class WhitenedRows:
         return a, b
 
     @property
+    def fallbacks(self) -> int:
+        """Steps that GTSAM's elimination took over from the sparse factorisation."""
+        return self._steps.fallbacks
+
+    @property
     def values(self) -> gtsam.Values:
         """The linearisation point."""
         return self._values
