@@ -88,6 +88,16 @@ class GaussNewton:
         if delta is not None:
             stepped = values.retract(delta)
             return stepped, graph.error(stepped)
+        return self.eliminate(graph, values, linear)
+
+    def eliminate(
+        self, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, linear: gtsam.GaussianFactorGraph | None = None
+    ) -> tuple[gtsam.Values, float]:
+        """The fall-back step by GTSAM's elimination: sequential Cholesky, then QR where it fails
+        or raises the error (``linear``: ``graph`` linearised at ``values``, if already done).
+        Returns like :meth:`step` and counts in :attr:`fallbacks`."""
+        if linear is None:
+            linear = graph.linearize(values)
         self.fallbacks += 1
         if self._ordering is None:  # the structure never changes within a run: one ordering
             self._ordering = self._ordering_of(graph)

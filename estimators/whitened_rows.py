@@ -51,6 +51,9 @@ class WhitenedRows:
         self._graph = gtsam.NonlinearFactorGraph(structure)
         self._graph.push_back(g.measurement_factors(code_sigma=np.ones(n), phase_sigma=np.ones(n)))
         self._has_phase = g.has_phase.copy()
+        self._phase_rows = phase = np.flatnonzero(self._has_phase)
+        # spreads the phase rows to one per observation (empty rows where a row has no phase)
+        self._expand = sp.csr_matrix((np.ones(len(phase)), (phase, np.arange(len(phase)))), shape=(n, len(phase)))
         self._g, self._structure = g, structure
         self._steps = steps
         self.linearize(values)
@@ -61,25 +64,23 @@ class WhitenedRows:
         if system is None:
             raise RuntimeError("the unit-noise graph's keys differ from the values'")
         a, b = system
-        n, phase = len(self._has_phase), np.flatnonzero(self._has_phase)
-        ns = a.shape[0] - n - len(phase)
+        n, n_phase = self._expand.shape
+        ns = a.shape[0] - n - n_phase
         self._values = values
         self._struct_a, self._struct_b = a[:ns], b[:ns]
         self._code_a, self._code_b = a[ns : ns + n], b[ns : ns + n]
-        # phase rows expanded to one per observation (empty rows where a row has no phase)
-        expand = sp.csr_matrix((np.ones(len(phase)), (phase, np.arange(len(phase)))), shape=(n, len(phase)))
-        self._phase_a = sp.csr_matrix(expand @ a[ns + n :])
+        self._phase_a = sp.csr_matrix(self._expand @ a[ns + n :])
         self._phase_b = np.full(n, np.nan)
-        self._phase_b[phase] = b[ns + n :]
+        self._phase_b[self._phase_rows] = b[ns + n :]
 
     @property
     def residuals(self) -> tuple[np.ndarray, np.ndarray]:
         """Code and phase residuals ``measured - predicted`` per row [m] at the linearisation point (NaN: no phase)."""
         return self._code_b, self._phase_b
 
-    def _whitened(self, noise: dict[str, Any]) -> tuple[sp.csr_matrix, np.ndarray]:
-        """Measurement rows and right-hand side whitened by ``noise`` (:meth:`PppGraph.measurement_factors`'s
-        per-row arguments)."""
+    def _whitened(self, noise: dict[str, Any], *, rows: bool = True) -> tuple[sp.csr_matrix | None, np.ndarray]:
+        """Measurement rows (None unless ``rows``) and right-hand side whitened by ``noise``
+        (:meth:`PppGraph.measurement_factors`'s per-row arguments)."""
         n = len(self._has_phase)
         zeros = np.zeros(n)
         code_sigma, rho_c, phase_sigma, rho_p = conditional_split(
@@ -89,12 +90,13 @@ class WhitenedRows:
         bp = np.where(self._has_phase, self._phase_b - noise.get("phase_offset", zeros), 0.0)
         # code row (code - rho_c phase) / sigma_c|p, phase row (phase - rho_p code) / sigma_p|c
         wc, wp = 1.0 / code_sigma, 1.0 / phase_sigma
+        keep = self._phase_rows
+        b = np.r_[wc * (bc - rho_c * bp), (wp * (bp - rho_p * bc))[keep]]
+        if not rows:  # the error needs the residuals only
+            return None, b
         code = sp.diags(wc) @ self._code_a - sp.diags(wc * rho_c) @ self._phase_a
         phase = sp.diags(wp) @ self._phase_a - sp.diags(wp * rho_p) @ self._code_a
-        keep = np.flatnonzero(self._has_phase)
-        a = sp.vstack([code, phase[keep]], format="csr")
-        b = np.r_[wc * (bc - rho_c * bp), (wp * (bp - rho_p * bc))[keep]]
-        return a, b
+        return sp.vstack([code, phase[keep]], format="csr"), b
 
     @property
     def fallbacks(self) -> int:
@@ -110,7 +112,7 @@ class WhitenedRows:
         """GTSAM's error of the graph with ``noise`` (and ``kernel`` on every measurement factor) at the
         linearisation point (``0.5 * sum`` of squared whitened residuals, or the kernel's loss of them;
         dimensionless)."""
-        _, b = self._whitened(noise)
+        _, b = self._whitened(noise, rows=False)
         measurement = 0.5 * np.dot(b, b) if kernel is None else np.sum(kernel.loss(np.abs(b)))
         return float(measurement + 0.5 * np.dot(self._struct_b, self._struct_b))
 
@@ -140,9 +142,10 @@ class WhitenedRows:
         With a kernel the step is GTSAM's robust linearisation: each measurement row and its
         residual scaled by the square root of the kernel's weight (one IRLS iteration). Where the
         sparse factorisation fails, the graph is built with ``noise`` and stepped by GTSAM's
-        elimination (:meth:`GaussNewton.step`).
+        elimination (:meth:`GaussNewton.eliminate`).
         """
         a, b = self._whitened(noise)
+        assert a is not None
         if kernel is not None:
             root = np.sqrt(kernel.weight(np.abs(b)))
             a, b = sp.csr_matrix(sp.diags(root) @ a), root * b
@@ -153,7 +156,7 @@ class WhitenedRows:
             graph = gtsam.NonlinearFactorGraph(self._structure)
             robust = None if kernel is None else kernel.model
             graph.push_back(self._g.measurement_factors(**noise, robust=robust))
-            stepped = self._steps.step(graph, self._values)[0]
+            stepped = self._steps.eliminate(graph, self._values)[0]
         self.linearize(stepped)
         return stepped
 
