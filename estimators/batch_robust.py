@@ -183,6 +183,8 @@ class BatchGraphEstimator(Estimator):
             "n_arcs": int(obs.n_arcs),
             # steps that GTSAM's elimination took over from the sparse LDL' (indeterminate systems)
             "gauss_newton_fallbacks": self._rows.fallbacks,
+            # GTSAM linearisations (between them, steps move the rows' residuals: WhitenedRows)
+            "linearizations": self._rows.linearizations,
             "inter_system_bias_m": isb,
             **diag,
             "config": asdict(self.config),
@@ -241,24 +243,24 @@ class DcsBatch(BatchGraphEstimator):
     def _run(self, data, obs, g, structure):
         cfg: DcsConfig = self.config
         rows = self._l2(g, structure)
-        values = rows.values
         sc, sp = self._a_priori_sigmas(obs)
         noise, kernel = {"code_sigma": sc, "phase_sigma": sp}, DcsKernel(cfg.kernel_width)
         err = rows.error(noise, kernel)
         stop, iterations = "max_iterations", 0
-        positions = g.positions(values)
+        positions = rows.positions()
         history = []
         for iterations in range(1, cfg.max_iterations + 1):
-            stepped = rows.step(noise, kernel)
+            accepted = rows.snapshot()
+            rows.step(noise, kernel)
             stepped_err = rows.error(noise, kernel)
             reason = stop_reason(err, stepped_err, cfg.rel_tol, on_increase=True)
             step = 0.0
             if reason != "error increased":  # a rise is rejected, as Levenberg-Marquardt would
-                values, err = stepped, stepped_err
-                moved = g.positions(values)
+                err = stepped_err
+                moved = rows.positions()
                 step, positions = float(np.linalg.norm(moved - positions, axis=1).max()), moved
             else:
-                rows.linearize(values)
+                rows.restore(accepted)
             # a run that stops at max_iterations while its steps still move epochs by decimetres has not
             # converged: IRLS under a non-convex kernel can wander as rows are switched off one by one
             history.append({"iteration": iterations, "error": float(err), "max_position_step_m": step})
@@ -266,7 +268,7 @@ class DcsBatch(BatchGraphEstimator):
                 stop = reason
                 break
         r_c, r_p = rows.residuals
-        return values, {
+        return rows.values, {
             "iterations": iterations,
             "stop_reason": stop,
             "history": history,

@@ -54,6 +54,7 @@ class GaussNewton:
         self._ordering_of = ordering
         self._ordering: gtsam.Ordering | None = None
         self._keys: list[int] = []
+        self._key_array = np.zeros(0, np.uint64)
         self._offsets = np.zeros(1, np.int64)
         self._solver: qdldl.Solver | None = None
         self._pattern: tuple[np.ndarray, np.ndarray] | None = None
@@ -169,6 +170,14 @@ class GaussNewton:
         dx = scale * y
         return dx if np.all(np.isfinite(dx)) else None
 
+    def columns(self, keys: list[int]) -> np.ndarray:
+        """First column of each of ``keys`` in :meth:`jacobian`'s layout (every key must be the graph's)."""
+        keys_array = np.asarray(keys, dtype=np.uint64)
+        index = np.searchsorted(self._key_array, keys_array)
+        if not np.array_equal(self._key_array[np.minimum(index, len(self._key_array) - 1)], keys_array):
+            raise KeyError("a key that the linearised graph does not have")
+        return self._offsets[index]
+
     def vector_values(self, dx: np.ndarray) -> gtsam.VectorValues:
         """``dx`` (columns as :meth:`jacobian`'s) as GTSAM's per-key increment."""
         delta = gtsam.VectorValues()
@@ -179,6 +188,7 @@ class GaussNewton:
 
     def _layout(self, linear: gtsam.GaussianFactorGraph, values: gtsam.Values) -> None:
         self._keys = sorted(linear.keys())
+        self._key_array = np.array(self._keys, dtype=np.uint64)
         zero = values.zeroVectors()
         dims = [zero.at(key).shape[0] for key in self._keys]
         self._offsets = np.r_[0, np.cumsum(dims)].astype(np.int64)

@@ -8,6 +8,7 @@ import pytest
 from conftest import dissertation
 
 import simbench
+from estimators import whitened_rows
 from estimators.batch_robust import (
     DcsBatch,
     DcsConfig,
@@ -170,11 +171,36 @@ def test_whitened_rows_are_the_reweighted_graph(solved) -> None:
     assert np.abs(r_c - ref_c).max() < 1e-3 and np.abs(r_p - ref_p).max() < 1e-3  # ISB vs system clock: < 1 mm
     # the same error up to rounding of 2e7 m ranges (4e-9 m) whitened by millimetre sigmas
     assert rows.error(noise) == pytest.approx(graph.error(values), rel=1e-7)
-    stepped = rows.step(noise)
+    rows.step(noise)
     reference, reference_err = steps.step(graph, values)
-    assert np.abs(g.positions(stepped) - g.positions(reference)).max() < 1e-6
-    rows.linearize(stepped)
+    assert np.abs(rows.positions() - g.positions(reference)).max() < 1e-6
+    assert np.abs(g.positions(rows.values) - g.positions(reference)).max() < 1e-6
     assert rows.error(noise) == pytest.approx(reference_err, rel=1e-7)
+
+
+def test_whitened_rows_follow_a_step_without_gtsam(solved, monkeypatch) -> None:
+    """Residuals moved along the rows (``b - A dx``) equal GTSAM's linearisation at the stepped point."""
+    g, _, values = solved
+    monkeypatch.setattr(whitened_rows, "RELINEARIZE_M", np.inf)
+    noise = {"code_sigma": g.obs.sigma_code * 0.5, "phase_sigma": g.obs.sigma_phase * 2.0}
+    structure = g.structure_factors()
+    steps = GaussNewton(g.elimination_ordering)
+    # from the single point start: a step of metres, where the ranges' geometry is felt
+    rows = WhitenedRows(g, structure, steps, g.initial_values())
+    start = rows.snapshot()
+    rows.step(noise)
+    moved = np.linalg.norm(rows.positions() - g.positions(g.initial_values()), axis=1).max()
+    assert moved > 1.0
+    exact = WhitenedRows(g, structure, GaussNewton(g.elimination_ordering), rows.values)
+    for chord, fresh in zip(rows.residuals, exact.residuals, strict=True):
+        finite = np.isfinite(fresh)
+        assert np.array_equal(finite, np.isfinite(chord))
+        # curvature d^2 / 2R and line-of-sight change d / R times the step: micrometres per metre^2
+        assert np.abs(chord[finite] - fresh[finite]).max() < 1e-5 * moved**2
+    assert rows.error(noise) == pytest.approx(exact.error(noise), rel=1e-6)
+    rows.restore(start)
+    assert np.array_equal(rows.positions(), g.positions(g.initial_values()))
+    assert rows.error(noise) == WhitenedRows(g, structure, steps, g.initial_values()).error(noise)
 
 
 def test_dcs_on_whitened_rows_is_gtsams_robust_graph(solved) -> None:
@@ -195,10 +221,11 @@ def test_dcs_on_whitened_rows_is_gtsams_robust_graph(solved) -> None:
     r_c, _ = rows.residuals
     assert np.sum(np.abs(r_c / noise["code_sigma"]) ** 2 > 2.5) > 10
     assert rows.error(noise, kernel) == pytest.approx(graph.error(values), rel=1e-9)
-    stepped = rows.step(noise, kernel)
+    rows.step(noise, kernel)
     reference, reference_err = steps.step(graph, values)
-    assert np.abs(g.positions(stepped) - g.positions(reference)).max() < 1e-6
-    assert rows.error(noise, kernel) == pytest.approx(reference_err, rel=1e-9)
+    assert np.abs(rows.positions() - g.positions(reference)).max() < 1e-6
+    # the stepped error along the rows (the ranges' geometry frozen over the step: micrometres)
+    assert rows.error(noise, kernel) == pytest.approx(reference_err, rel=1e-7)
 
 
 def test_incremental_pieces_rebuild_the_batch_graph(solved) -> None:
