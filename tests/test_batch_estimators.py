@@ -294,6 +294,21 @@ def _with_injected_nlos(scen: Scenario, fraction: float, seed: int) -> Scenario:
     return Scenario(obs, scen.imu, scen.truth, lab, scen.nav, scen.meta)
 
 
+def test_batch_l2_falls_back_to_levenberg_marquardt(open_sky: Scenario, monkeypatch) -> None:
+    """Where an undamped Gauss-Newton step would raise the error, L2 is Levenberg-Marquardt's solution:
+    the same fix, and the robust estimators go on from its linearisation."""
+    data = open_sky.receiver_view()
+    undamped = L2Batch().estimate(data)
+    # no scenario here sends the undamped steps uphill: refuse them as a start too far would
+    monkeypatch.setattr(WhitenedRows, "solve", lambda self, noise, **_: False)
+    damped = L2Batch().estimate(data)
+    assert undamped.diagnostics["linearizations"] >= 2 and damped.diagnostics["linearizations"] == 2
+    difference = damped.epochs[["x", "y", "z"]].to_numpy() - undamped.epochs[["x", "y", "z"]].to_numpy()
+    assert np.linalg.norm(difference, axis=1).max() < 1e-3  # LM stops at a relative error change of 1e-6
+    dcs = DcsBatch().estimate(data)
+    assert dcs.diagnostics["iterations"] >= 1 and np.isfinite(dcs.epochs[["x", "y", "z"]].to_numpy()).all()
+
+
 def test_robust_estimators_beat_l2_and_the_oracle_is_best() -> None:
     # the high receiver: the low one's 4.092 MHz sample grid leaves metres of slowly varying code
     # error on a strong signal (oracle 7.4 m over these 90 s), which is not what this test is about

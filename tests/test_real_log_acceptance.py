@@ -14,9 +14,10 @@ One test per log, each on the shipped defaults (``python -m simbench scenario=<l
 The real GNSS logs are Hong Kong (``hk_tst_2019``) and Nagoya (``nagoya_static``); the WVU
 drives are simulated worlds on real trajectories, and the ``librsf`` preset points at a test
 fixture, not a log. "The best robust" is the better of the batch DCS and MM, the best on the
-tuning data; ``bce`` is left out (200 s on the Hong Kong log, median 4.2 m there against MM's
-2.7 m), as are the incremental ones (the issue's table has all of them). A promise the defaults do not keep
-is ``xfail(strict=True)`` with the measured numbers, so it stays visible and flips when it holds.
+tuning data; ``bce`` is left out (Hong Kong: median 2.94 m, p95 15.5 m, against DCS's 2.39 / 4.70 m
+and MM's 2.99 / 5.10 m), as are the incremental ones (the issue's table has all of them). A
+promise the defaults do not keep is ``xfail(strict=True)`` with the measured numbers, so it
+stays visible and flips when it holds.
 """
 
 from __future__ import annotations
