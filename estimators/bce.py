@@ -3,9 +3,10 @@
 BCE iterates
 
 1. solve the PPP graph (:mod:`estimators.ppp_graph`); the first solve is batch L2
-   (Levenberg-Marquardt from the single point solution, a-priori model scaled by
-   ``prior_scale``), every re-solve one Gauss-Newton step from the previous solution
-   (:class:`~estimators.gauss_newton.GaussNewton`: the graph is linear but for the
+   (Gauss-Newton steps from the single point solution, Levenberg-Marquardt where a step
+   would raise the error; a-priori model scaled by ``prior_scale``), every re-solve one
+   Gauss-Newton step from the previous solution on the linearised rows
+   (:class:`~estimators.whitened_rows.WhitenedRows`: the graph is linear but for the
    range's micrometre-level curvature, so one step is the least-squares solution),
 2. form the 2-D residual ``(code, phase)`` of every satellite-epoch,
 3. fit a variational Dirichlet-process GMM to the raw residuals

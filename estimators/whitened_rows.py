@@ -89,6 +89,9 @@ class WhitenedRows:
         #: linearisations by GTSAM so far (the first, then one per RELINEARIZE_M of travel or fall-back)
         self.linearizations = 0
         self.linearize(values)
+        # the columns of every epoch's position in the rows' layout (fixed for the run)
+        epochs = range(g.obs.n_epochs)
+        self._position_index = self._steps.columns([pos_key(k) for k in epochs])[:, None] + np.arange(3)
 
     def linearize(self, values: gtsam.Values) -> None:
         """Linearise at ``values`` by GTSAM (the point of :attr:`residuals`, :meth:`error` and :meth:`step`)."""
@@ -102,7 +105,6 @@ class WhitenedRows:
         self._base = values
         self._values: gtsam.Values | None = values
         self._base_positions = self._g.positions(values)
-        self._position_columns = self._steps.columns([pos_key(k) for k in range(len(self._base_positions))])
         self._dx = np.zeros(a.shape[1])
         self._struct_a, self._struct_b = a[:ns], b[:ns]
         self._code_a, self._code_b = a[ns : ns + n], b[ns : ns + n]
@@ -135,7 +137,7 @@ class WhitenedRows:
 
     def positions(self) -> np.ndarray:
         """Position of every solved epoch at the current point, shape (n_epochs, 3) [m]."""
-        return self._base_positions + self._dx[self._position_columns[:, None] + np.arange(3)]
+        return self._base_positions + self._dx[self._position_index]
 
     def _whitened(self, noise: dict[str, Any], *, rows: bool = True) -> tuple[sp.csr_matrix | None, np.ndarray]:
         """Measurement rows (None unless ``rows``) and right-hand side whitened by ``noise``
@@ -219,7 +221,7 @@ class WhitenedRows:
             return
         self._dx = self._dx + dx
         self._values = None
-        if np.abs(self._dx[self._position_columns[:, None] + np.arange(3)]).max(initial=0.0) > RELINEARIZE_M:
+        if np.abs(self._dx[self._position_index]).max(initial=0.0) > RELINEARIZE_M:
             self.linearize(self.values)
             return
         self._struct_b = self._struct_b - self._struct_a @ dx
