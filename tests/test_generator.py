@@ -219,5 +219,5 @@ def test_canyon_rays_where_wanted_are_those_of_the_whole_grid() -> None:
     some = canyon_rays(*args, np.random.default_rng(9), where=wanted)
     for field in ("blocked", "amplitude", "delay_m", "phase_rad"):
         full, part = getattr(every, field), getattr(some, field)
-        assert full[wanted].tobytes() == part[wanted].tobytes(), field
-    assert some.blocked[~wanted].all() and not some.amplitude[~wanted].any() and not some.delay_m[~wanted].any()
+        assert part.shape[0] == wanted.sum(), field
+        assert full[wanted].tobytes() == part.tobytes(), field

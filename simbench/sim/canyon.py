@@ -71,16 +71,19 @@ _MATERIALS: dict[FacadeMaterial, tuple[float, float, float]] = {
 
 @dataclass(frozen=True)
 class CanyonRays:
-    """Per (epoch, satellite) rays of the canyon model; ray arrays have shape (n, m, N_RAYS)."""
+    """Per (epoch, satellite) rays of the canyon model; ray arrays have shape (..., N_RAYS).
 
-    blocked: np.ndarray  #: (n, m) direct ray below the near roof (received, if at all, NLOS)
+    ``...`` is (n, m) for the whole grid, or (k,) for a list of (epoch, satellite) cells.
+    """
+
+    blocked: np.ndarray  #: (...) direct ray below the near roof (received, if at all, NLOS)
     amplitude: np.ndarray  #: field amplitude relative to an unobstructed direct ray [-]; 0 = absent
     delay_m: np.ndarray  #: extra path length relative to the direct geometric path [m]
     phase_rad: np.ndarray  #: carrier phase relative to the direct geometric path [rad]
 
     @property
     def reference(self) -> np.ndarray:
-        """(n, m) index of the ray a tracking loop locks to: the direct one if visible, else the strongest."""
+        """(...) index of the ray a tracking loop locks to: the direct one if visible, else the strongest."""
         return np.where(self.blocked, np.argmax(self.amplitude, axis=-1), 0)
 
 
@@ -164,13 +167,15 @@ def canyon_rays(
         Epoch interval [s], for the persistence of reflections.
     rng : numpy.random.Generator
     where : ndarray of bool, shape (n, m), optional
-        The (epoch, satellite) pairs whose rays are wanted (by default all). Elsewhere
-        nothing arrives: blocked, amplitude and delay 0. The random processes are drawn
-        for every pair either way, so the rays where wanted do not depend on ``where``.
+        The (epoch, satellite) pairs whose rays are wanted (by default all). The random
+        processes are drawn for every pair either way, so the rays where wanted do not
+        depend on ``where``.
 
     Returns
     -------
     CanyonRays
+        Of shape (n, m) without ``where``; else of the wanted pairs, (k,) in the order of
+        ``np.nonzero(where)`` (epoch-major).
     """
     n, m = el_rad.shape
     # the rays of one pair depend on its own inputs only: the arithmetic runs on the wanted pairs, a
@@ -203,7 +208,9 @@ def canyon_rays(
 
     # A reflection persists for a while: threshold a slow unit Gauss-Markov process so that the
     # long-run fraction of facades offering a specular point is the configured one.
-    gate = gauss_markov(n, m, 1.0, REFLECTION_TAU_S, dt_s, rng)[ei, si] < norm.ppf(cfg.reflection_probability)
+    gate = gauss_markov(n, m, 1.0, REFLECTION_TAU_S, dt_s, rng, _columns(si, m))[ei, si] < norm.ppf(
+        cfg.reflection_probability
+    )
     single = gate & (h_far > 0.0) & (blocked | ((k * d_far < h_far) & (k * (2.0 * d_far + d_near) > h_near)))
     double = (
         gate
@@ -225,14 +232,21 @@ def canyon_rays(
     facade = np.maximum(d_far + _relief_m(travelled_m, m, cfg, rng, ei, si), 0.5 * d_far)  # never behind the antenna
     horizontal = 2.0 * cos_inc
     beyond = np.where(blocked, _reflector_beyond_m(n, m, cfg, dt_s, rng, ei, si), 0.0)
-    amplitude = np.zeros((n, m, N_RAYS))
-    delay = np.zeros((n, m, N_RAYS))
-    amplitude[ei, si] = np.stack([a_direct, np.where(single, a_single, 0.0), np.where(double, a_double, 0.0)], axis=-1)
-    delay[ei, si] = np.stack([d_direct, horizontal * (facade + beyond), horizontal * (facade + d_near)], axis=-1)
-    phase = -2.0 * np.pi / LAMBDA_L1 * delay + np.pi * np.arange(N_RAYS)
-    blocked_all = np.ones((n, m), bool)
-    blocked_all[ei, si] = blocked
-    return CanyonRays(blocked=blocked_all, amplitude=amplitude, delay_m=delay, phase_rad=phase)
+    amplitude = np.stack([a_direct, np.where(single, a_single, 0.0), np.where(double, a_double, 0.0)], axis=-1)
+    delay = np.stack([d_direct, horizontal * (facade + beyond), horizontal * (facade + d_near)], axis=-1)
+    phase = -2.0 * np.pi / LAMBDA_L1 * delay + np.pi * np.arange(N_RAYS)  # each bounce turns the carrier by pi
+    shape = (n, m) if where is None else (len(ei),)
+    return CanyonRays(
+        blocked=blocked.reshape(shape),
+        amplitude=amplitude.reshape(shape + (N_RAYS,)),
+        delay_m=delay.reshape(shape + (N_RAYS,)),
+        phase_rad=phase.reshape(shape + (N_RAYS,)),
+    )
+
+
+def _columns(si: np.ndarray, m: int) -> np.ndarray:
+    """The satellites among ``si``, ascending: the only columns of an (n, m) process the canyon reads."""
+    return np.flatnonzero(np.bincount(si, minlength=m))
 
 
 def _reflector_beyond_m(
@@ -247,7 +261,7 @@ def _reflector_beyond_m(
     low, high = cfg.reflector_beyond_m
     if high <= 0.0:
         return np.zeros(len(ei))
-    return low + (high - low) * norm.cdf(gauss_markov(n, m, 1.0, REFLECTION_TAU_S, dt_s, rng)[ei, si])
+    return low + (high - low) * norm.cdf(gauss_markov(n, m, 1.0, REFLECTION_TAU_S, dt_s, rng, _columns(si, m))[ei, si])
 
 
 def _relief_m(
@@ -261,7 +275,7 @@ def _relief_m(
     step = cfg.facade_relief_length_m / 8.0
     span = float(travelled_m[-1] - travelled_m[0]) if len(travelled_m) else 0.0
     n_grid = int(span / step) + 2
-    grid = gauss_markov(n_grid, m, cfg.facade_relief_sigma_m, cfg.facade_relief_length_m, step, rng)
+    grid = gauss_markov(n_grid, m, cfg.facade_relief_sigma_m, cfg.facade_relief_length_m, step, rng, _columns(si, m))
     u = (travelled_m - (travelled_m[0] if len(travelled_m) else 0.0)) / step
     i = np.minimum(u.astype(np.intp), n_grid - 2)
     frac = (u - i)[ei]

@@ -115,6 +115,7 @@ class SimState:
     observations: dict[str, np.ndarray] = field(default_factory=dict)
     truth: dict[str, np.ndarray] = field(default_factory=dict)
     shared: dict[str, np.ndarray] = field(default_factory=dict)
+    _sky_cells: tuple[np.ndarray, np.ndarray] | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
         self.in_view = self.above.copy()
@@ -176,6 +177,30 @@ class SimState:
     def signal_code_l2_m(self) -> np.ndarray:
         """L2 pseudorange of the signal as it reaches the antenna [m]."""
         return self.delay_m + IONO_L2_SCALE * self.iono_l1_m
+
+    @property
+    def sky_cells(self) -> tuple[np.ndarray, np.ndarray]:
+        """Epoch and satellite indices of the (epoch, satellite) cells above the elevation mask, epoch-major.
+
+        Deterministic per-cell physics (atmosphere, antenna gain) runs on these only: a ground
+        receiver sees about a quarter of the constellation, and no later stage reads a cell
+        below the mask (it is never in view, so never tracked).
+        """
+        if self._sky_cells is None:
+            ei, si = np.nonzero(self.above)
+            self._sky_cells = (ei, si)
+        return self._sky_cells
+
+    @property
+    def sky_satellites(self) -> np.ndarray:
+        """Columns (satellites) with a cell above the elevation mask: the only ones any observation comes from."""
+        return np.flatnonzero(self.above.any(axis=0))
+
+    def on_sky(self, values: np.ndarray) -> np.ndarray:
+        """An (n, m) grid holding ``values`` at :attr:`sky_cells`, 0 (False) below the mask."""
+        grid = np.zeros(self.shape, np.asarray(values).dtype)
+        grid[self.above] = values
+        return grid
 
     def stream(self, name: str) -> np.random.Generator:
         """The scenario seed's random stream ``name``."""

@@ -146,7 +146,7 @@ def _lock(state: SimState) -> Lock:
     )
     # Kaplan's PLL rule of thumb 3 sigma_j + theta_e <= 45 deg, in its 1-sigma form
     traj = state.traj
-    jerk = np.einsum("nk,nmk->nm", np.gradient(traj.acc, traj.t, axis=0)[state.idx], state.los.los_unit)
+    jerk = np.einsum("nk,nmk->nm", _rate_at(traj.acc, traj.t, state.idx), state.los.los_unit)
     pll_stress_rad = pll_rad + np.radians(tracking.pll_dynamic_stress_deg(jerk, rx.pll_bw_hz)) / 3.0
     carrier_locked = tracked & (pll_stress_rad <= np.radians(rx.carrier_lock_threshold_deg))
     return Lock(
@@ -156,6 +156,15 @@ def _lock(state: SimState) -> Lock:
         pll_jitter_rad=pll_rad,
         pll_stress_rad=pll_stress_rad,
     )
+
+
+def _rate_at(x: np.ndarray, t: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """Time derivative of samples ``x`` (k, 3) at samples ``idx``: central differences, one-sided at the ends.
+
+    ``np.gradient`` at the GNSS epochs only (a tenth of the IMU samples), for a uniform grid.
+    """
+    before, after = np.maximum(idx - 1, 0), np.minimum(idx + 1, len(t) - 1)
+    return (x[after] - x[before]) / (t[after] - t[before])[:, None]
 
 
 def _observation_tables(state: SimState) -> tuple[pd.DataFrame, pd.DataFrame]:

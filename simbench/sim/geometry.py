@@ -27,7 +27,7 @@ _TAU_GUESS_S = 0.075
 #: Transmit-time iterations; the error shrinks by ~|range rate|/c ~ 3e-6 per step.
 _N_ITER = 3
 #: Epochs per block in :func:`line_of_sight` (cache-sized temporaries).
-_CHUNK_EPOCHS = 512
+_CHUNK_EPOCHS = 1024
 
 
 @dataclass(frozen=True)

@@ -20,7 +20,6 @@ import numpy as np
 import pandas as pd
 
 from simbench.contract import ODOMETRY_COLUMNS
-from simbench.core.frames import dcm_body_to_ecef
 from simbench.errors import SimbenchError
 from simbench.sim.config import OdometryConfig
 from simbench.sim.trajectory import Trajectory
@@ -95,7 +94,7 @@ def simulate_odometry(traj: Trajectory, cfg: OdometryConfig, rng: np.random.Gene
     idx = idx[traj.valid[idx]]
 
     # body x axis in ECEF = first column of C_b^e
-    x_axis = dcm_body_to_ecef(traj.pos[idx], traj.att[idx])[:, :, 0]
+    x_axis = traj.c_b_e[idx, :, 0]
     v_x = np.einsum("ki,ki->k", x_axis, traj.vel[idx])
     w_z = traj.omega_eb_b[idx, 2]
 

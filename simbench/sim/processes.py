@@ -28,7 +28,13 @@ def stream(seed: int, name: str) -> np.random.Generator:
 
 
 def gauss_markov(
-    n_steps: int, n_channels: int, sigma: float | np.ndarray, tau_s: float, dt_s: float, rng: np.random.Generator
+    n_steps: int,
+    n_channels: int,
+    sigma: float | np.ndarray,
+    tau_s: float,
+    dt_s: float,
+    rng: np.random.Generator,
+    channels: np.ndarray | None = None,
 ) -> np.ndarray:
     """Stationary first-order Gauss-Markov processes, exact discretisation.
 
@@ -48,6 +54,10 @@ def gauss_markov(
     dt_s : float
         Sample interval [s].
     rng : numpy.random.Generator
+    channels : ndarray of int, optional
+        The only channels the caller reads; the others are left 0. Their random numbers are
+        drawn all the same, so the wanted channels, and every later draw from ``rng``, do not
+        depend on it.
 
     Returns
     -------
@@ -55,9 +65,18 @@ def gauss_markov(
     """
     a = float(np.exp(-dt_s / tau_s))
     w = rng.standard_normal((n_steps, n_channels))
-    w[0] = w[0] / np.sqrt(1.0 - a * a)  # so that x[0] has unit variance after scaling below
-    unit = lfilter([np.sqrt(1.0 - a * a)], [1.0, -a], w, axis=0)
-    return unit * np.asarray(sigma)
+    sigma = np.asarray(sigma)
+    if channels is None:
+        return _unit_gauss_markov(w, a) * sigma
+    out = np.zeros((n_steps, n_channels))
+    out[:, channels] = _unit_gauss_markov(w[:, channels], a) * (sigma[channels] if sigma.ndim else sigma)
+    return out
+
+
+def _unit_gauss_markov(w: np.ndarray, a: float) -> np.ndarray:
+    """Unit-variance processes of pole ``a`` driven by the standard normal columns of ``w`` (modified in place)."""
+    w[0] = w[0] / np.sqrt(1.0 - a * a)  # so that x[0] has unit variance
+    return lfilter([np.sqrt(1.0 - a * a)], [1.0, -a], w, axis=0)
 
 
 def random_walk(

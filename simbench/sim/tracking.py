@@ -439,19 +439,35 @@ def sample_grid_code_error_chips(
         (np.asarray(code_rate_chips_per_s, dtype=float) + grid_drift) / q,
         -2.0 * math.pi**2 * (sigma_t / q) ** 2,
     )
+    # Harmonic k by recurrences on elementwise arrays, without a transcendental call per k:
+    # exp(k^2 d) = exp((k-1)^2 d) exp(d)^(2k-1); sinc(k u) = sinc(u) U_{k-1}(cos pi u) / k (Chebyshev
+    # polynomials of the second kind, stable for |cos| <= 1); Im(e^{2 pi j k x} / (1 + j k b)) =
+    # (sin - k b cos) / (1 + k^2 b^2) with b = pi r / (2 B).
     turn = np.exp(2j * math.pi * x)
     harmonic = np.ones_like(turn)
-    error = np.zeros(x.shape)
+    u = rate * integration_s
+    cos_u = np.cos(math.pi * u)
+    cheb_prev, cheb = np.zeros(x.shape), np.ones(x.shape)  # U_{k-2}, U_{k-1}
+    step = np.exp(dither)
+    step_sq = step * step
+    odd = step.copy()  # exp(d)^(2k-1)
+    damping = np.ones(x.shape)  # exp(k^2 d)
+    b = rate * (math.pi / (2.0 * bw))
+    b_sq = b * b
+    total = np.zeros(x.shape)
     # Harmonic k's amplitude is at most q/(pi k) exp(k^2 dither): stop once it is below a micro-chip.
     floor = float(dither.max(initial=-np.inf)) if dither.size else -np.inf
     k = 1
     while k <= 256 and q / (math.pi * k) * math.exp(k * k * floor) > 1e-6:
         harmonic *= turn
-        f = k * rate
-        gain = np.exp(k * k * dither) * np.sinc(f * integration_s) / (1.0 + 1j * math.pi * f / (2.0 * bw))
-        error += (-1) ** k * q / (math.pi * k) * (gain * harmonic).imag
+        damping *= odd
+        odd *= step_sq
+        if k > 1:
+            cheb_prev, cheb = cheb, 2.0 * cos_u * cheb - cheb_prev
+        lag = harmonic.imag - k * b * harmonic.real
+        total += ((-1) ** k * q / (math.pi * k * k)) * damping * cheb * lag / (1.0 + (k * k) * b_sq)
         k += 1
-    return error
+    return total * np.sinc(u)
 
 
 @lru_cache(maxsize=8)
@@ -510,7 +526,16 @@ def _composite(
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """Sum over rays (last axis) of ``a e^{j theta} R(x - tau)`` and its slope, as real and imaginary parts."""
     r, dr = band_limited_correlation(x[..., None] - delay, bfe)
-    return ((gain_re * r).sum(-1), (gain_im * r).sum(-1), (gain_re * dr).sum(-1), (gain_im * dr).sum(-1))
+    return _ray_sum(gain_re, r), _ray_sum(gain_im, r), _ray_sum(gain_re, dr), _ray_sum(gain_im, dr)
+
+
+def _ray_sum(gain: FloatArray, r: FloatArray) -> FloatArray:
+    """``(gain * r).sum(-1)`` over the few rays, one column at a time: several times faster than a
+    reduction over a short last axis, and the same left-to-right sum."""
+    out = gain[..., 0] * r[..., 0]
+    for k in range(1, r.shape[-1]):
+        out += gain[..., k] * r[..., k]
+    return out
 
 
 def dll_tracking_point(

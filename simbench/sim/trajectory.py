@@ -33,12 +33,11 @@ from scipy.special import fresnel
 
 from simbench.core.constants import DEG, G0_STD, WGS84_A, WGS84_E2
 from simbench.core.frames import (
+    dcm_body_to_ecef,
     dcm_body_to_ned,
     dcm_body_to_ned_from_trig,
     dcm_ned_to_ecef,
-    dcm_ned_to_ecef_from_trig,
     ecef_from_geodetic,
-    euler_from_dcm,
     geodetic_from_ecef,
     geodetic_trig,
 )
@@ -125,6 +124,9 @@ class Trajectory:
     valid : ndarray of bool, shape (k,)
         False inside data gaps of a replay (the samples there are a smooth
         bridge, not truth); all True for synthetic trajectories.
+    c_b_e : ndarray, shape (k, 3, 3)
+        Body-to-ECEF rotation C_b^e, the attitude in the frame the IMU model works in;
+        from ``pos`` and ``att`` unless the constructor has it already.
     """
 
     t: np.ndarray
@@ -135,10 +137,13 @@ class Trajectory:
     omega_eb_b: np.ndarray
     street: StreetGeometry | None = None
     valid: np.ndarray = None  # type: ignore[assignment]  # all True unless given: __post_init__ fills it
+    c_b_e: np.ndarray = None  # type: ignore[assignment]  # from pos and att unless given: __post_init__ fills it
 
     def __post_init__(self) -> None:
         if self.valid is None:
             object.__setattr__(self, "valid", np.ones(len(self.t), dtype=bool))
+        if self.c_b_e is None:
+            object.__setattr__(self, "c_b_e", dcm_body_to_ecef(self.pos, self.att))
 
 
 # =========================================================================== frames
@@ -334,7 +339,7 @@ def _eval_speed(
     tau = np.clip((t - t_start[i]) / Ti, 0.0, 1.0)
     beyond = np.maximum(t - t_start[i] - Ti, 0.0)
     v = v0[i] + dv[i] * tau * tau * (3.0 - 2.0 * tau)
-    s = s_start[i] + Ti * (v0[i] * tau + dv[i] * tau**3 * (1.0 - 0.5 * tau)) + (v0[i] + dv[i]) * beyond
+    s = s_start[i] + Ti * (v0[i] * tau + dv[i] * (tau * tau * tau) * (1.0 - 0.5 * tau)) + (v0[i] + dv[i]) * beyond
     a = dv[i] / Ti * 6.0 * tau * (1.0 - tau)
     return s, v, a
 
@@ -395,10 +400,32 @@ def _assemble_local(
     acc = a_n @ c0.T
     sr, cr, sp, cp = np.sin(roll), np.cos(roll), np.sin(pitch), np.cos(pitch)
     omega = _euler_rates_to_body(sr, cr, sp, cp, roll_dot, pitch_dot, v_h * kappa)
+    # C_b^e = C_n0^e C_b^n0 with a constant C_n0^e: one (3 x 3) x (3 x 3k) product on the
+    # (3, 3, k) layout, instead of k small matrix products
+    c_b_n0 = np.moveaxis(dcm_body_to_ned_from_trig(sr, cr, sp, cp, sy, cy), 0, -1)
+    c_b_e = np.moveaxis(np.tensordot(c0, c_b_n0, axes=(1, 0)), -1, 0)
+    # the local attitude needs five entries of C_b^n = C_e^n C_b^e: rows of C_e^n (north, east,
+    # down in ECEF) times columns of C_b^e
     sl, cl, so, co, _ = geodetic_trig(pos)
-    c_n0_n = np.matmul(np.swapaxes(dcm_ned_to_ecef_from_trig(sl, cl, so, co), -1, -2), c0)
-    att = euler_from_dcm(np.matmul(c_n0_n, dcm_body_to_ned_from_trig(sr, cr, sp, cp, sy, cy)))
-    return Trajectory(t=t, pos=pos, vel=vel, acc=acc, att=att, omega_eb_b=omega, street=street)
+    north = (-sl * co, -sl * so, cl)
+    east = (-so, co)
+    down = (-cl * co, -cl * so, -sl)
+
+    def entry(row: tuple[np.ndarray, ...], col: int) -> np.ndarray:
+        out = row[0] * c_b_e[:, 0, col]
+        for i in range(1, len(row)):
+            out += row[i] * c_b_e[:, i, col]
+        return out
+
+    att = np.stack(
+        [
+            np.arctan2(entry(down, 1), entry(down, 2)),
+            -np.arcsin(np.clip(entry(down, 0), -1.0, 1.0)),
+            np.arctan2(entry(east, 0), entry(north, 0)),
+        ],
+        axis=-1,
+    )
+    return Trajectory(t=t, pos=pos, vel=vel, acc=acc, att=att, omega_eb_b=omega, street=street, c_b_e=c_b_e)
 
 
 def _positive(value: float, name: str, fix: str) -> None:

@@ -28,31 +28,33 @@ class Antenna:
         return True  # every satellite's C/N0 starts here
 
     def apply(self, state: SimState, rng: np.random.Generator) -> Contribution:
-        el, masking = state.los.el_rad, state.errors.attitude_masking
+        masking = state.errors.attitude_masking
+        ei, si = state.sky_cells
+        el = state.los.el_rad[ei, si]
         visible = None
         if masking.enabled:
-            off_boresight = off_boresight_rad(el, state.los.az_rad, state.traj.att[state.idx])
-            visible = off_boresight < masking.max_off_boresight_deg * DEG
+            off_boresight = off_boresight_rad(el, state.los.az_rad[ei, si], state.traj.att[state.idx], ei)
+            visible = state.on_sky(off_boresight < masking.max_off_boresight_deg * DEG)
         else:
             off_boresight = np.pi / 2 - el
         c0 = state.errors.cn0
-        return Contribution(
-            cn0_dbhz=tracking.cn0_mean_dbhz(off_boresight, c0.received_power_dbw, c0.constant_db), visible=visible
-        )
+        cn0 = tracking.cn0_mean_dbhz(off_boresight, c0.received_power_dbw, c0.constant_db)
+        return Contribution(cn0_dbhz=state.on_sky(cn0), visible=visible)
 
 
-def off_boresight_rad(el: np.ndarray, az: np.ndarray, att: np.ndarray) -> np.ndarray:
+def off_boresight_rad(el: np.ndarray, az: np.ndarray, att: np.ndarray, epoch: np.ndarray) -> np.ndarray:
     """Angle between the line of sight and the antenna boresight (body -z axis) [rad].
 
     Parameters
     ----------
-    el, az : ndarray, shape (n, m)
+    el, az : ndarray, shape (k,)
         Elevation and azimuth of the satellites [rad].
     att : ndarray, shape (n, 3)
-        Roll, pitch, yaw of the body w.r.t. local NED [rad].
+        Roll, pitch, yaw of the body w.r.t. local NED at each epoch [rad].
+    epoch : ndarray of int, shape (k,)
+        The epoch (row of ``att``) of each satellite.
     """
     # body -z (up) axis resolved in NED: minus the third column of C_b^n
-    up = -dcm_body_to_ned(att)[:, :, 2]
-    up_n, up_e, up_d = up[:, 0, None], up[:, 1, None], up[:, 2, None]
+    up = -dcm_body_to_ned(att)[epoch, :, 2]
     los_n, los_e, los_d = np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), -np.sin(el)
-    return np.arccos(np.clip(up_n * los_n + up_e * los_e + up_d * los_d, -1.0, 1.0))
+    return np.arccos(np.clip(up[:, 0] * los_n + up[:, 1] * los_e + up[:, 2] * los_d, -1.0, 1.0))

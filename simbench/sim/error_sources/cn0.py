@@ -21,7 +21,8 @@ class Cn0Fade:
 
     def apply(self, state: SimState, rng: np.random.Generator) -> Contribution:
         c0, (n, m) = state.errors.cn0, state.shape
-        return Contribution(cn0_dbhz=gauss_markov(n, m, c0.fade_sigma_db, c0.fade_tau_s, state.dt_s, rng))
+        fade = gauss_markov(n, m, c0.fade_sigma_db, c0.fade_tau_s, state.dt_s, rng, state.sky_satellites)
+        return Contribution(cn0_dbhz=fade)
 
 
 class Cn0Noise:

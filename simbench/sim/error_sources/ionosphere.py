@@ -32,18 +32,19 @@ class Ionosphere:
 
     def apply(self, state: SimState, rng: np.random.Generator) -> Contribution:
         io, (n, m) = state.errors.ionosphere, state.shape
-        el, az = state.los.el_rad, state.los.az_rad
+        ei, si = state.sky_cells
+        el = state.los.el_rad[ei, si]
         klob = atmosphere.klobuchar_l1_delay_m(
-            (state.start_sow_s + state.t)[:, None],
-            state.lat_rad[:, None],
-            state.lon_rad[:, None],
+            state.start_sow_s + state.t[ei],
+            state.lat_rad[ei],
+            state.lon_rad[ei],
             el,
-            az,
+            state.los.az_rad[ei, si],
             np.asarray(state.iono_alpha),
             np.asarray(state.iono_beta),
         )
-        obliquity = 1.0 / np.sqrt(1.0 - (WGS84_A * np.cos(el) / (WGS84_A + IONO_SHELL_M)) ** 2)
+        obliquity = state.on_sky(1.0 / np.sqrt(1.0 - (WGS84_A * np.cos(el) / (WGS84_A + IONO_SHELL_M)) ** 2))
         scale = max(0.0, 1.0 + io.scale_sigma * rng.standard_normal())
-        residual = gauss_markov(n, m, io.residual_sigma_m, io.residual_tau_s, state.dt_s, rng)
-        iono = np.maximum(klob * scale + residual * obliquity, 0.0)
+        residual = gauss_markov(n, m, io.residual_sigma_m, io.residual_tau_s, state.dt_s, rng, state.sky_satellites)
+        iono = np.maximum(state.on_sky(klob * scale) + residual * obliquity, 0.0)
         return Contribution(iono_l1_m=iono, labels={"iono_l1": iono})

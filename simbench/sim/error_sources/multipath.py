@@ -36,12 +36,15 @@ class Multipath:
         mp, (n, m) = state.errors.multipath, state.shape
         zeros = np.zeros((n, m))
         if mp.enabled:
-            el_deg = np.degrees(state.los.el_rad)
-            sigma = mp.el_a_m + mp.el_b_m * np.exp(-el_deg / mp.el_c_deg) if mp.elevation_dependent else mp.code_sigma_m
-            sigma = np.broadcast_to(sigma, (n, m))
-            unit = gauss_markov(n, 2 * m, 1.0, mp.tau_s, state.dt_s, rng)
+            if mp.elevation_dependent:
+                el_deg = np.degrees(state.los.el_rad[state.sky_cells])
+                sigma = state.on_sky(mp.el_a_m + mp.el_b_m * np.exp(-el_deg / mp.el_c_deg))
+            else:
+                sigma = np.broadcast_to(mp.code_sigma_m, (n, m))
+            sky = state.sky_satellites
+            unit = gauss_markov(n, 2 * m, 1.0, mp.tau_s, state.dt_s, rng, np.r_[sky, sky + m])
             code, code_l2 = sigma * unit[:, :m], sigma * unit[:, m:]
-            phase = gauss_markov(n, m, mp.phase_sigma_m, mp.tau_s, state.dt_s, rng)
+            phase = gauss_markov(n, m, mp.phase_sigma_m, mp.tau_s, state.dt_s, rng, sky)
         else:
             sigma = code = code_l2 = phase = zeros
         canyon_code = state.shared.get(CANYON_CODE_M, zeros)

@@ -59,12 +59,6 @@ class Nlos:
         )
         # the loops only matter where the antenna sees the satellite: track those rays, the rest stay empty
         seen = state.in_view
-        rays = CanyonRays(
-            blocked=rays.blocked[seen],
-            amplitude=rays.amplitude[seen],
-            delay_m=rays.delay_m[seen],
-            phase_rad=rays.phase_rad[seen],
-        )
         tracked = track_rays(rays, np.ones(len(rays.blocked), bool), state.spacing_chips, state.front_end_bw_hz)
         delay, code, phase, prompt_db, sigma = (np.zeros(state.shape) for _ in range(5))
         prompt_db[:] = NO_SIGNAL_DB

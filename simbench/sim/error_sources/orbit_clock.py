@@ -28,8 +28,10 @@ class OrbitClockError:
     def apply(self, state: SimState, rng: np.random.Generator) -> Contribution:
         oc, los, (n, m) = state.errors.orbit_clock, state.los, state.shape
         # one process per satellite, shared by all epochs (the product is the same for everyone)
-        d_orbit = gauss_markov(n, 3 * m, oc.orbit_sigma_m, oc.tau_s, state.dt_s, rng).reshape(n, m, 3)
-        d_clock = gauss_markov(n, m, oc.clock_sigma_m, oc.tau_s, state.dt_s, rng)
+        sky = state.sky_satellites
+        xyz = (3 * sky[:, None] + np.arange(3)).ravel()
+        d_orbit = gauss_markov(n, 3 * m, oc.orbit_sigma_m, oc.tau_s, state.dt_s, rng, xyz).reshape(n, m, 3)
+        d_clock = gauss_markov(n, m, oc.clock_sigma_m, oc.tau_s, state.dt_s, rng, sky)
         position = los.sat_pos_tx + d_orbit
         return Contribution(
             observations={
@@ -38,5 +40,10 @@ class OrbitClockError:
                 "sat_z": position[..., 2],
                 "sat_clock": C_LIGHT * los.sat_clock_tx + d_clock,
             },
-            labels={"orbit_clock_error": np.einsum("nmk,nmk->nm", los.los_unit, d_orbit) + d_clock},
+            labels={"orbit_clock_error": _along(los.los_unit, d_orbit) + d_clock},
         )
+
+
+def _along(unit: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Component of ``d`` along ``unit``, both (n, m, 3): three products, several times faster than einsum."""
+    return unit[..., 0] * d[..., 0] + unit[..., 1] * d[..., 1] + unit[..., 2] * d[..., 2]

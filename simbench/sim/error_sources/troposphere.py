@@ -36,6 +36,7 @@ class Troposphere:
         )
         zwd = np.maximum(zwd, 0.0)
         doy = day_of_year(state.cfg.scenario.gps_week, state.start_sow_s)
-        m_h, m_w = atmosphere.niell_mapping(state.los.el_rad, lat[:, None], h[:, None], doy)
-        tropo = zhd[:, None] * m_h + zwd[:, None] * m_w
+        ei, si = state.sky_cells
+        m_h, m_w = atmosphere.niell_mapping(state.los.el_rad[ei, si], lat[ei], h[ei], doy)
+        tropo = state.on_sky(zhd[ei] * m_h + zwd[ei] * m_w)
         return Contribution(delay_m=tropo, labels={"tropo": tropo}, truth={"zwd": zwd})
