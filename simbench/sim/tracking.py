@@ -522,10 +522,13 @@ def band_limited_correlation(tau_chips: ArrayLike, front_end_bw_hz: float) -> tu
 
 
 def _composite(
-    x: FloatArray, gain_re: FloatArray, gain_im: FloatArray, delay: FloatArray, bfe: float
-) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """Sum over rays (last axis) of ``a e^{j theta} R(x - tau)`` and its slope, as real and imaginary parts."""
+    x: FloatArray, gain_re: FloatArray, gain_im: FloatArray, delay: FloatArray, bfe: float, slope: bool = True
+) -> tuple[FloatArray, ...]:
+    """Sum over rays (last axis) of ``a e^{j theta} R(x - tau)`` as real and imaginary parts, then
+    (with ``slope``) those of its derivative in ``x``."""
     r, dr = band_limited_correlation(x[..., None] - delay, bfe)
+    if not slope:
+        return _ray_sum(gain_re, r), _ray_sum(gain_im, r)
     return _ray_sum(gain_re, r), _ray_sum(gain_im, r), _ray_sum(gain_re, dr), _ray_sum(gain_im, dr)
 
 
@@ -591,7 +594,12 @@ def dll_tracking_point(
     delay = np.asarray(delay_chips, dtype=float)
     g_re, g_im = a * np.cos(theta), a * np.sin(theta)
 
-    def discriminator(x: FloatArray) -> tuple[FloatArray, FloatArray]:
+    def discriminator(x: FloatArray) -> FloatArray:
+        e_re, e_im = _composite(x - half, g_re, g_im, delay, bfe, slope=False)
+        l_re, l_im = _composite(x + half, g_re, g_im, delay, bfe, slope=False)
+        return e_re**2 + e_im**2 - l_re**2 - l_im**2
+
+    def discriminator_and_slope(x: FloatArray) -> tuple[FloatArray, FloatArray]:
         e_re, e_im, de_re, de_im = _composite(x - half, g_re, g_im, delay, bfe)
         l_re, l_im, dl_re, dl_im = _composite(x + half, g_re, g_im, delay, bfe)
         return (
@@ -600,7 +608,7 @@ def dll_tracking_point(
         )
 
     x0 = np.array(start_chips, dtype=float, copy=True)
-    f0, _ = discriminator(x0)
+    f0 = discriminator(x0)
     direction = np.where(f0 > 0.0, -1.0, 1.0)  # f < 0: the late arm is stronger, the signal is later
     step = 0.5 * half
     lo, hi = x0.copy(), x0.copy()  # the bracket, in the search direction
@@ -609,20 +617,20 @@ def dll_tracking_point(
         if not open_.any():
             break
         probe = hi + direction * step
-        f, _ = discriminator(probe)
+        f = discriminator(probe)
         lo = np.where(open_, hi, lo)
         hi = np.where(open_, probe, hi)
         open_ &= np.sign(f) == np.sign(f0)
     for _ in range(6):
         mid = 0.5 * (lo + hi)
-        f, _ = discriminator(mid)
+        f = discriminator(mid)
         same = np.sign(f) == np.sign(f0)
         lo, hi = np.where(same, mid, lo), np.where(same, hi, mid)
     x = 0.5 * (lo + hi)
-    f, df = discriminator(x)
+    f, df = discriminator_and_slope(x)
     newton = x - f / np.where(np.abs(df) > 1e-12, df, 1e-12)
     x = np.clip(newton, np.minimum(lo, hi), np.maximum(lo, hi))
-    p_re, p_im, _, _ = _composite(x, g_re, g_im, delay, bfe)
+    p_re, p_im = _composite(x, g_re, g_im, delay, bfe, slope=False)
     peak = band_limited_correlation(0.0, bfe)[0]
     return x, np.hypot(p_re, p_im) / peak, np.arctan2(p_im, p_re)
 
