@@ -135,6 +135,18 @@ def test_gauss_markov_autocorrelation_at_tau_is_one_over_e() -> None:
     assert abs(x.std() - 0.4) < 0.01
 
 
+def test_gauss_markov_channels_are_those_of_the_whole_set() -> None:
+    """Filtering only some channels gives those channels bit for bit, zeros elsewhere, and leaves the
+    stream where the whole set leaves it (the draws are taken for every channel)."""
+    full_rng, part_rng = stream(4, "test"), stream(4, "test")
+    sigma = np.linspace(0.1, 1.0, 9)
+    full = gauss_markov(500, 9, sigma, 20.0, 0.5, full_rng)
+    part = gauss_markov(500, 9, sigma, 20.0, 0.5, part_rng, np.array([1, 4, 8]))
+    assert part[:, [1, 4, 8]].tobytes() == full[:, [1, 4, 8]].tobytes()
+    assert not part[:, [0, 2, 3, 5, 6, 7]].any()
+    assert part_rng.standard_normal() == full_rng.standard_normal()
+
+
 def test_generated_multipath_autocorrelation(long_open_sky: Scenario) -> None:
     lab = long_open_sky.labels.pivot(index="epoch", columns="sat", values="multipath_code_l1")
     mp = lab.to_numpy()

@@ -171,6 +171,14 @@ def test_flight_bank_angle_in_turns(uav):
     assert np.degrees(np.abs(expected)).min() > 15.0  # the bank is significant
 
 
+@pytest.mark.parametrize("which", ["drive", "uav"])
+def test_carried_attitude_matrix_is_that_of_the_euler_angles(which, request):
+    """C_b^e built in the trajectory's NED0 frame (what the IMU model reads) is the rotation of the
+    reported local roll, pitch and yaw, to float64 rounding, over a banked flight and a drive."""
+    traj, _ = request.getfixturevalue(which)
+    np.testing.assert_allclose(traj.c_b_e, dcm_body_to_ecef(traj.pos, traj.att), rtol=0, atol=1e-14)
+
+
 def test_flight_profile(uav):
     traj, cfg = uav
     f = cfg.flight

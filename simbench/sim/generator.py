@@ -6,7 +6,11 @@ geometry (:class:`~simbench.sim.error_source.SimState`), runs the signal error
 sources of :mod:`simbench.sim.error_sources`, locks the receiver's channels on
 the resulting C/N0, runs the tracking error sources and writes the long tables.
 Every error source draws from its own named random stream of the seed. All
-physics is vectorised over (epoch, satellite) arrays of shape (n, m).
+physics is vectorised over (epoch, satellite) arrays of shape (n, m); the
+deterministic per-cell physics runs on the cells above the elevation mask only
+(:attr:`~simbench.sim.error_source.SimState.sky_cells`, a quarter to a third of
+the grid on the ground), while the random processes are drawn for every cell, so
+that what a cell gets never depends on which others are computed.
 
 Measurement model (metres; ``rho`` geometric range with Earth rotation)::
 
