@@ -240,11 +240,18 @@ class NominalConstellation:
         u0 = np.array([_angle_mod_2pi(u, self.mean_motion_rad_s, span) for u in self.arg_lat_ref_rad])
         lam0 = np.array([_angle_mod_2pi(r - self.gha_ref_rad, -OMEGA_EARTH, span) for r in self.raan_rad])
         dt = (t - anchor) + off
-        u = u0 + self.mean_motion_rad_s * dt
-        # Longitude of the node in the Earth-fixed frame: inertial RAAN minus sidereal angle.
-        lam = lam0 - OMEGA_EARTH * dt
-        cu, su = np.cos(u), np.sin(u)
-        cl, sl = np.cos(lam), np.sin(lam)
+        # Argument of latitude u = u0 + n dt and longitude of the node in the Earth-fixed frame
+        # lam = lam0 - omega_e dt (inertial RAAN minus sidereal angle).
+        if off.strides[1] == 0 and t.shape[1] == 1:
+            # one time per epoch for every satellite: sin/cos of the per-epoch and per-satellite
+            # angles, combined by the addition theorems (4 instead of n x 24 x 4 transcendentals)
+            dt1 = dt[:, :1]
+            cu, su = _rotated(u0, self.mean_motion_rad_s * dt1)
+            cl, sl = _rotated(lam0, -OMEGA_EARTH * dt1)
+        else:
+            u, lam = u0 + self.mean_motion_rad_s * dt, lam0 - OMEGA_EARTH * dt
+            cu, su = np.cos(u), np.sin(u)
+            cl, sl = np.cos(lam), np.sin(lam)
         ci, si = math.cos(self.incl_rad), math.sin(self.incl_rad)
         a = self.a_m
         pos = np.empty(dt.shape + (3,))
@@ -266,6 +273,12 @@ class NominalConstellation:
             clock_drift=zeros.copy(),
             valid=np.ones(dt.shape, dtype=bool),
         )
+
+
+def _rotated(base: np.ndarray, step: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """cos and sin of ``base + step`` [rad], shapes (m,) and (n, 1) -> (n, m), by the addition theorems."""
+    cb, sb, cs, ss = np.cos(base), np.sin(base), np.cos(step), np.sin(step)
+    return cb * cs - sb * ss, sb * cs + cb * ss
 
 
 # --------------------------------------------------------------------------- broadcast

@@ -70,15 +70,21 @@ def phase_arcs(
         flagged = slip
     lli = arc_start | flagged
     arc_id = np.cumsum(arc_start, axis=0)  # per satellite, 1-based within tracked spans
+    # the ambiguities are worked out on the satellites ever tracked only (the draws are taken for all,
+    # so that the numbers do not depend on which); elsewhere they are 0
+    cols = np.flatnonzero(tracked.any(axis=0))
+    arc_id_c, slip_c = arc_id[:, cols], slip[:, cols]
+    # jumps accumulate only within the current arc: subtract the sum reached at its start
+    start_row = np.maximum.accumulate(np.where(arc_start[:, cols], np.arange(n)[:, None], -1), axis=0)
+    in_arc, start_row = start_row >= 0, np.maximum(start_row, 0)
     out = []
     for _ in range(n_frequencies):
         magnitude = rng.integers(1, max(cfg.max_jump_cycles, 1) + 1, size=(n, m))
-        jumps = np.where(slip, magnitude * rng.choice([-1, 1], size=(n, m)), 0)
+        sign = rng.choice([-1, 1], size=(n, m))
         initial = rng.integers(-INITIAL_AMBIGUITY_CYCLES, INITIAL_AMBIGUITY_CYCLES + 1, size=(int(arc_id.max()) + 1, m))
-        cum = np.cumsum(jumps, axis=0)
-        # jumps accumulate only within the current arc: subtract the sum reached at its start
-        start_row = np.maximum.accumulate(np.where(arc_start, np.arange(n)[:, None], -1), axis=0)
-        base = np.where(start_row >= 0, np.take_along_axis(cum, np.maximum(start_row, 0), axis=0), 0)
-        ambiguity = initial[arc_id, np.arange(m)[None, :]] + cum - base
-        out.append(PhaseArcs(arc_start=arc_start, slip=slip, lli=lli, ambiguity=ambiguity.astype(np.int64)))
+        cum = np.cumsum(np.where(slip_c, magnitude[:, cols] * sign[:, cols], 0), axis=0)
+        base = np.where(in_arc, np.take_along_axis(cum, start_row, axis=0), 0)
+        ambiguity = np.zeros((n, m), np.int64)
+        ambiguity[:, cols] = initial[arc_id_c, cols[None, :]] + cum - base
+        out.append(PhaseArcs(arc_start=arc_start, slip=slip, lli=lli, ambiguity=ambiguity))
     return out
