@@ -12,8 +12,9 @@ from simbench.core.constants import LAMBDA_L1
 from simbench.errors import SimbenchError
 from simbench.sim import tracking
 from simbench.sim.canyon import canyon_rays
-from simbench.sim.config import NlosConfig
-from simbench.sim.processes import gauss_markov, stream
+from simbench.sim.config import CycleSlipConfig, NlosConfig
+from simbench.sim.processes import Columns, gauss_markov, stream
+from simbench.sim.slips import phase_arcs
 
 SHORT = {"scenario.duration_s": 300}
 
@@ -136,15 +137,46 @@ def test_gauss_markov_autocorrelation_at_tau_is_one_over_e() -> None:
 
 
 def test_gauss_markov_channels_are_those_of_the_whole_set() -> None:
-    """Filtering only some channels gives those channels bit for bit, zeros elsewhere, and leaves the
-    stream where the whole set leaves it (the draws are taken for every channel)."""
+    """Filtering only some channels gives those channels bit for bit and leaves the stream where
+    the whole set leaves it (the draws are taken for every channel)."""
     full_rng, part_rng = stream(4, "test"), stream(4, "test")
     sigma = np.linspace(0.1, 1.0, 9)
     full = gauss_markov(500, 9, sigma, 20.0, 0.5, full_rng)
     part = gauss_markov(500, 9, sigma, 20.0, 0.5, part_rng, np.array([1, 4, 8]))
-    assert part[:, [1, 4, 8]].tobytes() == full[:, [1, 4, 8]].tobytes()
-    assert not part[:, [0, 2, 3, 5, 6, 7]].any()
+    assert part.tobytes() == full[:, [1, 4, 8]].tobytes()
     assert part_rng.standard_normal() == full_rng.standard_normal()
+
+
+def test_kept_satellites_get_the_numbers_of_the_whole_constellation() -> None:
+    """Canyon rays and phase arcs computed on some columns of a grid (draws spanning all of them)
+    equal those columns of the whole grid's, bit for bit."""
+    n, m, keep = 200, 9, np.array([0, 3, 4, 7])
+    rng = np.random.default_rng(5)
+    el, az = rng.uniform(0.1, 1.5, (n, m)), rng.uniform(0.0, 2.0 * np.pi, (n, m))
+    street = (rng.uniform(0.0, 6.3, n), *rng.uniform(8.0, 25.0, (2, n)), *rng.uniform(0.0, 50.0, (2, n)))
+    travelled, cfg = np.cumsum(rng.uniform(0.0, 10.0, n)), NlosConfig(reflector_beyond_m=(0.0, 40.0))
+    every = canyon_rays(el, az, *street, travelled, cfg, 1.0, np.random.default_rng(9))
+    some = canyon_rays(
+        el[:, keep], az[:, keep], *street, travelled, cfg, 1.0, np.random.default_rng(9), columns=Columns(m, keep)
+    )
+    for field in ("blocked", "amplitude", "delay_m", "phase_rad"):
+        assert getattr(some, field).tobytes() == getattr(every, field)[:, keep].tobytes(), field
+    tracked = (rng.random((n, m)) < 0.9) & np.isin(np.arange(m), keep)  # the others never tracked, as in the generator
+    cn0 = rng.uniform(20.0, 50.0, (n, m))
+    slips = CycleSlipConfig(enabled=True, rate_per_s=0.05, cn0_threshold_dbhz=35.0)
+    whole = phase_arcs(tracked, cn0, slips, 1.0, np.random.default_rng(3), 2)
+    part = phase_arcs(tracked[:, keep], cn0[:, keep], slips, 1.0, np.random.default_rng(3), 2, Columns(m, keep))
+    for a, b in zip(whole, part, strict=True):
+        assert a.slip[:, keep].any() and (a.slip[:, keep] == b.slip).all() and (a.lli[:, keep] == b.lli).all()
+        assert (a.ambiguity[:, keep] == b.ambiguity).all()
+
+
+def test_no_satellite_above_the_mask_gives_an_empty_scenario() -> None:
+    """A mask no satellite clears leaves the grids without a satellite: no rows, no error."""
+    sc = simbench.simulate(
+        "urban", "low", seed=1, **{"scenario.duration_s": 20, "scenario.constellation.elevation_mask_deg": 89.9}
+    )
+    assert sc.observations.empty and sc.labels.empty and (sc.truth["n_visible"] == 0).all() and len(sc.imu) > 0
 
 
 def test_generated_multipath_autocorrelation(long_open_sky: Scenario) -> None:

@@ -53,7 +53,7 @@ from scipy.stats import norm
 
 from simbench.core.constants import F_L1, LAMBDA_L1
 from simbench.sim.config import FacadeMaterial, NlosConfig
-from simbench.sim.processes import gauss_markov
+from simbench.sim.processes import Columns, gauss_markov
 
 #: Persistence of a reflection path; reflections come and go as the car passes facades.
 REFLECTION_TAU_S = 10.0
@@ -150,6 +150,7 @@ def canyon_rays(
     dt_s: float,
     rng: np.random.Generator,
     where: np.ndarray | None = None,
+    columns: Columns | None = None,
 ) -> CanyonRays:
     """Direct, single-bounce and double-bounce rays of every satellite in the street canyon.
 
@@ -170,6 +171,9 @@ def canyon_rays(
         The (epoch, satellite) pairs whose rays are wanted (by default all). The random
         processes are drawn for every pair either way, so the rays where wanted do not
         depend on ``where``.
+    columns : Columns, optional
+        Which satellites of the constellation the m columns are: the random processes are
+        drawn across all ``columns.width`` (by default the m columns are the constellation).
 
     Returns
     -------
@@ -178,6 +182,7 @@ def canyon_rays(
         ``np.nonzero(where)`` (epoch-major).
     """
     n, m = el_rad.shape
+    columns = Columns.every(m) if columns is None else columns
     # the rays of one pair depend on its own inputs only: the arithmetic runs on the wanted pairs, a
     # third of the grid for a ground receiver (satellites below the mask are most of it)
     ei, si = np.nonzero(np.ones((n, m), bool) if where is None else where)
@@ -208,9 +213,8 @@ def canyon_rays(
 
     # A reflection persists for a while: threshold a slow unit Gauss-Markov process so that the
     # long-run fraction of facades offering a specular point is the configured one.
-    gate = gauss_markov(n, m, 1.0, REFLECTION_TAU_S, dt_s, rng, _columns(si, m))[ei, si] < norm.ppf(
-        cfg.reflection_probability
-    )
+    unit = gauss_markov(n, columns.width, 1.0, REFLECTION_TAU_S, dt_s, rng, columns.keep)
+    gate = unit[ei, si] < norm.ppf(cfg.reflection_probability)
     single = gate & (h_far > 0.0) & (blocked | ((k * d_far < h_far) & (k * (2.0 * d_far + d_near) > h_near)))
     double = (
         gate
@@ -229,9 +233,10 @@ def canyon_rays(
     # Two bounces: the handedness flips twice for cross * cross and once for the mixed terms.
     a_double = rough**2 * np.sqrt(np.abs(co * co + cross * cross) ** 2 + (xpol * np.abs(2.0 * co * cross)) ** 2)
 
-    facade = np.maximum(d_far + _relief_m(travelled_m, m, cfg, rng, ei, si), 0.5 * d_far)  # never behind the antenna
+    relief = _relief_m(travelled_m, columns, cfg, rng, ei, si)
+    facade = np.maximum(d_far + relief, 0.5 * d_far)  # never behind the antenna
     horizontal = 2.0 * cos_inc
-    beyond = np.where(blocked, _reflector_beyond_m(n, m, cfg, dt_s, rng, ei, si), 0.0)
+    beyond = np.where(blocked, _reflector_beyond_m(n, columns, cfg, dt_s, rng, ei, si), 0.0)
     amplitude = np.stack([a_direct, np.where(single, a_single, 0.0), np.where(double, a_double, 0.0)], axis=-1)
     delay = np.stack([d_direct, horizontal * (facade + beyond), horizontal * (facade + d_near)], axis=-1)
     phase = -2.0 * np.pi / LAMBDA_L1 * delay + np.pi * np.arange(N_RAYS)  # each bounce turns the carrier by pi
@@ -244,13 +249,8 @@ def canyon_rays(
     )
 
 
-def _columns(si: np.ndarray, m: int) -> np.ndarray:
-    """The satellites among ``si``, ascending: the only columns of an (n, m) process the canyon reads."""
-    return np.flatnonzero(np.bincount(si, minlength=m))
-
-
 def _reflector_beyond_m(
-    n: int, m: int, cfg: NlosConfig, dt_s: float, rng: np.random.Generator, ei: np.ndarray, si: np.ndarray
+    n: int, columns: Columns, cfg: NlosConfig, dt_s: float, rng: np.random.Generator, ei: np.ndarray, si: np.ndarray
 ) -> np.ndarray:
     """How far beyond the far facade a masked satellite's reflecting building stands [m], at ``(ei, si)``.
 
@@ -261,11 +261,17 @@ def _reflector_beyond_m(
     low, high = cfg.reflector_beyond_m
     if high <= 0.0:
         return np.zeros(len(ei))
-    return low + (high - low) * norm.cdf(gauss_markov(n, m, 1.0, REFLECTION_TAU_S, dt_s, rng, _columns(si, m))[ei, si])
+    unit = gauss_markov(n, columns.width, 1.0, REFLECTION_TAU_S, dt_s, rng, columns.keep)
+    return low + (high - low) * norm.cdf(unit[ei, si])
 
 
 def _relief_m(
-    travelled_m: np.ndarray, m: int, cfg: NlosConfig, rng: np.random.Generator, ei: np.ndarray, si: np.ndarray
+    travelled_m: np.ndarray,
+    columns: Columns,
+    cfg: NlosConfig,
+    rng: np.random.Generator,
+    ei: np.ndarray,
+    si: np.ndarray,
 ) -> np.ndarray:
     """Offset of satellite ``si``'s specular point on the far facade at epoch ``ei`` [m].
 
@@ -275,7 +281,9 @@ def _relief_m(
     step = cfg.facade_relief_length_m / 8.0
     span = float(travelled_m[-1] - travelled_m[0]) if len(travelled_m) else 0.0
     n_grid = int(span / step) + 2
-    grid = gauss_markov(n_grid, m, cfg.facade_relief_sigma_m, cfg.facade_relief_length_m, step, rng, _columns(si, m))
+    grid = gauss_markov(
+        n_grid, columns.width, cfg.facade_relief_sigma_m, cfg.facade_relief_length_m, step, rng, columns.keep
+    )
     u = (travelled_m - (travelled_m[0] if len(travelled_m) else 0.0)) / step
     i = np.minimum(u.astype(np.intp), n_grid - 2)
     frac = (u - i)[ei]

@@ -18,9 +18,9 @@ of the floating-point sums, so moving a source changes outputs in the last bits.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -29,7 +29,7 @@ from simbench.core.orbits import Constellation
 from simbench.sim import tracking
 from simbench.sim.config import ErrorsConfig, ReceiverConfig, SimConfig
 from simbench.sim.geometry import LineOfSight
-from simbench.sim.processes import stream
+from simbench.sim.processes import Columns, gauss_markov, stream
 from simbench.sim.trajectory import Trajectory
 
 #: L2 signals are weaker than L1 C/A (IS-GPS-200 minimum powers differ by 1.5-3 dB).
@@ -82,7 +82,10 @@ class Lock:
 class SimState:
     """What the error sources read: configuration, trajectory, geometry, and the sums so far.
 
-    Geometry arrays have shape (n, m) (epochs, satellites), per-epoch arrays (n,).
+    Geometry arrays have shape (n, m) (epochs, satellites), per-epoch arrays (n,). The m
+    satellites are those of the constellation that rise above the elevation mask at some epoch
+    (:attr:`columns`); random draws span the whole constellation (:meth:`draw`,
+    :meth:`gauss_markov`), so that no satellite's numbers depend on which others are kept.
     """
 
     cfg: SimConfig
@@ -97,6 +100,8 @@ class SimState:
     iono_alpha: tuple[float, ...]  #: Klobuchar coefficients handed to the receiver
     iono_beta: tuple[float, ...]
     above: np.ndarray  #: bool: above the elevation mask
+    #: the constellation's satellites the grids keep (those ever above the mask) and the width random draws span
+    columns: Columns
     # ---- sums of the signal sources
     in_view: np.ndarray = field(init=False)  #: bool: above the mask and seen by the antenna
     delay_m: np.ndarray = field(init=False)  #: geometric range plus the non-dispersive delays [m]
@@ -182,19 +187,25 @@ class SimState:
     def sky_cells(self) -> tuple[np.ndarray, np.ndarray]:
         """Epoch and satellite indices of the (epoch, satellite) cells above the elevation mask, epoch-major.
 
-        Deterministic per-cell physics (atmosphere, antenna gain) runs on these only: a ground
-        receiver sees about a quarter of the constellation, and no later stage reads a cell
-        below the mask (it is never in view, so never tracked).
+        Deterministic per-cell physics (atmosphere, antenna gain) runs on these only: the grid's
+        satellites each rise above the mask at some epoch, not at every one, and no later stage
+        reads a cell below the mask (it is never in view, so never tracked).
         """
         if self._sky_cells is None:
             ei, si = np.nonzero(self.above)
             self._sky_cells = (ei, si)
         return self._sky_cells
 
-    @property
-    def sky_satellites(self) -> np.ndarray:
-        """Columns (satellites) with a cell above the elevation mask: the only ones any observation comes from."""
-        return np.flatnonzero(self.above.any(axis=0))
+    def draw(self, sample: Callable[..., np.ndarray], *args: Any) -> np.ndarray:
+        """An (n, m) draw ``sample(*args, size=...)`` taken across the whole constellation, cut to the grid's
+        satellites (:class:`~simbench.sim.processes.Columns`), e.g. ``state.draw(rng.standard_normal)``."""
+        return self.columns.draw(sample, self.shape[0], *args)
+
+    def gauss_markov(self, sigma: float, tau_s: float, rng: np.random.Generator) -> np.ndarray:
+        """One Gauss-Markov process per satellite at the epochs (:func:`~simbench.sim.processes.gauss_markov`),
+        (n, m): drawn across the whole constellation, filtered for the grid's satellites."""
+        c = self.columns
+        return gauss_markov(self.shape[0], c.width, sigma, tau_s, self.dt_s, rng, c.keep)
 
     def on_sky(self, values: np.ndarray) -> np.ndarray:
         """An (n, m) grid holding ``values`` at :attr:`sky_cells`, 0 (False) below the mask."""

@@ -49,7 +49,7 @@ from simbench.sim.error_sources import SIGNAL_SOURCES, TRACKING_SOURCES
 from simbench.sim.geometry import line_of_sight
 from simbench.sim.imu import simulate_imu
 from simbench.sim.odometry import simulate_odometry
-from simbench.sim.processes import stream
+from simbench.sim.processes import Columns, stream
 from simbench.sim.trajectory import Trajectory, flight, replay, roadside_street, urban_drive
 
 
@@ -116,6 +116,10 @@ def _sky(cfg: SimConfig) -> SimState:
     constellation, alpha, beta = _constellation(cfg)
     t_gps = sc.gps_week * SECONDS_PER_WEEK + start_sow + traj.t[idx]
     los = line_of_sight(pos, traj.vel[idx], t_gps, constellation)
+    above = los.valid & (los.el_rad > sc.constellation.elevation_mask_deg * DEG)
+    # the grids keep the satellites that rise above the mask at some epoch (8 of 24 in an hour on
+    # the ground); the others are never seen, and every random draw still spans all of them
+    keep = np.flatnonzero(above.any(axis=0))
     return SimState(
         cfg=cfg,
         traj=traj,
@@ -124,11 +128,12 @@ def _sky(cfg: SimConfig) -> SimState:
         lat_rad=lat,
         lon_rad=lon,
         h_m=h,
-        los=los,
+        los=los.satellites(keep),
         constellation=constellation,
         iono_alpha=alpha,
         iono_beta=beta,
-        above=los.valid & (los.el_rad > sc.constellation.elevation_mask_deg * DEG),
+        above=above[:, keep],
+        columns=Columns(len(constellation.sats), keep),
     )
 
 
@@ -183,7 +188,7 @@ def _observation_tables(state: SimState) -> tuple[pd.DataFrame, pd.DataFrame]:
     ei, si = np.divmod(flat, state.shape[1])
     # the satellite names converted to pandas' string array once (m names), then repeated per row: a
     # conversion of every row's name, in each of the two tables, costs more than the rest of them
-    sats = pd.Series(np.asarray(state.constellation.sats)).array
+    sats = pd.Series(np.asarray(state.los.sats)).array
     keys = {"epoch": ei.astype(np.int64), "sat": sats.take(si)}
     grids = {
         "code_l1": state.code_l1_m,

@@ -10,7 +10,7 @@ the satellite position at transmit time; the two agree to better than 0.5 mm
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -78,6 +78,11 @@ class LineOfSight:
     az_rad: np.ndarray
     los_unit: np.ndarray
     valid: np.ndarray
+
+    def satellites(self, columns: np.ndarray) -> LineOfSight:
+        """The geometry of the satellites ``columns`` (indices along the satellite axis) only."""
+        cut = {f.name: getattr(self, f.name)[:, columns] for f in fields(self) if f.name != "sats"}
+        return LineOfSight(sats=self.sats[columns], **cut)
 
 
 def line_of_sight(

@@ -8,6 +8,9 @@ one source off does not change the random numbers of the others.
 from __future__ import annotations
 
 import zlib
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.signal import lfilter
@@ -55,22 +58,41 @@ def gauss_markov(
         Sample interval [s].
     rng : numpy.random.Generator
     channels : ndarray of int, optional
-        The only channels the caller reads; the others are left 0. Their random numbers are
-        drawn all the same, so the wanted channels, and every later draw from ``rng``, do not
-        depend on it.
+        The only channels the caller wants, in the order wanted. The random numbers of all
+        ``n_channels`` are drawn all the same, so the wanted channels, and every later draw
+        from ``rng``, do not depend on which are wanted.
 
     Returns
     -------
-    ndarray, shape (n_steps, n_channels)
+    ndarray, shape (n_steps, n_channels), or (n_steps, len(channels))
     """
     a = float(np.exp(-dt_s / tau_s))
     w = rng.standard_normal((n_steps, n_channels))
     sigma = np.asarray(sigma)
     if channels is None:
         return _unit_gauss_markov(w, a) * sigma
-    out = np.zeros((n_steps, n_channels))
-    out[:, channels] = _unit_gauss_markov(w[:, channels], a) * (sigma[channels] if sigma.ndim else sigma)
-    return out
+    return _unit_gauss_markov(w[:, channels], a) * (sigma[channels] if sigma.ndim else sigma)
+
+
+@dataclass(frozen=True)
+class Columns:
+    """The satellites (columns) a generator grid keeps out of the ``width`` its random draws span.
+
+    Every (epochs, satellites) draw is taken ``width`` wide and cut to ``keep``, so that the
+    numbers a kept satellite gets do not depend on which others are kept.
+    """
+
+    width: int  #: satellites the draws span (the whole constellation)
+    keep: np.ndarray  #: int, ascending: the constellation index of each grid column
+
+    @classmethod
+    def every(cls, m: int) -> Columns:
+        """All ``m`` satellites kept."""
+        return cls(m, np.arange(m))
+
+    def draw(self, sample: Callable[..., np.ndarray], n: int, *args: Any) -> np.ndarray:
+        """``sample(*args, size=(n, width))`` cut to the kept columns, e.g. ``draw(rng.standard_normal, n)``."""
+        return sample(*args, size=(n, self.width))[:, self.keep]
 
 
 def _unit_gauss_markov(w: np.ndarray, a: float) -> np.ndarray:

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from simbench.sim.config import CycleSlipConfig
+from simbench.sim.processes import Columns
 
 #: Range of the initial ambiguity of an arc [cycles]; receivers start phase arbitrarily.
 INITIAL_AMBIGUITY_CYCLES = 1_000_000
@@ -37,6 +38,7 @@ def phase_arcs(
     dt_s: float,
     rng: np.random.Generator,
     n_frequencies: int = 1,
+    columns: Columns | None = None,
 ) -> list[PhaseArcs]:
     """Draw arcs, slips and ambiguities for every (epoch, satellite).
 
@@ -52,19 +54,24 @@ def phase_arcs(
     rng : numpy.random.Generator
     n_frequencies : int
         1 (L1) or 2 (L1, L2); slips hit all frequencies at once, each with its own jump.
+    columns : Columns, optional
+        Which satellites of the constellation the m columns are: every draw spans all
+        ``columns.width`` (by default the m columns are the constellation). The satellites
+        left out must never be tracked (the number of arcs sizes a draw).
 
     Returns
     -------
     list of PhaseArcs, one per frequency.
     """
     n, m = tracked.shape
+    draw = (Columns.every(m) if columns is None else columns).draw
     previous = np.vstack([np.zeros((1, m), bool), tracked[:-1]])
     arc_start = tracked & ~previous
     if cfg.enabled:
-        weak = (cn0_dbhz < cfg.cn0_threshold_dbhz) & (rng.random((n, m)) < cfg.low_cn0_probability)
-        poisson = rng.random((n, m)) < -np.expm1(-cfg.rate_per_s * dt_s)
+        weak = (cn0_dbhz < cfg.cn0_threshold_dbhz) & (draw(rng.random, n) < cfg.low_cn0_probability)
+        poisson = draw(rng.random, n) < -np.expm1(-cfg.rate_per_s * dt_s)
         slip = tracked & ~arc_start & (weak | poisson)
-        flagged = slip & (rng.random((n, m)) < cfg.flagged_fraction)
+        flagged = slip & (draw(rng.random, n) < cfg.flagged_fraction)
     else:
         slip = np.zeros((n, m), bool)
         flagged = slip
@@ -79,9 +86,10 @@ def phase_arcs(
     in_arc, start_row = start_row >= 0, np.maximum(start_row, 0)
     out = []
     for _ in range(n_frequencies):
-        magnitude = rng.integers(1, max(cfg.max_jump_cycles, 1) + 1, size=(n, m))
-        sign = rng.choice([-1, 1], size=(n, m))
-        initial = rng.integers(-INITIAL_AMBIGUITY_CYCLES, INITIAL_AMBIGUITY_CYCLES + 1, size=(int(arc_id.max()) + 1, m))
+        magnitude = draw(rng.integers, n, 1, max(cfg.max_jump_cycles, 1) + 1)
+        sign = draw(rng.choice, n, [-1, 1])
+        n_arcs = int(arc_id.max(initial=0))
+        initial = draw(rng.integers, n_arcs + 1, -INITIAL_AMBIGUITY_CYCLES, INITIAL_AMBIGUITY_CYCLES + 1)
         cum = np.cumsum(np.where(slip_c, magnitude[:, cols] * sign[:, cols], 0), axis=0)
         base = np.where(in_arc, np.take_along_axis(cum, start_row, axis=0), 0)
         ambiguity = np.zeros((n, m), np.int64)

@@ -7,7 +7,6 @@ from collections.abc import Mapping
 import numpy as np
 
 from simbench.sim.error_source import Contribution, SimState
-from simbench.sim.processes import gauss_markov
 
 
 class Cn0Fade:
@@ -20,9 +19,8 @@ class Cn0Fade:
         return True
 
     def apply(self, state: SimState, rng: np.random.Generator) -> Contribution:
-        c0, (n, m) = state.errors.cn0, state.shape
-        fade = gauss_markov(n, m, c0.fade_sigma_db, c0.fade_tau_s, state.dt_s, rng, state.sky_satellites)
-        return Contribution(cn0_dbhz=fade)
+        c0 = state.errors.cn0
+        return Contribution(cn0_dbhz=state.gauss_markov(c0.fade_sigma_db, c0.fade_tau_s, rng))
 
 
 class Cn0Noise:
@@ -35,4 +33,4 @@ class Cn0Noise:
         return True
 
     def apply(self, state: SimState, rng: np.random.Generator) -> Contribution:
-        return Contribution(cn0_dbhz=state.errors.cn0.noise_db * rng.standard_normal(state.shape))
+        return Contribution(cn0_dbhz=state.errors.cn0.noise_db * state.draw(rng.standard_normal))

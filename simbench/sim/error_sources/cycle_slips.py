@@ -27,7 +27,9 @@ class CycleSlips:
     def apply(self, state: SimState, rng: np.random.Generator) -> Contribution:
         lock = state.lock
         n_freq = 2 if state.dual_frequency else 1
-        arcs = phase_arcs(lock.carrier_locked, state.cn0_dbhz, state.errors.cycle_slips, state.dt_s, rng, n_freq)
+        arcs = phase_arcs(
+            lock.carrier_locked, state.cn0_dbhz, state.errors.cycle_slips, state.dt_s, rng, n_freq, state.columns
+        )
         # NaN where the PLL has no lock: the observation keeps its code and Doppler, not its phase
         no_phase = np.where(lock.carrier_locked, 0.0, np.nan)
         out = Contribution(

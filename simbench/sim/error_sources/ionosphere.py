@@ -9,7 +9,6 @@ import numpy as np
 from simbench.core import atmosphere
 from simbench.core.constants import WGS84_A
 from simbench.sim.error_source import Contribution, SimState
-from simbench.sim.processes import gauss_markov
 
 #: Ionospheric shell height of the obliquity factor [m].
 IONO_SHELL_M = 350e3
@@ -31,7 +30,7 @@ class Ionosphere:
         return state.errors.ionosphere.enabled
 
     def apply(self, state: SimState, rng: np.random.Generator) -> Contribution:
-        io, (n, m) = state.errors.ionosphere, state.shape
+        io = state.errors.ionosphere
         ei, si = state.sky_cells
         el = state.los.el_rad[ei, si]
         klob = atmosphere.klobuchar_l1_delay_m(
@@ -45,6 +44,6 @@ class Ionosphere:
         )
         obliquity = state.on_sky(1.0 / np.sqrt(1.0 - (WGS84_A * np.cos(el) / (WGS84_A + IONO_SHELL_M)) ** 2))
         scale = max(0.0, 1.0 + io.scale_sigma * rng.standard_normal())
-        residual = gauss_markov(n, m, io.residual_sigma_m, io.residual_tau_s, state.dt_s, rng, state.sky_satellites)
+        residual = state.gauss_markov(io.residual_sigma_m, io.residual_tau_s, rng)
         iono = np.maximum(state.on_sky(klob * scale) + residual * obliquity, 0.0)
         return Contribution(iono_l1_m=iono, labels={"iono_l1": iono})

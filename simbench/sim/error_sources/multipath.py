@@ -41,10 +41,10 @@ class Multipath:
                 sigma = state.on_sky(mp.el_a_m + mp.el_b_m * np.exp(-el_deg / mp.el_c_deg))
             else:
                 sigma = np.broadcast_to(mp.code_sigma_m, (n, m))
-            sky = state.sky_satellites
-            unit = gauss_markov(n, 2 * m, 1.0, mp.tau_s, state.dt_s, rng, np.r_[sky, sky + m])
+            keep, width = state.columns.keep, state.columns.width
+            unit = gauss_markov(n, 2 * width, 1.0, mp.tau_s, state.dt_s, rng, np.r_[keep, keep + width])
             code, code_l2 = sigma * unit[:, :m], sigma * unit[:, m:]
-            phase = gauss_markov(n, m, mp.phase_sigma_m, mp.tau_s, state.dt_s, rng, sky)
+            phase = state.gauss_markov(mp.phase_sigma_m, mp.tau_s, rng)
         else:
             sigma = code = code_l2 = phase = zeros
         canyon_code = state.shared.get(CANYON_CODE_M, zeros)

@@ -56,6 +56,7 @@ class Nlos:
             rng,
             # what the antenna does not see is never tracked: its rays would go unused
             where=state.in_view,
+            columns=state.columns,
         )
         # the loops only matter where the antenna sees the satellite: track those rays, the rest stay empty
         seen = state.in_view

@@ -28,10 +28,10 @@ class OrbitClockError:
     def apply(self, state: SimState, rng: np.random.Generator) -> Contribution:
         oc, los, (n, m) = state.errors.orbit_clock, state.los, state.shape
         # one process per satellite, shared by all epochs (the product is the same for everyone)
-        sky = state.sky_satellites
-        xyz = (3 * sky[:, None] + np.arange(3)).ravel()
-        d_orbit = gauss_markov(n, 3 * m, oc.orbit_sigma_m, oc.tau_s, state.dt_s, rng, xyz).reshape(n, m, 3)
-        d_clock = gauss_markov(n, m, oc.clock_sigma_m, oc.tau_s, state.dt_s, rng, sky)
+        keep, width = state.columns.keep, state.columns.width
+        xyz = (3 * keep[:, None] + np.arange(3)).ravel()
+        d_orbit = gauss_markov(n, 3 * width, oc.orbit_sigma_m, oc.tau_s, state.dt_s, rng, xyz).reshape(n, m, 3)
+        d_clock = state.gauss_markov(oc.clock_sigma_m, oc.tau_s, rng)
         position = los.sat_pos_tx + d_orbit
         return Contribution(
             observations={

@@ -25,7 +25,7 @@ class Scintillation:
     def apply(self, state: SimState, rng: np.random.Generator) -> Contribution:
         cfg, dt = state.errors.scintillation, state.dt_s
         # onsets so far per satellite; at most one per epoch, rate_per_s dt << 1
-        started = np.cumsum(rng.random(state.shape) < cfg.rate_per_s * dt, axis=0)
+        started = np.cumsum(state.draw(rng.random) < cfg.rate_per_s * dt, axis=0)
         epochs = max(1, round(cfg.duration_s / dt))
         started_before = np.zeros_like(started)
         started_before[epochs:] = started[:-epochs]

@@ -32,13 +32,13 @@ class TrackingNoise:
         return state.errors.tracking_noise
 
     def apply(self, state: SimState, rng: np.random.Generator) -> Contribution:
-        lock, rx, shape = state.lock, state.receiver, state.shape
+        lock, rx = state.lock, state.receiver
         sig_phase = lock.pll_jitter_rad * LAMBDA_L1 / (2 * np.pi)
         sig_doppler = rx.doppler_sigma_hz * 10 ** ((rx.doppler_ref_cn0_dbhz - state.cn0_dbhz) / 20.0)
         # drawn in this order from the stream: code, phase, Doppler
-        code = lock.sigma_code_m * rng.standard_normal(shape)
-        phase = sig_phase * rng.standard_normal(shape)
-        doppler = sig_doppler * rng.standard_normal(shape)
+        code = lock.sigma_code_m * state.draw(rng.standard_normal)
+        phase = sig_phase * state.draw(rng.standard_normal)
+        doppler = sig_doppler * state.draw(rng.standard_normal)
         return Contribution(
             code_l1_m=code,
             phase_l1_m=phase,
@@ -62,11 +62,11 @@ class TrackingNoiseL2:
         return state.errors.tracking_noise and state.dual_frequency
 
     def apply(self, state: SimState, rng: np.random.Generator) -> Contribution:
-        rx, cn0, shape = state.receiver, state.cn0_l2_dbhz, state.shape
+        rx, cn0 = state.receiver, state.cn0_l2_dbhz
         sig_code = tracking.dll_jitter_m(
             cn0, rx.dll_bw_hz, state.spacing_chips, state.front_end_bw_hz, rx.integration_s
         )
         sig_phase = tracking.pll_jitter_m(cn0, rx.pll_bw_hz, rx.integration_s)
         return Contribution(
-            code_l2_m=sig_code * rng.standard_normal(shape), phase_l2_m=sig_phase * rng.standard_normal(shape)
+            code_l2_m=sig_code * state.draw(rng.standard_normal), phase_l2_m=sig_phase * state.draw(rng.standard_normal)
         )
