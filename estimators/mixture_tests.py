@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import stats
+from scipy.linalg import solve_triangular
 
 __all__ = [
     "MixtureModel",
@@ -234,9 +235,15 @@ class MixtureModel:
     def log_likelihoods(self, r: np.ndarray) -> np.ndarray:
         """``log w_k N(r | mu_k, Lambda_k)`` for every residual and component, shape (n, K)."""
         r = np.atleast_2d(r)
+        d = r.shape[1]
         out = np.empty((len(r), self.n_components))
+        # Gaussian log-density through the Cholesky factor: scipy.stats.multivariate_normal checks and
+        # eigen-decomposes the covariance at every call, ten times the cost at d <= 2 (ICE calls it per epoch)
         for k in range(self.n_components):
-            out[:, k] = stats.multivariate_normal.logpdf(r, self.means[k], self.covs[k]) + np.log(self.weights[k])
+            chol = np.linalg.cholesky(self.covs[k])
+            z = solve_triangular(chol, (r - self.means[k]).T, lower=True)
+            log_det = 2.0 * np.log(np.diag(chol)).sum()
+            out[:, k] = -0.5 * (d * np.log(2.0 * np.pi) + log_det + (z * z).sum(axis=0)) + np.log(self.weights[k])
         return out
 
     def most_likely(self, r: np.ndarray) -> np.ndarray:
