@@ -6,11 +6,13 @@ geometry (:class:`~simbench.sim.error_source.SimState`), runs the signal error
 sources of :mod:`simbench.sim.error_sources`, locks the receiver's channels on
 the resulting C/N0, runs the tracking error sources and writes the long tables.
 Every error source draws from its own named random stream of the seed. All
-physics is vectorised over (epoch, satellite) arrays of shape (n, m); the
-deterministic per-cell physics runs on the cells above the elevation mask only
-(:attr:`~simbench.sim.error_source.SimState.sky_cells`, a quarter to a third of
-the grid on the ground), while the random processes are drawn for every cell, so
-that what a cell gets never depends on which others are computed.
+physics is vectorised over (epoch, satellite) arrays of shape (n, m), the m
+satellites being those of the constellation that rise above the elevation mask
+at some epoch (:attr:`~simbench.sim.error_source.SimState.columns`); the
+deterministic per-cell physics runs on the cells above the mask only
+(:attr:`~simbench.sim.error_source.SimState.sky_cells`). Random draws span every
+satellite of the constellation at every epoch, so what a cell gets never depends
+on which others are kept or computed.
 
 Measurement model (metres; ``rho`` geometric range with Earth rotation)::
 
