@@ -46,6 +46,18 @@ def geodetic_trig(pos: np.ndarray) -> tuple[np.ndarray, ...]:
     return sl, cl, so, co, h
 
 
+def dot_last_axis(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Sum of ``a * b`` over a short last axis (vectors, rays), added left to right one column at a time.
+
+    The same sum as ``(a * b).sum(-1)`` for a few columns, several times faster than numpy's
+    reduction over a short last axis (and than ``einsum``).
+    """
+    out = a[..., 0] * b[..., 0]
+    for k in range(1, b.shape[-1]):
+        out += a[..., k] * b[..., k]
+    return out
+
+
 def geodetic_from_ecef(pos: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """WGS-84 geodetic coordinates of ECEF points (Bowring, two iterations).
 

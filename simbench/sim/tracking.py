@@ -21,6 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.special import sici
 
 from simbench.core.constants import CHIP_LENGTH_CA, CHIP_RATE_CA, DEG, LAMBDA_L1
+from simbench.core.frames import dot_last_axis
 from simbench.errors import SimbenchError
 
 __all__ = [
@@ -528,17 +529,8 @@ def _composite(
     (with ``slope``) those of its derivative in ``x``."""
     r, dr = band_limited_correlation(x[..., None] - delay, bfe)
     if not slope:
-        return _ray_sum(gain_re, r), _ray_sum(gain_im, r)
-    return _ray_sum(gain_re, r), _ray_sum(gain_im, r), _ray_sum(gain_re, dr), _ray_sum(gain_im, dr)
-
-
-def _ray_sum(gain: FloatArray, r: FloatArray) -> FloatArray:
-    """``(gain * r).sum(-1)`` over the few rays, one column at a time: several times faster than a
-    reduction over a short last axis, and the same left-to-right sum."""
-    out = gain[..., 0] * r[..., 0]
-    for k in range(1, r.shape[-1]):
-        out += gain[..., k] * r[..., k]
-    return out
+        return dot_last_axis(gain_re, r), dot_last_axis(gain_im, r)
+    return dot_last_axis(gain_re, r), dot_last_axis(gain_im, r), dot_last_axis(gain_re, dr), dot_last_axis(gain_im, dr)
 
 
 def dll_tracking_point(

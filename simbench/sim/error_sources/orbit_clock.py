@@ -7,6 +7,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from simbench.core.constants import C_LIGHT
+from simbench.core.frames import dot_last_axis
 from simbench.sim.error_source import Contribution, SimState
 from simbench.sim.processes import gauss_markov
 
@@ -40,10 +41,5 @@ class OrbitClockError:
                 "sat_z": position[..., 2],
                 "sat_clock": C_LIGHT * los.sat_clock_tx + d_clock,
             },
-            labels={"orbit_clock_error": _along(los.los_unit, d_orbit) + d_clock},
+            labels={"orbit_clock_error": dot_last_axis(los.los_unit, d_orbit) + d_clock},
         )
-
-
-def _along(unit: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """Component of ``d`` along ``unit``, both (n, m, 3): three products, several times faster than einsum."""
-    return unit[..., 0] * d[..., 0] + unit[..., 1] * d[..., 1] + unit[..., 2] * d[..., 2]
