@@ -310,6 +310,11 @@ class MotionModelConfig(StochasticModelConfig):
     #: urban_deep seed 4 climbed 13 km while parked), while the wheel-speed sigma made the EKF's height
     #: stiff over long stops (urban seeds 1000-1002 median 3-10 % worse; 3 m/s: unchanged)
     standstill_vertical_sigma_mps: float = 3.0
+    #: sigma of the road grade while the wheels turn: the vertical velocity of a moving car is
+    #: ``grade x speed`` [-]. 0.1 (a 6 deg slope at one sigma) bounds what streets have, yet it is
+    #: what holds the height of a code-only log without Doppler, where the wheel speed has no
+    #: direction to act along and nothing else damps the vertical velocity
+    road_grade_sigma: float = 0.1
 
     def validate(self, where: str) -> None:
         """The shared checks, then the motion-model densities and sigmas."""
@@ -322,5 +327,6 @@ class MotionModelConfig(StochasticModelConfig):
             "drift_rw_mps_rts",
             "nhc_sigma_mps",
             "standstill_vertical_sigma_mps",
+            "road_grade_sigma",
         ):
             require_positive(f"{where}.{name}", getattr(self, name), "give a positive sigma or density")

@@ -483,8 +483,9 @@ class PppGraph:
 
         * standstill (``|s| < 0.2 m/s``): ``H v_k = 0`` and, loosely, no vertical velocity
           (``standstill_vertical_sigma_mps``);
-        * moving, with a direction ``u`` from the epoch's Doppler velocity fix: ``u . v_k = |s|``
-          and ``(up x u) . v_k = 0`` (no sideways motion, ``nhc_sigma_mps``);
+        * moving: ``up . v_k = 0`` at ``road_grade_sigma |s|`` (a car follows the road), and with a
+          direction ``u`` from the epoch's Doppler velocity fix also ``u . v_k = |s|`` and
+          ``(up x u) . v_k = 0`` (no sideways motion, ``nhc_sigma_mps``);
         * turning: ``H v_k = (s_k / s_{k-1}) R(omega dt) H v_{k-1}`` (heading clockwise from
           north advances by ``omega dt``; the speed ratio carries the along-track change).
         """
@@ -507,17 +508,18 @@ class PppGraph:
                     {vel_key(k): zero},
                 )
             )
-        elif np.isfinite(self.heading_ref[k]).all():
-            u = self.heading_ref[k]
-            across = np.cross(self.enu[k, 2], u)
+        else:
+            up = self.enu[k, 2]
+            rows, z = up[None, :], np.zeros(1)
+            sigmas = np.array([float(np.hypot(self.cfg.road_grade_sigma * speed, sig_s))])
+            if np.isfinite(self.heading_ref[k]).all():
+                u = self.heading_ref[k]
+                rows = np.vstack([rows, u, np.cross(up, u)])
+                z = np.array([0.0, abs(speed), 0.0])
+                sigmas = np.r_[sigmas, sig_s, self.cfg.nhc_sigma_mps]
             g.add(
                 _linear(
-                    gtsam.JacobianFactor(
-                        vel_key(k),
-                        np.vstack([u, across]),
-                        np.array([abs(speed), 0.0]),
-                        gtsam.noiseModel.Diagonal.Sigmas(np.array([sig_s, self.cfg.nhc_sigma_mps])),
-                    ),
+                    gtsam.JacobianFactor(vel_key(k), rows, z, gtsam.noiseModel.Diagonal.Sigmas(sigmas)),
                     {vel_key(k): zero},
                 )
             )

@@ -76,9 +76,10 @@ def test_missing_doppler_rows_are_skipped(open_sky: simbench.Scenario) -> None:
     assert none_track.diagnostics["n_doppler_updates"] == 0
     assert np.isfinite(none_track.pos).all() and np.isfinite(none_track.vel).all()
     # half the Doppler rows (about 4 a epoch for 4 unknowns) still hold the velocity (measured 0.25 m/s
-    # median against 0.12 with all); without any, the code positions alone carry it (1.05 m/s)
+    # median against 0.12 with all); without any, the wheels carry it: speed and road grade (0.27 m/s;
+    # 1.05 when the non-holonomic row still froze the filter's own direction)
     assert np.median(half_vel[5:]) < 0.35
-    assert np.median(none_vel[5:]) > 2 * np.median(half_vel[5:])
+    assert np.median(none_vel[5:]) < 0.5
     assert np.median(half_err) < np.median(none_err)
 
 
