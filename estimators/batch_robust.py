@@ -186,6 +186,7 @@ class BatchGraphEstimator(Estimator):
             # GTSAM linearisations (between them, steps move the rows' residuals: WhitenedRows)
             "linearizations": self._rows.linearizations,
             "inter_system_bias_m": isb,
+            **obs.model_info(),
             **diag,
             "config": asdict(self.config),
         }

@@ -10,7 +10,7 @@ variance with no correlation. A fixed-size state keeps
 the bookkeeping trivial and the matrices small (at most 37 x 37 for GPS), while the biases
 of a continuous arc are still constants (dissertation's "landmark" view).
 
-With ``estimate_iono`` (single frequency only; not part of Table 4.4.2) a second
+With ``estimate_iono`` (single frequency with the broadcast delay only; not part of Table 4.4.2) a second
 block of per-satellite slots holds a slant ionosphere residual (code ``+I``,
 phase ``-I``, random walk, reset with the arc): after the Klobuchar correction
 the residual ionosphere changes by metres per hour, and without such a state
@@ -207,7 +207,7 @@ class EkfPpp(Estimator):
         assert obs.system_index is not None  # prepare_ppp always sets it
         n_slots = len(obs.sat_names) if obs.n_arcs else 0
         # slant-ionosphere slots follow the bias slots, one per satellite, reset with the arc
-        n_iono = n_slots if cfg.estimate_iono and not obs.ionosphere_free else 0
+        n_iono = n_slots if cfg.estimate_iono and obs.broadcast_ionosphere else 0
         iono0 = N_BASE_STATES + n_slots
         # one receiver clock offset per further GNSS system (inter-system bias, random walk), last
         isb0 = N_BASE_STATES + n_slots + n_iono

@@ -41,6 +41,7 @@ from simbench.core.gpstime import day_of_year
 from simbench.errors import SimbenchError
 from simbench.gnss.arcs import arc_ids
 from simbench.gnss.geometry import sagnac_range_gradient
+from simbench.gnss.measured_ionosphere import geometry_free_delay, levelled_phase_delay, measured_ionosphere
 from simbench.gnss.signals import L1_FREQUENCY_HZ, l1_wavelength_m
 from simbench.gnss.spp import SppSolution, solve_epochs
 from simbench.gnss.troposphere import troposphere_terms
@@ -60,6 +61,7 @@ __all__ = [
     "predict_given_troposphere",
     "sigma_factor",
     "variance_factors",
+    "ionosphere_choice",
     "ionosphere_free",
     "N_BASE_STATES",
 ]
@@ -241,6 +243,12 @@ class PppObservations:
     odometry: np.ndarray | None = None
     #: rows dropped for want of a second frequency (ionosphere-free only)
     n_single_frequency_dropped: int = 0
+    #: what the ``ionosphere`` choice resolved to on these data (free, measured or broadcast)
+    ionosphere: IonosphereMode = IonosphereMode.broadcast
+    #: rows whose slant delay their own second frequency measured (``measured`` only)
+    n_ionosphere_measured: int = 0
+    #: per system, ``(a, b)`` of the broadcast delay fitted to the measured ones [-, m] (``measured`` only)
+    ionosphere_fits: dict[str, tuple[float, float]] = field(default_factory=dict)
     #: factor on the code sigma per variance group ("G", "C 35-40 dB-Hz", ...); empty without
     #: variance components
     variance_factors: dict[str, float] = field(default_factory=dict)
@@ -249,10 +257,19 @@ class PppObservations:
         """The measurement model's data-driven choices, for an estimator's diagnostics (JSON values)."""
         return {
             "ionosphere_free": bool(self.ionosphere_free),
+            "ionosphere": self.ionosphere.value,
             "single_frequency_rows_dropped": int(self.n_single_frequency_dropped),
+            "ionosphere_measured_rows": int(self.n_ionosphere_measured),
+            "ionosphere_fits": {k: [round(a, 3), round(b, 3)] for k, (a, b) in self.ionosphere_fits.items()},
             "code_variance_factors": dict(self.variance_factors),
             "systems": list(self.systems),
         }
+
+    @property
+    def broadcast_ionosphere(self) -> bool:
+        """The first frequency with the broadcast delay: the only mode whose rows keep an ionosphere
+        error that slant-ionosphere states (``estimate_iono``) are there to take up."""
+        return not self.ionosphere_free and self.ionosphere == IonosphereMode.broadcast
 
     @property
     def has_phase(self) -> np.ndarray:
@@ -336,10 +353,13 @@ def prepare_ppp(
         both phases exist), any system, the satellite clock moved to the combination's
         reference with the optional :data:`SAT_DCB_COLUMN`; rows without a second frequency are dropped
         (``n_single_frequency_dropped``). ``broadcast``: the first frequency with the
-        Klobuchar delay removed, scaled by ``(f_L1 / f)**2`` to the row's carrier. ``auto``:
-        ``free`` when every satellite above the mask has a second frequency on at least
-        :data:`AUTO_FREE_MIN_FRACTION` of its rows, else ``broadcast``; the decision is the
-        result's ``ionosphere_free``.
+        Klobuchar delay removed, scaled by ``(f_L1 / f)**2`` to the row's carrier. ``measured``:
+        the first frequency with each row's delay measured by its code pair where it has one and
+        the broadcast delay fitted to those elsewhere
+        (:func:`simbench.gnss.measured_ionosphere.measured_ionosphere`). ``auto``: ``free`` when
+        every satellite above the mask has a second frequency on at least
+        :data:`AUTO_FREE_MIN_FRACTION` of its rows, ``measured`` when some rows have one, else
+        ``broadcast``; the decision is the result's ``ionosphere`` (and ``ionosphere_free``).
     code_sigma_m, phase_sigma_m : float
         Zenith standard deviations [m] of the (combined) code and phase; scaled per row by
         :func:`sigma_factor`.
@@ -396,7 +416,8 @@ def prepare_ppp(
     valid = np.isfinite(obs[list(_CODE_COLUMNS)].to_numpy(float)).all(axis=1)
     second = _second_frequency(obs)
     above = obs["el"].to_numpy(float) > elevation_mask_deg
-    free = ionosphere_free(obs, ionosphere, elevation_mask_deg)
+    choice = ionosphere_choice(obs, ionosphere, elevation_mask_deg)
+    free = choice == IonosphereMode.free
     n_dropped = int((valid & above & ~second).sum()) if free else 0
     if free:
         valid &= second
@@ -446,8 +467,7 @@ def prepare_ppp(
         gamma = sub["f1_f2_ratio"].to_numpy(float) ** 2
         # sat_clock is the first frequency's single-frequency clock (group delay removed); the
         # combination needs the clock of the broadcast reference: + dcb / (gamma - 1)
-        dcb = np.nan_to_num(sub[SAT_DCB_COLUMN].to_numpy(float)) if SAT_DCB_COLUMN in sub.columns else 0.0
-        sat_clock = sat_clock + dcb / (gamma - 1.0)
+        sat_clock = sat_clock + _sat_dcb(sub) / (gamma - 1.0)
         code = if_combination(sub["code_l1"].to_numpy(float), sub["code_l2"].to_numpy(float), gamma) + sat_clock
         phase = if_combination(sub["phase_l1"].to_numpy(float), sub["phase_l2"].to_numpy(float), gamma) + sat_clock
     else:
@@ -465,11 +485,29 @@ def prepare_ppp(
     systems = tuple(sorted(set(letters.tolist()), key=lambda c: (c != "G", c)))
     system_index = np.array([systems.index(c) for c in letters], np.int64)[sat_index]
 
+    n_measured, iono_fits = 0, {}
     if not free and not data.nav.iono_corrected:
         lat, lon = _rough_lat_lon(sat_pos, code, sigma_scale, el, doy, t, epoch_start, epoch_stop, system_index)
         iono = atmosphere.klobuchar_l1_delay_m(
             data.nav.start_sow_s + t, lat, lon, el, az, np.asarray(data.nav.iono_alpha), np.asarray(data.nav.iono_beta)
         ) * klobuchar_scale(sat)
+        if choice == IonosphereMode.measured:
+            pair = _second_frequency(sub)
+            gamma = sub["f1_f2_ratio"].to_numpy(float) ** 2
+            gf = geometry_free_delay(
+                sub["code_l1"].to_numpy(float), sub["code_l2"].to_numpy(float), gamma, _sat_dcb(sub)
+            )
+            phase_pair = (sub["phase_l1"].to_numpy(float) - sub["phase_l2"].to_numpy(float)) / (gamma - 1.0)
+            lost = (sub["lli_l1"].fillna(False).to_numpy(bool)) | (sub["lli_l2"].fillna(False).to_numpy(bool))
+            code_pair = np.where(pair, gf, np.nan)
+            levelled, stretch = levelled_phase_delay(code_pair, np.where(pair, phase_pair, np.nan), sat, t, lost)
+            found = measured_ionosphere(iono, code_pair, sat, t, levelled_m=levelled)
+            iono, n_measured, iono_fits = found.delay_m, int(found.measured.sum()), found.fits
+            # a carrier phase takes the delay's changes at its millimetre weight: it is kept where the
+            # delay is levelled (a stretch is then an arc) and nowhere else, since there are no
+            # slant-ionosphere states in this mode to take up a modelled delay's drift
+            arc = _split_arcs(np.where(stretch >= 0, arc, -1), stretch)
+            phase = np.where(arc >= 0, phase, np.nan)
         code = code - iono
         phase = phase + iono
     sigma_code = code_sigma_m * sigma_scale
@@ -504,6 +542,9 @@ def prepare_ppp(
         sat_names=tuple(str(s) for s in sat_names),
         n_arcs=int(arc.max(initial=-1)) + 1,
         ionosphere_free=free,
+        ionosphere=choice,
+        n_ionosphere_measured=n_measured,
+        ionosphere_fits=iono_fits,
         doy=doy,
         systems=systems,
         system_index=system_index,
@@ -678,30 +719,38 @@ def _variance_groups(
     return group.reshape(-1), names
 
 
-def ionosphere_free(obs: pd.DataFrame, mode: IonosphereMode, elevation_mask_deg: float) -> bool:
-    """Whether the ``ionosphere`` choice forms the ionosphere-free combination on these rows.
-
-    The decision :func:`prepare_ppp` takes, for estimators that hand the rows to another
-    program (RTKLIB) and must choose the same way.
+def ionosphere_choice(obs: pd.DataFrame, mode: IonosphereMode, elevation_mask_deg: float) -> IonosphereMode:
+    """What the ``ionosphere`` choice resolves to on these rows: ``free``, ``measured`` or ``broadcast``.
 
     Parameters
     ----------
     obs : pandas.DataFrame
         Observation table (:mod:`simbench.contract`).
     mode : IonosphereMode
-        ``broadcast``: never; ``free``: always (an error without any second frequency);
-        ``auto``: when every satellite above the mask has a second frequency on at least
-        :data:`AUTO_FREE_MIN_FRACTION` of its rows.
+        ``broadcast``: always; ``free`` and ``measured``: always (an error without any second
+        frequency); ``auto``: ``free`` when every satellite above the mask has a second frequency on
+        at least :data:`AUTO_FREE_MIN_FRACTION` of its rows, ``measured`` when some rows have one,
+        else ``broadcast``.
     elevation_mask_deg : float
         Rows at or below this elevation [deg], and rows without a usable code, do not count.
 
     Returns
     -------
-    bool
+    IonosphereMode
     """
     used = np.isfinite(obs[list(_CODE_COLUMNS)].to_numpy(float)).all(axis=1)
     used &= obs["el"].to_numpy(float) > elevation_mask_deg
-    return _decide_ionosphere_free(mode, obs["sat"].to_numpy()[used], _second_frequency(obs)[used])
+    return _decide_ionosphere(mode, obs["sat"].to_numpy()[used], _second_frequency(obs)[used])
+
+
+def ionosphere_free(obs: pd.DataFrame, mode: IonosphereMode, elevation_mask_deg: float) -> bool:
+    """Whether the ``ionosphere`` choice forms the ionosphere-free combination on these rows
+    (:func:`ionosphere_choice` is ``free``).
+
+    The decision :func:`prepare_ppp` takes, for estimators that hand the rows to another
+    program (RTKLIB) and must choose the same way.
+    """
+    return ionosphere_choice(obs, mode, elevation_mask_deg) == IonosphereMode.free
 
 
 def _second_frequency(obs: pd.DataFrame) -> np.ndarray:
@@ -712,23 +761,44 @@ def _second_frequency(obs: pd.DataFrame) -> np.ndarray:
     return np.isfinite(obs["code_l2"].to_numpy(float)) & np.isfinite(ratio) & (ratio > 1.0)
 
 
-def _decide_ionosphere_free(mode: IonosphereMode, sat: np.ndarray, second: np.ndarray) -> bool:
+def _decide_ionosphere(mode: IonosphereMode, sat: np.ndarray, second: np.ndarray) -> IonosphereMode:
     """The ``ionosphere`` choice applied to the rows above the mask (satellite ids, second frequency or not)."""
+    mode = IonosphereMode(mode)
     if mode == IonosphereMode.broadcast:
-        return False
-    if mode == IonosphereMode.free:
+        return mode
+    if mode in (IonosphereMode.free, IonosphereMode.measured):
         if not second.any():
             raise SimbenchError(
                 "ionosphere",
-                "free requested, but no row has a second frequency (code_l2 and f1_f2_ratio)",
+                f"{mode.value} requested, but no row has a second frequency (code_l2 and f1_f2_ratio)",
                 "set gnss_model.ionosphere=auto or broadcast, or simulate with scenario.dual_frequency=true",
             )
-        return True
-    if not len(sat):
-        return False
+        return mode
+    if not second.any():
+        return IonosphereMode.broadcast
     _, index = np.unique(sat, return_inverse=True)
     share = np.bincount(index, second.astype(float)) / np.bincount(index)
-    return bool(share.min() >= AUTO_FREE_MIN_FRACTION)
+    return IonosphereMode.free if share.min() >= AUTO_FREE_MIN_FRACTION else IonosphereMode.measured
+
+
+def _split_arcs(arc: np.ndarray, stretch: np.ndarray) -> np.ndarray:
+    """``arc`` (rows in epoch order, -1: no phase) cut where ``stretch`` changes, renumbered by start."""
+    keyed = arc >= 0
+    key = np.full(len(arc), -1, np.int64)
+    if not keyed.any():
+        return key
+    _, first, inverse = np.unique(
+        np.column_stack([arc, stretch])[keyed], axis=0, return_index=True, return_inverse=True
+    )
+    rank = np.empty(len(first), np.int64)
+    rank[np.argsort(first, kind="stable")] = np.arange(len(first))
+    key[keyed] = rank[inverse.ravel()]
+    return key
+
+
+def _sat_dcb(obs: pd.DataFrame) -> np.ndarray | float:
+    """Each row's :data:`SAT_DCB_COLUMN` [m] (0 where NaN or absent)."""
+    return np.nan_to_num(obs[SAT_DCB_COLUMN].to_numpy(float)) if SAT_DCB_COLUMN in obs.columns else 0.0
 
 
 def _odometry_per_epoch(odo: pd.DataFrame, epoch_t: np.ndarray) -> np.ndarray:

@@ -251,7 +251,7 @@ class PppGraph:
         self.obs = obs
         self.cfg = cfg
         self.constant_velocity = cfg.motion_model == MotionModel.constant_velocity
-        self.with_iono = bool(cfg.estimate_iono and not obs.ionosphere_free)
+        self.with_iono = bool(cfg.estimate_iono and obs.broadcast_ionosphere)
         n, nk = obs.n_obs, obs.n_epochs
         self.row_epoch = np.repeat(np.arange(nk), obs.epoch_stop - obs.epoch_start)
         # epochs without a trusted fit (four satellites in a bad geometry, NLOS) start from the
