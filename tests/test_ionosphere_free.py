@@ -31,7 +31,7 @@ RATIOS = {
 KW = dict(code_sigma_m=2.5, phase_sigma_m=0.025, elevation_mask_deg=15.0)
 
 
-def _with_second_frequency(ratio: np.ndarray | float, n_epochs: int = 20) -> tuple[ReceiverData, dict]:
+def with_second_frequency(ratio: np.ndarray | float, n_epochs: int = 20) -> tuple[ReceiverData, dict]:
     """Noise-free data whose second frequency sits at f1/ratio: its code delay is ratio**2 times the first's."""
     data, truth = synthetic_data(n_epochs, dual=True, code_noise_m=0.0, phase_noise_m=0.0)
     o = data.observations.copy()
@@ -56,7 +56,7 @@ def _worst_code_residual(data: ReceiverData, truth: dict, **kw) -> float:
 
 @pytest.mark.parametrize("pair", list(RATIOS))
 def test_the_combination_removes_the_ionosphere_for_every_carrier_pair(pair: str) -> None:
-    data, truth = _with_second_frequency(RATIOS[pair])
+    data, truth = with_second_frequency(RATIOS[pair])
     # a delay of 2-7 m on the first frequency: without the combination it stays in the code
     assert _worst_code_residual(data, truth, ionosphere=IonosphereMode.free) < 5e-3
     first_only = data.observations.drop(columns=["code_l2", "phase_l2", "f1_f2_ratio"])
@@ -65,15 +65,15 @@ def test_the_combination_removes_the_ionosphere_for_every_carrier_pair(pair: str
 
 
 def test_each_row_uses_its_own_carrier_ratio() -> None:
-    data, truth = _with_second_frequency(RATIOS["L1/L2"])
+    data, truth = with_second_frequency(RATIOS["L1/L2"])
     sats = data.observations["sat"].to_numpy()
     per_row = np.where(pd.Series(sats).str[1:].astype(int) % 2 == 0, RATIOS["B1I/B3I"], RATIOS["G1/G2"])
-    mixed, truth = _with_second_frequency(per_row)
+    mixed, truth = with_second_frequency(per_row)
     assert _worst_code_residual(mixed, truth, ionosphere=IonosphereMode.free) < 5e-3
 
 
 def test_auto_picks_free_only_when_every_satellite_has_a_second_frequency() -> None:
-    data, _ = _with_second_frequency(RATIOS["L1/L2"])
+    data, _ = with_second_frequency(RATIOS["L1/L2"])
     auto = prepare_ppp(data, **KW)
     assert auto.ionosphere_free and auto.n_single_frequency_dropped == 0
     o = data.observations
@@ -93,7 +93,7 @@ def test_auto_picks_free_only_when_every_satellite_has_a_second_frequency() -> N
 
 
 def test_free_drops_the_rows_without_a_second_frequency() -> None:
-    data, _ = _with_second_frequency(RATIOS["L1/L5"])
+    data, _ = with_second_frequency(RATIOS["L1/L5"])
     o = data.observations
     above = o["el"] > KW["elevation_mask_deg"]
     lacking = (o["sat"] == o["sat"].iloc[0]) | (o["sat"] == o["sat"].iloc[-1])
@@ -111,7 +111,7 @@ def test_the_broadcast_group_delays_move_the_clock_to_the_combination(monkeypatc
     """sat_clock is the first frequency's (c (dt - TGD)); a GPS TGD of 10 ns leaves -3 m in the combination
     unless the table's ``sat_dcb`` ((gamma - 1) c TGD) is applied."""
     monkeypatch.setattr(simbench.contract, "RECEIVER_COLUMNS", simbench.contract.RECEIVER_COLUMNS | {SAT_DCB_COLUMN})
-    data, truth = _with_second_frequency(RATIOS["L1/L2"])
+    data, truth = with_second_frequency(RATIOS["L1/L2"])
     o = data.observations
     tgd_m = 299_792_458.0 * 10e-9
     gamma = o["f1_f2_ratio"] ** 2

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_ionosphere_free import KW, RATIOS, _with_second_frequency
+from test_ionosphere_free import KW, RATIOS, with_second_frequency
 
 import estimators
 import simbench
@@ -81,7 +81,7 @@ def test_the_broadcast_model_is_fitted_to_each_systems_measured_rows() -> None:
 
 
 def test_auto_measures_when_only_some_satellites_have_a_second_frequency() -> None:
-    data, _ = _with_second_frequency(RATIOS["L1/L2"], n_epochs=120)
+    data, _ = with_second_frequency(RATIOS["L1/L2"], n_epochs=120)
     o = data.observations
     lacking = o["sat"] == o["sat"].iloc[0]
     some = ReceiverData(o.assign(code_l2=o["code_l2"].where(~lacking)), data.imu, data.nav)

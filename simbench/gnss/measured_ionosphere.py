@@ -15,10 +15,10 @@ delay to millimetres up to a constant per unbroken stretch, ``(phi1 - phi2) / (g
 c``: the stretch is levelled to the median of the code pair over it ("carrier-to-code levelling"),
 so that the delay handed to the phase carries no code noise (a carrier phase takes a delay's
 changes at its own millimetre weight). Elsewhere a running median along each satellite's code
-pairs (of what the broadcast model leaves of them) keeps the slowly changing delay. Rows without a second frequency get the broadcast (Klobuchar)
-delay scaled and offset to agree with the measured rows of their system, ``a K + b`` fitted on
-those rows, so that a system's rows share one offset ``b`` (the ``d_rx / (gamma - 1)`` of its
-measured rows) and the clock still absorbs it.
+pairs (of what the broadcast model leaves of them) keeps the slowly changing delay. Rows without
+a second frequency get the broadcast (Klobuchar) delay scaled and offset to agree with the
+measured rows of their system, ``a K + b`` fitted on those rows, so that a system's rows share
+one offset ``b`` (the ``d_rx / (gamma - 1)`` of its measured rows) and the clock still absorbs it.
 """
 
 from __future__ import annotations
