@@ -497,8 +497,12 @@ def prepare_ppp(
             gf = geometry_free_delay(
                 sub["code_l1"].to_numpy(float), sub["code_l2"].to_numpy(float), gamma, _sat_dcb(sub)
             )
-            phase_pair = (sub["phase_l1"].to_numpy(float) - sub["phase_l2"].to_numpy(float)) / (gamma - 1.0)
-            lost = (sub["lli_l1"].fillna(False).to_numpy(bool)) | (sub["lli_l2"].fillna(False).to_numpy(bool))
+            # a table may carry a second code without its phase (the contract's L2 phase columns are optional here)
+            phase_l2 = sub["phase_l2"].to_numpy(float) if "phase_l2" in sub.columns else np.nan
+            phase_pair = (sub["phase_l1"].to_numpy(float) - phase_l2) / (gamma - 1.0)
+            lost = sub["lli_l1"].fillna(False).to_numpy(bool)
+            if "lli_l2" in sub.columns:
+                lost = lost | sub["lli_l2"].fillna(False).to_numpy(bool)
             code_pair = np.where(pair, gf, np.nan)
             levelled, stretch = levelled_phase_delay(code_pair, np.where(pair, phase_pair, np.nan), sat, t, lost)
             found = measured_ionosphere(iono, code_pair, sat, t, levelled_m=levelled)

@@ -92,6 +92,10 @@ def test_auto_measures_when_only_some_satellites_have_a_second_frequency() -> No
     assert obs.model_info()["ionosphere"] == "measured" and "G" in obs.model_info()["ionosphere_fits"]
     # the carrier phase is kept where the delay is levelled only
     assert not obs.has_phase[obs.sat == o["sat"].iloc[0]].any() and obs.has_phase[obs.sat != o["sat"].iloc[0]].all()
+    # a table with the second code but no second phase: measured by the running median, code only
+    bare = prepare_ppp(ReceiverData(some.observations.drop(columns=["phase_l2", "lli_l2"]), data.imu, data.nav), **KW)
+    assert bare.ionosphere == IonosphereMode.measured and bare.n_ionosphere_measured == obs.n_ionosphere_measured
+    assert not bare.has_phase.any()
     assert prepare_ppp(data, **KW).ionosphere == IonosphereMode.free
     assert prepare_ppp(data, ionosphere=IonosphereMode.measured, **KW).n_ionosphere_measured == int(above.sum())
 
