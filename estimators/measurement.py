@@ -505,13 +505,17 @@ def prepare_ppp(
                 lost = lost | sub["lli_l2"].fillna(False).to_numpy(bool)
             code_pair = np.where(pair, gf, np.nan)
             levelled, stretch = levelled_phase_delay(code_pair, np.where(pair, phase_pair, np.nan), sat, t, lost)
-            found = measured_ionosphere(iono, code_pair, sat, t, levelled_m=levelled)
-            iono, n_measured, iono_fits = found.delay_m, int(found.measured.sum()), found.fits
-            # a carrier phase takes the delay's changes at its millimetre weight: it is kept where the
-            # delay is levelled (a stretch is then an arc) and nowhere else, since there are no
-            # slant-ionosphere states in this mode to take up a modelled delay's drift
-            arc = _split_arcs(np.where(stretch >= 0, arc, -1), stretch)
-            phase = np.where(arc >= 0, phase, np.nan)
+            found = measured_ionosphere(iono, code_pair, sat, t, levelled_m=levelled, stretch=stretch)
+            if not found.fits and ionosphere == IonosphereMode.auto:
+                # no system's second frequency measures the delay better than the broadcast model
+                choice = IonosphereMode.broadcast
+            else:
+                iono, n_measured, iono_fits = found.delay_m, int(found.measured.sum()), found.fits
+                # a carrier phase takes the delay's changes at its millimetre weight: it is kept where
+                # the delay is levelled (a stretch is then an arc) and nowhere else, since there are no
+                # slant-ionosphere states in this mode to take up a modelled delay's drift
+                arc = _split_arcs(np.where((stretch >= 0) & found.measured, arc, -1), stretch)
+                phase = np.where(arc >= 0, phase, np.nan)
         code = code - iono
         phase = phase + iono
     sigma_code = code_sigma_m * sigma_scale

@@ -123,3 +123,45 @@ def test_nagoya_with_l2_on_some_gps_satellites_stays_within_a_metre(
     sol = cls(cls.Config()).estimate(nagoya_some_l2.receiver_view())
     assert sol.diagnostics["ionosphere"] == "measured"
     assert float(np.median(enu_errors(sol.epochs, nagoya_some_l2.truth)["horizontal"])) < 1.0
+
+
+def test_code_pairs_noisier_than_the_broadcast_model_leave_the_broadcast_delay() -> None:
+    """Three satellites, 10 minutes, delays of 4-6 m: code pairs scattered by 0.5 m measure them
+    (the running median over 120 s keeps 0.5 sqrt(30 / 120) = 0.25 m, under half the delay); by 12 m
+    (a weak second signal in a street) they do not, and the system keeps the broadcast delay."""
+    t = np.tile(np.arange(600.0), 3)
+    sat = np.repeat(["G01", "G02", "G03"], 600)
+    k = np.repeat([4.0, 5.0, 6.0], 600)
+    noise = np.random.default_rng(2).normal(0.0, 1.0, t.size)
+    clean = measured_ionosphere(k, 1.2 * k + 0.5 * noise, sat, t)
+    assert set(clean.fits) == {"G"} and clean.measured.all()
+    noisy = measured_ionosphere(k, 1.2 * k + 12.0 * noise, sat, t)
+    assert noisy.fits == {} and not noisy.measured.any()
+    np.testing.assert_array_equal(noisy.delay_m, k)
+
+
+@pytest.mark.parametrize(
+    ("world", "seed", "overrides", "expected"),
+    [
+        # code pairs scattered by 7.6 m about their running median: Klobuchar stays (L2 1.97 m; with
+        # the measured delays 4.23 m)
+        (
+            "urban_deep",
+            1002,
+            {"receiver": "consumer", "scenario.trajectory.urban_drive.start_static_s": 1e5},
+            IonosphereMode.broadcast,
+        ),
+        # 3.8 m, but levelled over long unbroken stretches (20 min: L2 0.69 m; Klobuchar 1.54 m)
+        ("open_sky", 1001, {"receiver": "low"}, IonosphereMode.measured),
+    ],
+)
+def test_auto_measures_only_where_the_second_frequency_is_clean_enough(
+    world: str, seed: int, overrides: dict, expected: IonosphereMode
+) -> None:
+    sc = simbench.scenario(
+        world, seed=seed, **{"scenario.dual_frequency": True, "scenario.duration_s": 600, **overrides}
+    )
+    o = sc.observations
+    lacking = o["sat"].isin(sorted(o["sat"].unique())[::3])
+    thinned = ReceiverData(o.assign(code_l2=o["code_l2"].where(~lacking)), sc.imu, sc.nav)
+    assert prepare_ppp(thinned, min_satellites=1, **KW).ionosphere == expected

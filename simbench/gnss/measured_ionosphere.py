@@ -32,6 +32,7 @@ __all__ = [
     "MeasuredIonosphere",
     "geometry_free_delay",
     "levelled_phase_delay",
+    "measurement_sigmas",
     "running_median_per_satellite",
     "measured_ionosphere",
 ]
@@ -47,6 +48,12 @@ MIN_LEVEL_ROWS = 20
 STEP_BREAK_M = 0.15
 #: ... plus this much per second between the rows (the delay drifts by up to a centimetre a second) [m/s].
 STEP_BREAK_RATE_MPS = 0.01
+#: Time over which street multipath on a code pair stays alike [s] (the simulated canyon's 15 s
+#: Gauss-Markov time, doubled: reflections from one facade persist while the car passes it).
+MULTIPATH_CORRELATION_S = 30.0
+#: Rms error of the broadcast (Klobuchar) delay relative to the delay [-]: the model removes
+#: about half of it (IS-GPS-200), so its error is about half of it.
+BROADCAST_RELATIVE_ERROR = 0.5
 #: A system's broadcast model is fitted to its measured delays only with this many measured rows ...
 MIN_FIT_ROWS = 30
 #: ... from this many satellites (one satellite's pass cannot separate the scale from the offset).
@@ -189,6 +196,7 @@ def measured_ionosphere(
     t: np.ndarray,
     window_s: float = MEDIAN_WINDOW_S,
     levelled_m: np.ndarray | None = None,
+    stretch: np.ndarray | None = None,
 ) -> MeasuredIonosphere:
     """Each row's slant delay: measured where its second frequency gives one, else the fitted broadcast model.
 
@@ -206,13 +214,19 @@ def measured_ionosphere(
         Running-median window [s] (:data:`MEDIAN_WINDOW_S`).
     levelled_m : ndarray, shape (N,), optional
         :func:`levelled_phase_delay` of each row [m]; taken where finite, the running median elsewhere.
+    stretch : ndarray of int, shape (N,), optional
+        Its stretch ids (-1: none); a levelled delay is as good as its stretch is long.
 
     Returns
     -------
     MeasuredIonosphere
-        A system with fewer than :data:`MIN_FIT_ROWS` measured rows or :data:`MIN_FIT_SATELLITES`
-        measured satellites keeps the broadcast delay on all its rows (a mix of measured and
-        broadcast delays without a fit would differ by the receiver's group delay within one clock).
+        A system keeps the broadcast delay on all its rows (a mix of measured and broadcast delays
+        without a fit would differ by the receiver's group delay within one clock) when it has fewer
+        than :data:`MIN_FIT_ROWS` measured rows or :data:`MIN_FIT_SATELLITES` measured satellites,
+        or when its measured delays are less certain than the broadcast model
+        (:func:`measurement_sigmas`; a street's multipath on a weak second signal: code pairs
+        scattered by 8 m in the simulated ``urban_deep`` with a consumer receiver, by 0.3 m on the
+        Nagoya log).
     """
     sat = np.asarray(sat).astype(str)
     # the median runs on what the broadcast model leaves, which the elevation changes less: a window
@@ -226,11 +240,14 @@ def measured_ionosphere(
     measured = np.isfinite(smooth)
     delay = broadcast_m.copy()
     system = np.array([s[:1] for s in sat.tolist()])
+    sigma = measurement_sigmas(np.asarray(measured_m, float) - smooth, system, np.asarray(t, float), stretch, window_s)
     fits: dict[str, tuple[float, float]] = {}
     for letter in np.unique(system).tolist():
         rows = system == letter
         have = rows & measured
         if have.sum() < MIN_FIT_ROWS or np.unique(sat[have]).size < MIN_FIT_SATELLITES:
+            continue
+        if np.median(sigma[have]) > np.median(BROADCAST_RELATIVE_ERROR * np.abs(broadcast_m[rows])):
             continue
         a, b = _robust_line(delay[have], smooth[have])
         fits[letter] = (a, b)
@@ -238,6 +255,47 @@ def measured_ionosphere(
         delay[have] = smooth[have]
     keep = np.isin(system, list(fits))
     return MeasuredIonosphere(delay_m=delay, measured=measured & keep, fits=fits)
+
+
+def measurement_sigmas(
+    scatter: np.ndarray, system: np.ndarray, t: np.ndarray, stretch: np.ndarray | None, window_s: float
+) -> np.ndarray:
+    """Standard deviation of each row's measured delay [m].
+
+    The code pairs of a system scatter about the measured delays by ``s`` (robust, over the
+    system's rows); a delay averaged over ``T`` seconds of them (a levelled stretch's length, or
+    the running median's window) keeps ``s sqrt(tau / T)``, with ``tau`` =
+    :data:`MULTIPATH_CORRELATION_S` the time over which street multipath stays alike.
+
+    Parameters
+    ----------
+    scatter : ndarray, shape (N,)
+        Code-pair delay minus the measured delay [m]; NaN where either is missing.
+    system : ndarray of str, shape (N,)
+    t : ndarray, shape (N,)
+        Row times [s].
+    stretch : ndarray of int, shape (N,) or None
+        Levelled stretch ids (-1: the running median's rows).
+    window_s : float
+        The running median's window [s].
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        NaN for a system without scatter.
+    """
+    spread = np.full(len(scatter), np.nan)
+    for letter in np.unique(system).tolist():
+        rows = system == letter
+        r = scatter[rows][np.isfinite(scatter[rows])]
+        if r.size:
+            spread[rows] = 1.4826 * float(np.median(np.abs(r - np.median(r))))
+    span = np.full(len(scatter), window_s)
+    if stretch is not None and (stretch >= 0).any():
+        ids = stretch >= 0
+        times = pd.Series(t[ids]).groupby(stretch[ids])
+        span[ids] = (times.transform("max") - times.transform("min")).to_numpy(float)
+    return spread * np.sqrt(MULTIPATH_CORRELATION_S / np.maximum(span, MULTIPATH_CORRELATION_S))
 
 
 def _robust_line(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
