@@ -358,8 +358,10 @@ def prepare_ppp(
         the broadcast delay fitted to those elsewhere
         (:func:`simbench.gnss.measured_ionosphere.measured_ionosphere`). ``auto``: ``free`` when
         every satellite above the mask has a second frequency on at least
-        :data:`AUTO_FREE_MIN_FRACTION` of its rows, ``measured`` when some rows have one, else
-        ``broadcast``; the decision is the result's ``ionosphere`` (and ``ionosphere_free``).
+        :data:`AUTO_FREE_MIN_FRACTION` of its rows, ``measured`` when some rows have one and some
+        system's code pairs measure the delay better than the broadcast model
+        (:func:`simbench.gnss.measured_ionosphere.measured_ionosphere`), else ``broadcast``; the
+        decision is the result's ``ionosphere`` (and ``ionosphere_free``).
     code_sigma_m, phase_sigma_m : float
         Zenith standard deviations [m] of the (combined) code and phase; scaled per row by
         :func:`sigma_factor`.

@@ -71,7 +71,8 @@ class IonosphereMode(Choice):
     """How the ionospheric delay leaves the code and phase (member names are the YAML words)."""
 
     #: ``free`` when every tracked satellite has a second frequency (decided on the data by
-    #: :func:`~estimators.measurement.prepare_ppp`), ``measured`` when some have, else ``broadcast``
+    #: :func:`~estimators.measurement.prepare_ppp`), ``measured`` when some have and their code pairs
+    #: measure the delay better than the broadcast model does, else ``broadcast``
     auto = "auto"
     #: first frequency only, the broadcast Klobuchar delay removed (scaled to the row's carrier)
     broadcast = "broadcast"
