@@ -247,7 +247,8 @@ def measured_ionosphere(
         have = rows & measured
         if have.sum() < MIN_FIT_ROWS or np.unique(sat[have]).size < MIN_FIT_SATELLITES:
             continue
-        if np.median(sigma[have]) > np.median(BROADCAST_RELATIVE_ERROR * np.abs(broadcast_m[rows])):
+        # written so that an unknown (NaN) scatter fails too
+        if not np.median(sigma[have]) <= np.median(BROADCAST_RELATIVE_ERROR * np.abs(broadcast_m[rows])):
             continue
         a, b = _robust_line(delay[have], smooth[have])
         fits[letter] = (a, b)
