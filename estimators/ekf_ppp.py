@@ -477,7 +477,7 @@ class EkfPpp(Estimator):
         else:
             # a car follows the road: no vertical velocity beyond the grade
             rows, z = up[None, :], np.zeros(1)
-            sigma = np.array([float(np.hypot(self.config.road_grade_sigma * speed, sig_s))])
+            sigma = np.array([self.config.road_grade_vertical_sigma(speed, sig_s)])
             horizontal = east * (east @ vel) + north * (north @ vel)
             moving = float(np.linalg.norm(horizontal))
             if moving >= DIRECTION_MIN_SPEED_MPS:

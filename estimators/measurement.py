@@ -740,7 +740,8 @@ def ionosphere_choice(obs: pd.DataFrame, mode: IonosphereMode, elevation_mask_de
         ``broadcast``: always; ``free`` and ``measured``: always (an error without any second
         frequency); ``auto``: ``free`` when every satellite above the mask has a second frequency on
         at least :data:`AUTO_FREE_MIN_FRACTION` of its rows, ``measured`` when some rows have one,
-        else ``broadcast``.
+        else ``broadcast`` (:func:`prepare_ppp` may still turn ``measured`` into ``broadcast`` when no
+        system's second frequency measures the delay better than the broadcast model).
     elevation_mask_deg : float
         Rows at or below this elevation [deg], and rows without a usable code, do not count.
 

@@ -17,6 +17,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field, fields
 from typing import Any
 
+import numpy as np
+
 from simbench.contract import Need
 from simbench.errors import require_at_least, require_elevation_mask, require_positive
 from simbench.typed import Choice, check_choices
@@ -79,9 +81,9 @@ class IonosphereMode(Choice):
     #: the ionosphere-free combination of each row's two frequencies (any system); rows without a
     #: second frequency are dropped
     free = "free"
-    #: first frequency only, each row's slant delay measured by its code pair (a running median
-    #: along the satellite) and the broadcast delay fitted to those measurements on the rows
-    #: without a second frequency (:mod:`simbench.gnss.measured_ionosphere`)
+    #: first frequency only, each row's slant delay measured by its code pair (levelled to its phase
+    #: pair, else a running median along the satellite) and the broadcast delay fitted to those
+    #: measurements on the rows without a second frequency (:mod:`simbench.gnss.measured_ionosphere`)
     measured = "measured"
 
 
@@ -325,6 +327,11 @@ class MotionModelConfig(StochasticModelConfig):
     #: what holds the height of a code-only log without Doppler, where the wheel speed has no
     #: direction to act along and nothing else damps the vertical velocity
     road_grade_sigma: float = 0.1
+
+    def road_grade_vertical_sigma(self, speed_mps: float, speed_sigma_mps: float) -> float:
+        """Sigma of the zero-vertical-velocity row of a car moving at ``speed_mps`` [m/s]: the road
+        grade times the speed, with the wheel-speed sigma ``speed_sigma_mps`` as a floor in quadrature."""
+        return float(np.hypot(self.road_grade_sigma * speed_mps, speed_sigma_mps))
 
     def validate(self, where: str) -> None:
         """The shared checks, then the motion-model densities and sigmas."""

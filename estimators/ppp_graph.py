@@ -511,7 +511,7 @@ class PppGraph:
         else:
             up = self.enu[k, 2]
             rows, z = up[None, :], np.zeros(1)
-            sigmas = np.array([float(np.hypot(self.cfg.road_grade_sigma * speed, sig_s))])
+            sigmas = np.array([self.cfg.road_grade_vertical_sigma(speed, sig_s)])
             if np.isfinite(self.heading_ref[k]).all():
                 u = self.heading_ref[k]
                 rows = np.vstack([rows, u, np.cross(up, u)])

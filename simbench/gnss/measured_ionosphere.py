@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+from scipy.stats import median_abs_deviation
 
 __all__ = [
     "MeasuredIonosphere",
@@ -290,7 +291,7 @@ def measurement_sigmas(
         rows = system == letter
         r = scatter[rows][np.isfinite(scatter[rows])]
         if r.size:
-            spread[rows] = 1.4826 * float(np.median(np.abs(r - np.median(r))))
+            spread[rows] = float(median_abs_deviation(r, scale="normal"))
     span = np.full(len(scatter), window_s)
     if stretch is not None and (stretch >= 0).any():
         ids = stretch >= 0
@@ -311,7 +312,7 @@ def _robust_line(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
     coef = np.array([1.0, float(np.median(y - x))])
     for _ in range(2):
         resid = y - design @ coef
-        scale = max(1.4826 * float(np.median(np.abs(resid[keep] - np.median(resid[keep])))), FIT_MIN_SIGMA_M)
+        scale = max(float(median_abs_deviation(resid[keep], scale="normal")), FIT_MIN_SIGMA_M)
         keep = np.abs(resid) <= FIT_CLIP_SIGMAS * scale
         # the prior as one more row, weighted like a measurement of a with sigma FIT_SCALE_SIGMA
         w = scale / FIT_SCALE_SIGMA
