@@ -13,8 +13,8 @@ All incremental estimators share one loop over the epochs of the shared PPP grap
    gating estimators (MM, ICE) test. A new arc's phase residual is undefined (NaN).
 2. *Gate*: a subclass hook turns the residuals into the epoch's measurement noise
    models (:meth:`IncrementalGraphEstimator._measurements`).
-3. *Update*: ``isam.update(new factors, new values)``; the epoch's position is read
-   with ``calculateEstimatePoint3`` (the filtered estimate; no full-estimate copy).
+3. *Update*: the window's ``update(new factors, new values)``; the epoch's position is
+   read with ``calculateEstimatePoint3`` (the filtered estimate; no full-estimate copy).
 
 Estimators:
 
@@ -34,20 +34,23 @@ Cost: every arc bias is a "landmark" seen at every epoch of its arc, so in plain
 iSAM2 (``lag_s = 0``) each update scans all factors of the continuing arcs and the
 back-substitution of the changed biases reaches every past epoch of the arc: the
 update time grows with the run (measured in IF mode: ~0.6 ms per update at the start,
-~30 ms after 850 epochs). By default the loop runs iSAM2 inside GTSAM's
-``IncrementalFixedLagSmoother``: keys older than ``lag_s`` are marginalised, the arc
-biases of tracked arcs stay alive as long as their arc (see :class:`_Smoother`), and
-the update cost is bounded by the window. The filtered position of each epoch is what
-the estimators output; marginalisation is exact for the linear part of the model, so
-it is the same as plain iSAM2's up to relinearisation of positions older than the lag
-(urban, 600 s: horizontal median and mean equal to 1 mm for lags 0, 10, 30, 120 s).
+~30 ms after 850 epochs). By default the loop runs iSAM2 in a fixed-lag window
+(:mod:`estimators.fixed_lag`): keys last used more than ``lag_s`` seconds and
+``lag_min_epochs`` epochs ago are marginalised, the arc biases of tracked arcs stay
+alive as long as their arc, an arc that resumes after its bias left the window starts
+anew, and the update cost is bounded by the window. The window is decided from the
+epoch times alone, so two runs on the same data give the same positions bit for bit
+(GTSAM's ``IncrementalFixedLagSmoother`` did not). The filtered position of each epoch
+is what the estimators output; marginalisation is exact for the linear part of the
+model, so it is the same as plain iSAM2's up to relinearisation of positions older
+than the lag.
 """
 
 from __future__ import annotations
 
 import time
 from dataclasses import asdict, dataclass
-from typing import Any, ClassVar, cast
+from typing import Any, ClassVar
 
 import gtsam
 import numpy as np
@@ -56,6 +59,7 @@ import pandas as pd
 from estimators import register
 from estimators.base import Estimator, solution_frame
 from estimators.batch_robust import MaxMixtureFields, max_mixture_outliers, validate_max_mixture
+from estimators.fixed_lag import FixedLagSmoother, LagSchedule, restart_stale_arcs
 from estimators.measurement import predict_given_troposphere, prepare_ppp
 from estimators.ppp_graph import (
     ZERO_KEY,
@@ -102,9 +106,11 @@ class IncrementalConfig(PppGraphConfig):
     wildfire_threshold: float = 0.001
     #: check relinearisation only in the cliques an update touches (GTSAM default False)
     partial_relinearization_check: bool = False
-    #: fixed-lag window [s]: keys older than this are marginalised (gtsam.IncrementalFixedLagSmoother);
+    #: fixed-lag window [s]: keys last used longer ago are marginalised (estimators.fixed_lag);
     #: 0 keeps every epoch in plain iSAM2, whose update cost then grows with the run (module notes)
     lag_s: float = 10.0
+    #: the window holds at least this many epochs, whatever the data interval (a 30 s station file)
+    lag_min_epochs: int = 5
 
     def validate(self, where: str) -> None:
         """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
@@ -118,6 +124,9 @@ class IncrementalConfig(PppGraphConfig):
             f"{where}.relinearize_skip", self.relinearize_skip, 1, "1 checks for relinearisation at every update"
         )
         require_at_least(f"{where}.lag_s", self.lag_s, 0, "give the fixed-lag window in seconds (0: keep every epoch)")
+        require_at_least(
+            f"{where}.lag_min_epochs", self.lag_min_epochs, 2, "the window keeps the previous epoch at least"
+        )
 
 
 @dataclass
@@ -170,8 +179,10 @@ class IncrementalGraphEstimator(Estimator):
         cfg: IncrementalConfig = self.config
         self._start_run()
         obs = prepare_ppp(data, **cfg.prepare_kwargs())
+        schedule = LagSchedule.of(obs.epoch_t, cfg.lag_s, cfg.lag_min_epochs)
+        obs, restarted = restart_stale_arcs(obs, schedule)
         g = PppGraph(obs, cfg)
-        isam = _Smoother(cfg, g)
+        isam = FixedLagSmoother(isam2_params(cfg), schedule)
 
         n = obs.n_epochs
         pos_out = np.empty((n, 3))
@@ -187,25 +198,26 @@ class IncrementalGraphEstimator(Estimator):
                 skipped += 1
             else:
                 graph.push_back(g.measurement_factors(rows, **kwargs))
-            isam.update(k, graph, self._initial_values(k, rows, g, isam, pred))
-            pos_out[k] = isam.calculateEstimatePoint3(pos_key(k))
+            isam.update(k, graph, self._initial_values(k, rows, g, isam, pred), _reused_keys(g, rows))
+            pos_out[k] = isam.point3(pos_key(k))
             update_s[k] = time.perf_counter() - tic
 
         frame = solution_frame(obs.epoch_ids, obs.epoch_t, pos_out, update_s)
-        isb = {name: isam.calculateEstimateDouble(isb_key(s, n - 1)) for s, name in enumerate(obs.systems[1:], start=1)}
+        isb = {name: isam.double(isb_key(s, n - 1)) for s, name in enumerate(obs.systems[1:], start=1)}
         diagnostics = {
             "n_epochs": int(n),
             "n_observations": int(obs.n_obs),
             "n_arcs": int(obs.n_arcs),
             "inter_system_bias_m": isb,
             "epochs_without_gnss_update": int(skipped),
+            "arcs_restarted_after_window": restarted,
             **obs.model_info(),
             "config": asdict(cfg),
             **self._diagnostics(),
         }
         return frame, diagnostics
 
-    def _predict(self, k: int, rows: slice, g: PppGraph, isam: _Smoother) -> EpochPrediction:
+    def _predict(self, k: int, rows: slice, g: PppGraph, isam: FixedLagSmoother) -> EpochPrediction:
         obs = g.obs
         prev = g.prev_row[rows]
         has_phase = g.has_phase[rows]
@@ -216,18 +228,15 @@ class IncrementalGraphEstimator(Estimator):
         # further systems' rows carry their inter-system bias (the latest estimate)
         isb = np.r_[
             0.0,
-            [
-                isam.calculateEstimateDouble(isb_key(s, k - 1)) if k else g.isb0_m[s - 1]
-                for s in range(1, obs.n_isb + 1)
-            ],
+            [isam.double(isb_key(s, k - 1)) if k else g.isb0_m[s - 1] for s in range(1, obs.n_isb + 1)],
         ]
         offset = isb[g.row_system[rows]]
         prior_pos, prior_root = None, None
         if k == 0:
             pos, clock, zwd = g.spp_pos[0].copy(), float(g.spp_clock_m[0]), g.zwd0
         else:
-            pos = np.asarray(isam.calculateEstimatePoint3(pos_key(k - 1)), float).copy()
-            zwd = isam.calculateEstimateDouble(zwd_key(k - 1))
+            pos = np.asarray(isam.point3(pos_key(k - 1)), float).copy()
+            zwd = isam.double(zwd_key(k - 1))
             clock = float(g.spp_clock_m[k])
             if g.constant_velocity:
                 prior_pos, prior_root = self._motion_prior(k, g, isam, pos)
@@ -235,9 +244,9 @@ class IncrementalGraphEstimator(Estimator):
         amb = np.full(m, np.nan)
         iono = np.zeros(m)
         for j in np.flatnonzero(cont):
-            amb[j] = isam.calculateEstimateDouble(amb_key(int(arcs[j])))
+            amb[j] = isam.double(amb_key(int(arcs[j])))
             if g.with_iono:
-                iono[j] = isam.calculateEstimateDouble(iono_key(int(prev[j])))
+                iono[j] = isam.double(iono_key(int(prev[j])))
         sat, mw = obs.sat_pos[rows], g.wet_mapping[rows]
         zc, zp = g.code_z[rows], g.phase_z[rows]
         sc, sp = obs.sigma_code[rows], obs.sigma_phase[rows]
@@ -269,7 +278,7 @@ class IncrementalGraphEstimator(Estimator):
         return EpochPrediction(pos, clock, res_code, res_phase, new_arc, amb_new)
 
     @staticmethod
-    def _motion_prior(k: int, g: PppGraph, isam: _Smoother, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _motion_prior(k: int, g: PppGraph, isam: FixedLagSmoother, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Constant-velocity prediction of epoch ``k``'s position and the whitening root of its covariance.
 
         ``p = p_{k-1} + v_{k-1} dt`` with ``P = P_p + dt^2 P_v + q^2 dt^3 / 3 I`` from the filtered
@@ -277,13 +286,15 @@ class IncrementalGraphEstimator(Estimator):
         satellites fits them exactly and every residual looks like an inlier.
         """
         dt = float(g.obs.epoch_t[k] - g.obs.epoch_t[k - 1])
-        vel = np.asarray(isam.calculateEstimatePoint3(vel_key(k - 1)), float)
+        vel = np.asarray(isam.point3(vel_key(k - 1)), float)
         q = g.cfg.accel_sigma_mps2_rts
         joint = isam.joint_marginal_covariance([pos_key(k - 1), vel_key(k - 1)])
         cov = joint[:3, :3] + dt * dt * joint[3:, 3:] + (q * q * dt**3 / 3.0) * np.eye(3)
         return pos + vel * dt, np.linalg.inv(np.linalg.cholesky(cov))
 
-    def _initial_values(self, k: int, rows: slice, g: PppGraph, isam: _Smoother, pred: EpochPrediction) -> gtsam.Values:
+    def _initial_values(
+        self, k: int, rows: slice, g: PppGraph, isam: FixedLagSmoother, pred: EpochPrediction
+    ) -> gtsam.Values:
         v = g.new_values(k, self._previous(k, rows, g, isam))
         v.update(pos_key(k), gtsam.Point3(*pred.pos))
         v.update(clock_key(k), pred.clock_m / C_LIGHT)
@@ -295,69 +306,30 @@ class IncrementalGraphEstimator(Estimator):
         return v
 
     @staticmethod
-    def _previous(k: int, rows: slice, g: PppGraph, isam: _Smoother) -> gtsam.Values | None:
+    def _previous(k: int, rows: slice, g: PppGraph, isam: FixedLagSmoother) -> gtsam.Values | None:
         """The few estimates :meth:`PppGraph.new_values` carries over (no full-estimate copy)."""
         if k == 0:
             return None
         v = gtsam.Values()
-        v.insert(pos_key(k - 1), isam.calculateEstimatePoint3(pos_key(k - 1)))
-        insert_double(v, zwd_key(k - 1), isam.calculateEstimateDouble(zwd_key(k - 1)))
+        v.insert(pos_key(k - 1), isam.point3(pos_key(k - 1)))
+        insert_double(v, zwd_key(k - 1), isam.double(zwd_key(k - 1)))
         if g.constant_velocity:
-            v.insert(vel_key(k - 1), isam.calculateEstimatePoint3(vel_key(k - 1)))
-            insert_double(v, drift_key(k - 1), isam.calculateEstimateDouble(drift_key(k - 1)))
+            v.insert(vel_key(k - 1), isam.point3(vel_key(k - 1)))
+            insert_double(v, drift_key(k - 1), isam.double(drift_key(k - 1)))
         for s in range(1, g.obs.n_isb + 1):
-            insert_double(v, isb_key(s, k - 1), isam.calculateEstimateDouble(isb_key(s, k - 1)))
+            insert_double(v, isb_key(s, k - 1), isam.double(isb_key(s, k - 1)))
         if g.with_iono:
             for p in g.prev_row[rows]:
                 if p >= 0:
-                    insert_double(v, iono_key(int(p)), isam.calculateEstimateDouble(iono_key(int(p))))
+                    insert_double(v, iono_key(int(p)), isam.double(iono_key(int(p))))
         return v
 
 
-class _Smoother:
-    """iSAM2, or iSAM2 inside a fixed-lag smoother when ``cfg.lag_s > 0``.
-
-    Keys are stamped with the time of the epoch that created them; the arc biases of
-    the arcs tracked at an epoch, and ``ZERO_KEY``, are stamped again at every epoch so
-    that they live as long as their arc (a landmark seen again). Everything older than
-    the lag is marginalised into a linear prior on what remains, which bounds the cost
-    of an update by the window, not the run. Marginalisation is exact for the linear
-    part of the model; only positions inside the window are relinearised afterwards.
-    """
-
-    def __init__(self, cfg: IncrementalConfig, g: PppGraph) -> None:
-        self._g = g
-        params = isam2_params(cfg)
-        self._lag = cfg.lag_s > 0
-        self._impl = gtsam.IncrementalFixedLagSmoother(cfg.lag_s, params) if self._lag else gtsam.ISAM2(params)
-
-    def update(self, k: int, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> None:
-        if not self._lag:
-            self._impl.update(graph, values)
-            return
-        obs = self._g.obs
-        t = float(obs.epoch_t[k])
-        # gtsam keys (int) to time; Any: the stub's key type is SupportsInt | SupportsIndex, and dict keys are invariant
-        stamps: dict[Any, float] = dict.fromkeys(values.keys(), t)
-        stamps.update(dict.fromkeys((amb_key(int(a)) for a in obs.arc[obs.epoch_slice(k)] if a >= 0), t))
-        stamps[ZERO_KEY] = t
-        cast(gtsam.IncrementalFixedLagSmoother, self._impl).update(graph, values, stamps)
-
-    def calculateEstimatePoint3(self, key: int) -> np.ndarray:
-        return self._impl.calculateEstimatePoint3(key)
-
-    def calculateEstimateDouble(self, key: int) -> float:
-        return self._impl.calculateEstimateDouble(key)
-
-    def joint_marginal_covariance(self, keys: list[int]) -> np.ndarray:
-        """Joint marginal covariance of ``keys``, blocks in their order.
-
-        One joint query: two ``marginalCovariance`` calls each marginalise the clique anew and
-        cost 5-7x as much (2.3-3.7 ms an epoch on an hour of open sky, a third of an update).
-        """
-        impl = self._impl
-        isam = cast(gtsam.IncrementalFixedLagSmoother, impl).getISAM2() if self._lag else cast(gtsam.ISAM2, impl)
-        return np.asarray(isam.jointMarginalCovariance(gtsam.KeyVector(keys)).fullMatrix(), float)
+def _reused_keys(g: PppGraph, rows: slice) -> list[int]:
+    """Keys made before epoch ``rows`` that its factors use again: the biases of its continuing arcs
+    and the zero key (a landmark seen again stays in the window)."""
+    arcs = g.obs.arc[rows]
+    return [ZERO_KEY, *(amb_key(int(a)) for a in arcs[g.prev_row[rows] >= 0])]
 
 
 def isam2_params(cfg: IncrementalConfig) -> gtsam.ISAM2Params:

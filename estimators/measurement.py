@@ -59,6 +59,7 @@ __all__ = [
     "prepare_ppp",
     "predict",
     "predict_given_troposphere",
+    "split_arcs",
     "sigma_factor",
     "variance_factors",
     "ionosphere_choice",
@@ -516,7 +517,7 @@ def prepare_ppp(
                 # a carrier phase takes the delay's changes at its millimetre weight: it is kept where
                 # the delay is levelled (a stretch is then an arc) and nowhere else, since there are no
                 # slant-ionosphere states in this mode to take up a modelled delay's drift
-                arc = _split_arcs(np.where((stretch >= 0) & found.measured, arc, -1), stretch)
+                arc = split_arcs(np.where((stretch >= 0) & found.measured, arc, -1), stretch)
                 phase = np.where(arc >= 0, phase, np.nan)
         code = code - iono
         phase = phase + iono
@@ -792,8 +793,16 @@ def _decide_ionosphere(mode: IonosphereMode, sat: np.ndarray, second: np.ndarray
     return IonosphereMode.free if share.min() >= AUTO_FREE_MIN_FRACTION else IonosphereMode.measured
 
 
-def _split_arcs(arc: np.ndarray, stretch: np.ndarray) -> np.ndarray:
-    """``arc`` (rows in epoch order, -1: no phase) cut where ``stretch`` changes, renumbered by start."""
+def split_arcs(arc: np.ndarray, stretch: np.ndarray) -> np.ndarray:
+    """``arc`` (rows in epoch order, -1: no phase) cut where ``stretch`` changes, renumbered by start.
+
+    Parameters
+    ----------
+    arc : ndarray of int, shape (N,)
+        Phase arc of each row, -1 without phase.
+    stretch : ndarray of int, shape (N,)
+        Any label that is constant along an unbroken part of an arc.
+    """
     keyed = arc >= 0
     key = np.full(len(arc), -1, np.int64)
     if not keyed.any():

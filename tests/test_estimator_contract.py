@@ -212,6 +212,7 @@ def test_invalid_config_fails_at_construction() -> None:
         ("ice", "alpha", 2.0),
         ("bce_ad", "n_features", 9),
         ("isam2_ppp", "lag_s", -1.0),
+        ("ice", "lag_min_epochs", 1),
         ("isam2_mm", "outlier_weight", 0.0),
         ("bce", "fit_sample", -1),
         ("dcs", "lm_max_iterations", 0),
