@@ -143,23 +143,24 @@ class FixedLagSmoother:
         self._isam = gtsam.ISAM2(params)
         self._schedule = schedule
         self._last_used: dict[int, int] = {}
+        self._next = 0  # the epoch the next update adds
 
     def update(self, k: int, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, used: list[int]) -> None:
         """Add epoch ``k``'s factors and new ``values``; ``used``: older keys its factors use again."""
         last_used = self._last_used
         last_used.update(dict.fromkeys(values.keys(), k))
         last_used.update(dict.fromkeys(used, k))
+        self._next = k + 1
         if not self._schedule.leaving(k):
             self._isam.update(graph, values)
             return
-        cut = int(self._schedule.first_kept[k])
         keys = sorted(last_used)
-        leaving = [key for key in keys if last_used[key] < cut]
+        leaving = [key for key in keys if not self.alive(key)]
         params = gtsam.ISAM2UpdateParams()
         groups = gtsam.KeyGroupMap()
         reeliminate = gtsam.KeyList()
         for key in keys:
-            groups.insert2(key, 0 if last_used[key] < cut else 1)
+            groups.insert2(key, 1 if self.alive(key) else 0)
             reeliminate.push_back(key)
         params.constrainedKeys = groups
         params.extraReelimKeys = reeliminate
@@ -171,8 +172,13 @@ class FixedLagSmoother:
         self._isam.marginalizeLeaves(leaves)
 
     def alive(self, key: int) -> bool:
-        """Whether ``key`` is in the smoother."""
-        return key in self._last_used
+        """Whether ``key`` is in the smoother for the next epoch: the schedule's word on its last use.
+
+        The one test of a key's life: :func:`restart_stale_arcs` asks the same schedule ahead of
+        the run, this method the smoother on every read, so a read of a dropped key is a bug
+        reported by name, not a GTSAM ``IndexError``.
+        """
+        return key in self._last_used and bool(self._schedule.alive(self._last_used[key], self._next))
 
     def point3(self, key: int) -> np.ndarray:
         """Current estimate of a Point3 key."""
@@ -193,6 +199,6 @@ class FixedLagSmoother:
         return np.asarray(self._isam.jointMarginalCovariance(gtsam.KeyVector(keys)).fullMatrix(), float)
 
     def _checked(self, key: int) -> int:
-        if key not in self._last_used:
+        if not self.alive(key):
             raise KeyError(f"key {gtsam.DefaultKeyFormatter(key)} has left the fixed-lag window")
         return key
