@@ -90,7 +90,9 @@ class LagSchedule:
 
     def alive(self, last_used: np.ndarray | int, k: int) -> np.ndarray | bool:
         """Whether a key last used at epoch ``last_used`` is in the smoother when epoch ``k`` is added."""
-        cut = self.first_kept[k - 1] if k > 0 else 0
+        cut = int(self.first_kept[k - 1]) if k > 0 else 0
+        if isinstance(last_used, int):  # every read of the smoother asks: no array round trip
+            return last_used >= cut
         return np.asarray(last_used) >= cut
 
     def leaving(self, k: int) -> bool:
@@ -178,7 +180,8 @@ class FixedLagSmoother:
         the run, this method the smoother on every read, so a read of a dropped key is a bug
         reported by name, not a GTSAM ``IndexError``.
         """
-        return key in self._last_used and bool(self._schedule.alive(self._last_used[key], self._next))
+        last_used = self._last_used.get(key)
+        return last_used is not None and bool(self._schedule.alive(last_used, self._next))
 
     def point3(self, key: int) -> np.ndarray:
         """Current estimate of a Point3 key."""

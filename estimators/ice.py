@@ -154,11 +154,12 @@ class AdaptiveNoiseModel:
         """
         mdl = self.model
         full = np.isfinite(res[:, -1])
-        comp = np.empty(len(res), np.int64)
-        if full.any():
-            comp[full] = mdl.most_likely(res[full])
-        if (~full).any():
-            comp[~full] = code_marginal_labels(res[~full, 0], mdl.weights, mdl.means, mdl.covs)
+        comp = np.zeros(len(res), np.int64)
+        if mdl.n_components > 1:  # one component is every residual's most likely (the a-priori model)
+            if full.any():
+                comp[full] = mdl.most_likely(res[full])
+            if (~full).any():
+                comp[~full] = code_marginal_labels(res[~full, 0], mdl.weights, mdl.means, mdl.covs)
         sig = np.sqrt(np.diagonal(mdl.covs, axis1=1, axis2=2))[comp]
         z = np.abs(res - mdl.means[comp]) / sig
         inlier = (z[:, 0] < self.cfg.z_threshold) & ((z[:, -1] < self.cfg.z_threshold) | ~full)

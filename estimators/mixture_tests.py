@@ -39,7 +39,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import stats
-from scipy.linalg import solve_triangular
 
 __all__ = [
     "MixtureModel",
@@ -236,15 +235,14 @@ class MixtureModel:
         """``log w_k N(r | mu_k, Lambda_k)`` for every residual and component, shape (n, K)."""
         r = np.atleast_2d(r)
         d = r.shape[1]
-        out = np.empty((len(r), self.n_components))
-        # Gaussian log-density through the Cholesky factor: scipy.stats.multivariate_normal checks and
-        # eigen-decomposes the covariance at every call, ten times the cost at d <= 2 (ICE calls it per epoch)
-        for k in range(self.n_components):
-            chol = np.linalg.cholesky(self.covs[k])
-            z = solve_triangular(chol, (r - self.means[k]).T, lower=True)
-            log_det = 2.0 * np.log(np.diag(chol)).sum()
-            out[:, k] = -0.5 * (d * np.log(2.0 * np.pi) + log_det + (z * z).sum(axis=0)) + np.log(self.weights[k])
-        return out
+        # Gaussian log-density through the Cholesky factors, every component in one stacked call:
+        # scipy.stats.multivariate_normal checks and eigen-decomposes the covariance at every call, and a
+        # loop over components costs a LAPACK round trip each (ICE calls this at every epoch)
+        chol = np.linalg.cholesky(self.covs)  # (K, d, d)
+        z = np.linalg.solve(chol, (r[None, :, :] - self.means[:, None, :]).transpose(0, 2, 1))  # (K, d, n)
+        log_det = 2.0 * np.log(np.diagonal(chol, axis1=1, axis2=2)).sum(axis=1)
+        log_density = -0.5 * (d * np.log(2.0 * np.pi) + log_det[:, None] + (z * z).sum(axis=1))
+        return (log_density + np.log(self.weights)[:, None]).T
 
     def most_likely(self, r: np.ndarray) -> np.ndarray:
         """Index of the most likely component of each residual (eq. 7.1), shape (n,)."""
