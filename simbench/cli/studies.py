@@ -28,21 +28,45 @@ class StudyProcess(NamedTuple):
     peak_rss_mb: float
 
 
+#: Starts the study from a small process and reports, on the file descriptor in ``argv[1]``, its exit
+#: code and the ``ru_maxrss`` of its tree. A child started straight from a large process (a notebook,
+#: a pytest worker) inherits that process's high-water mark: ``vfork`` shares its address space until
+#: ``exec``, and Linux then records the parent's peak as the child's (a 300 MB study read 1,176 MB).
+_PEAK_SHIM = (
+    "import os, sys\n"
+    "try:\n"
+    "    pid = os.posix_spawnp(sys.argv[2], sys.argv[2:], os.environ)\n"
+    "except OSError as e:\n"
+    "    sys.exit(f'cannot start {sys.argv[2]}: {e.strerror}')\n"
+    "_, status, usage = os.wait4(pid, 0)\n"
+    "code = os.waitstatus_to_exitcode(status)\n"
+    "os.write(int(sys.argv[1]), f'{code} {usage.ru_maxrss}'.encode())\n"
+)
+
+
 def run_study_process(cmd: Sequence[str]) -> StudyProcess:
     """Run ``cmd`` and wait for it; its exit code and the peak memory of its process tree.
 
     ``os.wait4`` returns the child's resource usage with that of every descendant it
     waited for, and ``ru_maxrss`` is then the largest peak among them (Linux reports
     kibibytes, macOS bytes): a joblib or submitit-local worker counts, which is the
-    per-worker peak a sweep has to fit into.
+    per-worker peak a sweep has to fit into. The command is started from a small
+    Python process (:data:`_PEAK_SHIM`), so the caller's own size does not count.
     """
-    proc = subprocess.Popen(list(cmd))
     if not hasattr(os, "wait4"):  # Windows
-        return StudyProcess(proc.wait(), float("nan"))
-    _, status, usage = os.wait4(proc.pid, 0)
-    proc.returncode = os.waitstatus_to_exitcode(status)
+        return StudyProcess(subprocess.Popen(list(cmd)).wait(), float("nan"))
+    read, write = os.pipe()
+    try:
+        shim = subprocess.Popen([sys.executable, "-c", _PEAK_SHIM, str(write), *cmd], pass_fds=(write,))
+    finally:
+        os.close(write)
+    with os.fdopen(read) as report:
+        text = report.read().split()
+    shim.wait()
+    if len(text) != 2:  # the shim itself failed (the command could not be started)
+        return StudyProcess(shim.returncode or 1, float("nan"))
     unit = 1.0 if sys.platform == "darwin" else 1024.0
-    return StudyProcess(proc.returncode, usage.ru_maxrss * unit / 2**20)
+    return StudyProcess(int(text[0]), float(text[1]) * unit / 2**20)
 
 
 def run_studies(
