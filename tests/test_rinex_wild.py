@@ -248,3 +248,25 @@ def test_scenario_rinex_requires_its_files_and_simulate_refuses_real_logs(tmp_pa
         assert msg.startswith(f"scenario: '{name}' is read by source 'rinex'") and "simbench.scenario(" in msg
     with pytest.raises(SimbenchError, match="scenario.obs: no file given"):
         simbench.scenario("rinex")
+
+
+def test_zero_observation_fields_are_missing(tmp_path: Path) -> None:
+    """RINEX writes a missing observation as blanks or as 0.0: a 0.000 code is no range of zero metres."""
+    clean = read_rinex_obs(cut(NG_OBS, tmp_path / "clean.obs", 3), "G")
+
+    def zero_first_code(lines: list[str]) -> list[str]:
+        out, done = list(lines), False
+        body = next(i for i, ln in enumerate(out) if "END OF HEADER" in ln) + 1
+        for i, ln in enumerate(out[body:], start=body):
+            # the second field: Nagoya's GPS types are X1 (the channel) then C1C
+            if not done and ln.startswith("G") and len(ln) > 33 and not ln[19:33].isspace():
+                out[i], done = ln[:19] + f"{0.0:14.3f}" + ln[33:], True
+        return out
+
+    src = cut(NG_OBS, tmp_path / "zeros.obs", 3)
+    src.write_text("\n".join(zero_first_code(src.read_text().splitlines())) + "\n")
+    zeros = read_rinex_obs(src, "G")
+    np.testing.assert_array_equal(zeros.sat, clean.sat)
+    assert np.isnan(zeros.code[0]) and np.isfinite(clean.code[0])
+    np.testing.assert_array_equal(zeros.code[1:], clean.code[1:])
+    np.testing.assert_array_equal(zeros.phase_cycles, clean.phase_cycles)

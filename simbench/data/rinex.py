@@ -232,8 +232,12 @@ def _obs_error(path: str, problem: str, fix: str = _OBS_FIX) -> SimbenchError:
 
 
 def _float(text: str) -> float:
+    """An observation field: blank or zero is missing (RINEX 3.05 sec. 5.6: "missing observations
+    are written as 0.0 or blanks"); an IGS station's ``0.000`` L2 codes read as ranges diverged
+    every estimator."""
     text = text.strip()
-    return float(text) if text else np.nan
+    value = float(text) if text else 0.0
+    return value if value != 0.0 else np.nan
 
 
 def _codes_note(system: str, have: list[str]) -> str:
