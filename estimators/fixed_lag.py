@@ -88,12 +88,12 @@ class LagSchedule:
             first_kept[j] = cut
         return cls(first_kept)
 
-    def alive(self, last_used: np.ndarray | int, k: int) -> np.ndarray | bool:
+    def alive(self, last_used: np.ndarray | int, k: np.ndarray | int) -> np.ndarray | bool:
         """Whether a key last used at epoch ``last_used`` is in the smoother when epoch ``k`` is added."""
-        cut = int(self.first_kept[k - 1]) if k > 0 else 0
-        if isinstance(last_used, int):  # every read of the smoother asks: no array round trip
-            return last_used >= cut
-        return np.asarray(last_used) >= cut
+        if isinstance(last_used, int) and isinstance(k, int):  # every read of the smoother asks: no arrays
+            return last_used >= (int(self.first_kept[k - 1]) if k > 0 else 0)
+        k = np.asarray(k)
+        return np.asarray(last_used) >= np.where(k > 0, self.first_kept[np.maximum(k - 1, 0)], 0)
 
     def leaving(self, k: int) -> bool:
         """Whether the update of epoch ``k`` marginalises epochs."""
@@ -114,20 +114,19 @@ def restart_stale_arcs(obs: PppObservations, schedule: LagSchedule) -> tuple[Ppp
     n_restarted : int
         Arcs restarted.
     """
-    rows = np.flatnonzero(obs.arc >= 0)
-    if rows.size == 0:
-        return obs, 0
+    prev = obs.previous_rows()
+    resumed = np.flatnonzero(prev >= 0)
     row_epoch = obs.row_epoch
-    order = rows[np.lexsort((row_epoch[rows], obs.arc[rows]))]
-    same_arc = obs.arc[order][1:] == obs.arc[order][:-1]
-    stale = np.zeros(len(order), bool)
-    for i in np.flatnonzero(same_arc):  # rows with a previous row of their arc
-        stale[i + 1] = not schedule.alive(int(row_epoch[order[i]]), int(row_epoch[order[i + 1]]))
+    stale = np.zeros(obs.n_obs, bool)
+    stale[resumed] = ~schedule.alive(row_epoch[prev[resumed]], row_epoch[resumed])
     n_restarted = int(stale.sum())
     if not n_restarted:
         return obs, 0
-    stretch = np.zeros(len(obs.arc), np.int64)
-    stretch[order] = np.cumsum(stale)  # changes exactly at the cut rows of each arc
+    # a label that changes exactly at the cut rows of each arc: the cuts counted along each arc's rows
+    stretch = np.zeros(obs.n_obs, np.int64)
+    phase_rows = np.flatnonzero(obs.has_phase)
+    order = phase_rows[np.lexsort((row_epoch[phase_rows], obs.arc[phase_rows]))]
+    stretch[order] = np.cumsum(stale[order])
     arc = split_arcs(obs.arc, stretch)
     return dataclasses.replace(obs, arc=arc, n_arcs=int(arc.max()) + 1), n_restarted
 
@@ -157,18 +156,18 @@ class FixedLagSmoother:
             self._isam.update(graph, values)
             return
         keys = sorted(last_used)
-        leaving = [key for key in keys if not self.alive(key)]
+        stays = {key: self.alive(key) for key in keys}
         params = gtsam.ISAM2UpdateParams()
         groups = gtsam.KeyGroupMap()
         reeliminate = gtsam.KeyList()
         for key in keys:
-            groups.insert2(key, 1 if self.alive(key) else 0)
+            groups.insert2(key, int(stays[key]))  # group 0, the leaving keys, is eliminated first
             reeliminate.push_back(key)
         params.constrainedKeys = groups
         params.extraReelimKeys = reeliminate
         self._isam.update(graph, values, params)
         leaves = gtsam.KeyList()
-        for key in leaving:
+        for key in (key for key in keys if not stays[key]):
             leaves.push_back(key)
             del last_used[key]
         self._isam.marginalizeLeaves(leaves)

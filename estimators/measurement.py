@@ -277,6 +277,16 @@ class PppObservations:
         """bool, (N,): rows that carry a usable carrier phase (``phase`` finite, ``arc >= 0``)."""
         return self.arc >= 0
 
+    def previous_rows(self) -> np.ndarray:
+        """int, (N,): the previous row of each row's phase arc in epoch order; -1 at an arc's first row
+        and on rows without phase (which belong to no arc)."""
+        phase_rows = np.flatnonzero(self.has_phase)
+        order = phase_rows[np.lexsort((self.epoch[phase_rows], self.arc[phase_rows]))]
+        same = self.arc[order][1:] == self.arc[order][:-1]
+        prev = np.full(self.n_obs, -1, np.int64)
+        prev[order[1:][same]] = order[:-1][same]
+        return prev
+
     @property
     def n_isb(self) -> int:
         """Number of inter-system bias states a multi-system estimator needs (0 for one system)."""

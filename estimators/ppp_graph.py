@@ -292,20 +292,14 @@ class PppGraph:
         self.code_z = obs.code - hydro
         self.phase_z = obs.phase - hydro
         self.has_phase = obs.has_phase
-        # rows of an arc in epoch order: the previous row of the same arc, or -1 (also -1 on rows
-        # without phase, which belong to no arc)
-        phase_rows = np.flatnonzero(self.has_phase)
-        order = phase_rows[np.lexsort((obs.epoch[phase_rows], obs.arc[phase_rows]))]
-        prev = np.full(n, -1, np.int64)
-        same = obs.arc[order][1:] == obs.arc[order][:-1]
-        prev[order[1:][same]] = order[:-1][same]
+        prev = obs.previous_rows()
         self.prev_row = prev
-        first = np.full(obs.n_arcs, -1, np.int64)
-        starts = order[np.r_[True, ~same]] if order.size else order
-        first[obs.arc[starts]] = starts
-        self.arc_first_row = first
         #: rows that start an arc (need a bias prior and value)
         self.arc_start = self.has_phase & (prev < 0)
+        first = np.full(obs.n_arcs, -1, np.int64)
+        starts = np.flatnonzero(self.arc_start)
+        first[obs.arc[starts]] = starts
+        self.arc_first_row = first
         #: rows with an ionosphere key: phase rows when the slant ionosphere is estimated
         self.iono_rows = self.has_phase & self.with_iono
         lat0, _, h0 = geodetic_from_ecef(self.spp_pos[:1])

@@ -69,12 +69,9 @@ def test_arcs_restart_where_their_previous_row_left_the_window(station) -> None:
     cut, n_restarted = restart_stale_arcs(obs, schedule)
     assert n_restarted >= 1 and cut.n_arcs == obs.n_arcs + n_restarted
     # after the cut, every row's previous row of its arc is still in the window when the row arrives
-    row_epoch = cut.row_epoch
-    rows = np.flatnonzero(cut.arc >= 0)
-    order = rows[np.lexsort((row_epoch[rows], cut.arc[rows]))]
-    same = cut.arc[order][1:] == cut.arc[order][:-1]
-    prev_epoch, epoch = row_epoch[order][:-1][same], row_epoch[order][1:][same]
-    assert all(schedule.alive(int(p), int(k)) for p, k in zip(prev_epoch, epoch))
+    prev, row_epoch = cut.previous_rows(), cut.row_epoch
+    resumed = np.flatnonzero(prev >= 0)
+    assert all(schedule.alive(int(row_epoch[p]), int(row_epoch[r])) for p, r in zip(prev[resumed], resumed))
     # and nothing else was cut: the rows that keep their arc are the same rows
     np.testing.assert_array_equal(cut.arc >= 0, obs.arc >= 0)
 
