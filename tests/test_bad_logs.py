@@ -216,7 +216,7 @@ REFUSED: list[tuple[str, Callable[[Piece], bytes], Callable[[Piece], str]]] = [
         lambda p: text(["     2.11" + p.head[0][9:], *p.lines()[1:]]),
         lambda p: "is RINEX 2.11 without a '# / TYPES OF OBSERV' header line",
     ),
-    ("navigation file", lambda p: NAV.read_bytes(), lambda p: "not RINEX 2/3 observation data"),
+    ("navigation file", lambda p: NAV.read_bytes(), lambda p: "not RINEX 2/3/4 observation data"),
     ("gzip cut", lambda p: gzip.compress(text(p.lines()))[:5000], lambda p: "cannot be unpacked"),
 ]
 

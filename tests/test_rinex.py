@@ -190,7 +190,7 @@ def test_bad_input_gives_one_line_errors(tmp_path: Path) -> None:
     other.write_text("2032,46701,22.3,114.17,6.6\n2032,46702,22.3,114.17,6.6\n")
     assert "does not overlap" in one_line_error(load_rinex, OBS, NAV, other)
     # the navigation file given as observations
-    assert "not RINEX 2/3 observation data" in one_line_error(read_rinex_obs, NAV)
+    assert "not RINEX 2/3/4 observation data" in one_line_error(read_rinex_obs, NAV)
 
 
 def test_scenario_dispatch_validates_paths() -> None:

@@ -270,3 +270,87 @@ def test_zero_observation_fields_are_missing(tmp_path: Path) -> None:
     assert np.isnan(zeros.code[0]) and np.isfinite(clean.code[0])
     np.testing.assert_array_equal(zeros.code[1:], clean.code[1:])
     np.testing.assert_array_equal(zeros.phase_cycles, clean.phase_cycles)
+
+
+def insert_before_epoch(lines: list[str], k: int, record: list[str], rinex2_file: bool = False) -> list[str]:
+    """``lines`` with ``record`` inserted before the ``k``-th epoch header (0-based)."""
+    body = next(i for i, ln in enumerate(lines) if "END OF HEADER" in ln) + 1
+    if rinex2_file:
+        starts = [i for i in range(body, len(lines)) if lines[i][:1] == " " and lines[i][29:32].strip().isdigit()]
+        starts = [i for i in starts if lines[i][1:3].strip().isdigit() and lines[i][26:29].strip() in ("0", "1")]
+    else:
+        starts = [i for i in range(body, len(lines)) if lines[i].startswith(">")]
+    return lines[: starts[k]] + record + lines[starts[k] :]
+
+
+def test_event_records_are_skipped_as_the_standard_says(tmp_path: Path) -> None:
+    """Epoch flags 2-5 carry header lines (a teqc splice writes flag 4 with blank date fields and comments,
+    a GEONET file refused before): skipped; RINEX 2 and 3 alike, the observations unchanged."""
+    columns = {"G": ["C1C", "L1C", "D1C", "S1C", "C2W", "L2W"]}
+    plain2 = read_rinex_obs(rinex2(NG_OBS, tmp_path / "plain.11o", 4, columns), "G")
+    splice = [
+        f"{'':28s}4  2",
+        f"{'RINEX FILE SPLICE; teqc':60s}COMMENT",
+        f"{'     6    C1    L1    D1    S1    P2    L2':60s}# / TYPES OF OBSERV",
+    ]
+    src = tmp_path / "splice.11o"
+    src.write_text("\n".join(insert_before_epoch((tmp_path / "plain.11o").read_text().splitlines(), 2, splice, True)))
+    spliced = read_rinex_obs(src, "G")
+    assert spliced.epoch_t_int.size == plain2.epoch_t_int.size == 4
+    for name in ("sat", "code", "phase_cycles", "code_l2", "lli"):
+        np.testing.assert_array_equal(getattr(spliced, name), getattr(plain2, name), err_msg=name)
+    # RINEX 3: a new-site event (flag 3, blank date) and an external event (flag 5, dated, no lines)
+    plain3 = read_rinex_obs(cut(NG_OBS, tmp_path / "plain.obs", 4), "G")
+    events = [f">{'':30s}3  1", f"{'NEW SITE':60s}MARKER NAME", "> 2024 01 01 00 00  0.0000000  5  0"]
+    src3 = cut(NG_OBS, tmp_path / "events.obs", 4)
+    src3.write_text("\n".join(insert_before_epoch(src3.read_text().splitlines(), 1, events)) + "\n")
+    np.testing.assert_array_equal(read_rinex_obs(src3, "G").code, plain3.code)
+    # a redefinition of the columns mid-file cannot be read with one set of columns: one line
+    changed = [f"{'':28s}4  1", f"{'     2    C1    L1':60s}# / TYPES OF OBSERV"]
+    src.write_text("\n".join(insert_before_epoch((tmp_path / "plain.11o").read_text().splitlines(), 2, changed, True)))
+    assert "redefines its observation types" in one_line_error(read_rinex_obs, src, "G")
+
+
+def test_cycle_slip_and_power_failure_records_set_loss_of_lock(tmp_path: Path) -> None:
+    """Flag 6 (cycle slips, observation layout) marks the phases it names at its epoch; flag 1 (power failure
+    since the previous epoch) every phase of its epoch; nothing else moves."""
+    plain = read_rinex_obs(cut(NG_OBS, tmp_path / "plain.obs", 4), "G")
+    src = cut(NG_OBS, tmp_path / "slips.obs", 4)
+    lines = src.read_text().splitlines()
+    body = next(i for i, ln in enumerate(lines) if "END OF HEADER" in ln) + 1
+    starts = [i for i in range(body, len(lines)) if lines[i].startswith(">")]
+    second = lines[starts[1]]
+    gps = next(ln for ln in lines[starts[1] + 1 : starts[2]] if ln.startswith("G"))
+    slip = [second[:31] + "6  1", gps]  # the satellite's own line as its slip record: every phase slipped
+    lines[starts[2]] = lines[starts[2]][:31] + "1" + lines[starts[2]][32:]  # the third epoch: power failure
+    src.write_text("\n".join(lines[: starts[2]] + slip + lines[starts[2] :]) + "\n")
+    slipped = read_rinex_obs(src, "G")
+    np.testing.assert_array_equal(slipped.code, plain.code)
+    expect = plain.lli.copy()
+    expect[(plain.row_epoch == 1) & (plain.sat == gps[:3].replace(" ", "0"))] = True
+    expect[plain.row_epoch == 2] = True
+    assert expect.sum() > plain.lli.sum() + 8
+    np.testing.assert_array_equal(slipped.lli, expect)
+    assert slipped.lli_l2[(plain.row_epoch == 1) & (plain.sat == gps[:3].replace(" ", "0"))].all()
+
+
+def test_rinex_4_and_305_beidou_c2x_and_unread_systems(tmp_path: Path) -> None:
+    """RINEX 4.00 observation files are 3.05's layout; BeiDou B1I written C2X (I+Q, RINEX 3.05) is B1I;
+    SBAS lines are counted as a system simbench does not read."""
+    plain = read_rinex_obs(cut(NG_OBS, tmp_path / "plain.obs", 3), "GC")
+    v4 = read_rinex_obs(cut(NG_OBS, tmp_path / "v4.obs", 3, lambda h: [h[0].replace("3.04", "4.00")] + h[1:]), "GC")
+    np.testing.assert_array_equal(v4.code, plain.code)
+    assert v4.version == 4.0
+    c2x = read_rinex_obs(cut(NG_OBS, tmp_path / "c2x.obs", 3, relabel("C2I L2I D2I S2I", "C2X L2X D2X S2X")), "GC")
+    assert plain.signals["C"] == "2I" and c2x.signals["C"] == "2X"
+    np.testing.assert_array_equal(c2x.code, plain.code)
+    # GLONASS lines relabelled as SBAS (Nagoya's file has none): counted, and the read rows unchanged
+    src = cut(NG_OBS, tmp_path / "sbas.obs", 3)
+    text = src.read_text().splitlines()
+    body = next(i for i, ln in enumerate(text) if "END OF HEADER" in ln) + 1
+    text[body:] = ["S" + ln[1:] if ln.startswith("R") else ln for ln in text[body:]]
+    src.write_text("\n".join(text) + "\n")
+    sbas = read_rinex_obs(src, "GC")
+    n_glonass = sum(ln.startswith("S") for ln in text[body:])
+    assert plain.unread_systems == {} and n_glonass > 10 and sbas.unread_systems == {"S": n_glonass}
+    np.testing.assert_array_equal(sbas.code, plain.code)

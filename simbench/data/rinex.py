@@ -118,13 +118,13 @@ SECOND_SIGNALS: dict[str, tuple[tuple[tuple[str, ...], float], ...]] = {
     "G": ((("2W", "2X", "2L", "2S", "2P"), F_L2), (("5Q", "5X", "5I"), F_L5)),
     "J": ((("2L", "2X", "2S"), F_L2), (("5Q", "5X", "5I"), F_L5)),
     "E": ((("5Q", "5X", "5I"), F_L5), (("7Q", "7X", "7I"), F_E5B)),
-    "C": ((("6I", "6X"), F_B3I), (("7I", "7X"), F_E5B)),
+    "C": ((("6I", "6Q", "6X"), F_B3I), (("7I", "7Q", "7X"), F_E5B)),
     "R": ((("2C", "2P"), GLO_F1_BASE_HZ * GLO_F2_OVER_F1),),
 }
 #: Config setting of each system's own navigation file (``nav`` serves GPS and, mixed, the others;
 #: QZSS records always come from ``nav``).
 NAV_SETTINGS: dict[str, str] = {"G": "nav", "R": "nav_glo", "E": "nav_gal", "C": "nav_bds", "J": "nav"}
-_OBS_FIX = "pass a RINEX 3 or 2.1x observation file (.obs, .yyo, .rnx; also gzip or Hatanaka compressed)"
+_OBS_FIX = "pass a RINEX 2, 3 or 4 observation file (.obs, .yyo, .rnx; also gzip or Hatanaka compressed)"
 _CUT_FIX = "re-export the log, or delete the incomplete epoch record at the end"
 _LINE_FIX = "make each epoch header's satellite count match its lines, or re-export the log"
 #: Epoch time tags closer than this are one epoch (RINEX 3 writes 0.1 us) [s].
@@ -136,9 +136,11 @@ _TAU_NOMINAL_S = 0.075
 def first_signals(system: str, version: float) -> tuple[str, ...]:
     """RINEX codes (band + attribute) of the first-frequency signal of ``system``, in order of preference.
 
-    BeiDou B1I (1561.098 MHz) is band 1 in RINEX 3.02 (``C1I``) and band 2 in 3.01 and
-    3.03+ (``C2I``; from 3.04 band 1 is B1C at 1575.42 MHz, another signal). Galileo E1 is
+    BeiDou B1I (1561.098 MHz) is band 1 in RINEX 3.02 (``C1I``, ``C1Q``, ``C1X``: I, Q and
+    I+Q) and band 2 in RINEX 2.12, 3.01, 3.03+ and 4 (``C2I``, ``C2Q``, ``C2X``; from 3.04 band 1
+    is B1C at 1575.42 MHz, another signal). Galileo E1 is
     written ``1C`` (pilot) or ``1X`` (data + pilot) by most receivers, ``1B`` (data) by some.
+    GPS and GLONASS fall back to the P code on L1 (``1W``, ``1P``) in a file without C/A code.
 
     Parameters
     ----------
@@ -148,9 +150,14 @@ def first_signals(system: str, version: float) -> tuple[str, ...]:
         RINEX version of the observation file (``3.02``).
     """
     if system == "C":
-        return ("1I", "2I") if round(version, 2) == 3.02 else ("2I",)
+        b1i = ("2I", "2Q", "2X")
+        return ("1I", "1Q", "1X", *b1i) if round(version, 2) == 3.02 else b1i
     if system == "E":
         return ("1C", "1X", "1B")
+    if system == "G":  # P(Y) when a file has no C/A code (RINEX 2 'P1' only): the broadcast clock's own code
+        return ("1C", "1W")
+    if system == "R":
+        return ("1C", "1P")
     return ("1C",)
 
 
@@ -203,6 +210,8 @@ class RinexObs:
     system_notes : list of str
         Why a requested system has no rows (one sentence each, e.g.
         ``'no BeiDou rows with a known code (codes in the file: C1X L1X)'``).
+    unread_systems : dict of str -> int
+        Satellite lines of systems simbench does not read (SBAS ``S``, NavIC ``I``), per system letter.
     """
 
     epoch_t_int: np.ndarray
@@ -225,6 +234,7 @@ class RinexObs:
     version: float = 3.0
     header_codes: dict[str, list[str]] = field(default_factory=dict)
     system_notes: list[str] = field(default_factory=list)
+    unread_systems: dict[str, int] = field(default_factory=dict)
 
 
 def _obs_error(path: str, problem: str, fix: str = _OBS_FIX) -> SimbenchError:
@@ -254,7 +264,7 @@ def read_rinex_obs(path: str | os.PathLike[str], systems: str = "G") -> RinexObs
     Parameters
     ----------
     path : str or PathLike
-        RINEX 3.0x (or 2.1x, read as its RINEX 3 codes) observation file, time system GPS: plain
+        RINEX 3.0x or 4.0x (or 2.x, read as its RINEX 3 codes) observation file, time system GPS: plain
         text with any line ending, or gzip / Hatanaka compressed
         (:func:`~simbench.gnss.navigation.read_rinex_lines`).
     systems : str
@@ -270,11 +280,17 @@ def read_rinex_obs(path: str | os.PathLike[str], systems: str = "G") -> RinexObs
     Raises
     ------
     SimbenchError
-        Missing file, not RINEX 2/3 observation data, a time system other than
+        Missing file, not RINEX 2/3/4 observation data, a time system other than
         GPS, no pseudorange observable for any requested system (naming the codes
-        found), or no data; a cut file (an epoch with fewer satellite lines than its
-        header announces, a line ending inside a number), a satellite count that does
-        not match the lines, epochs out of time order. The message names the line.
+        found), observation types redefined by an event record, or no data; a cut file (an epoch
+        with fewer satellite lines than its header announces, a line ending inside a number), a
+        satellite count that does not match the lines, epochs out of time order. The message names the line.
+
+    Event records (epoch flags 2-5: moving antenna, new site, header lines, external event) are
+    skipped, as the standard says; a flag 6 record (cycle slips) sets the loss-of-lock flag of the
+    phases it names at its epoch, and flag 1 (power failure since the previous epoch) that of every
+    phase of its epoch. Rows of systems simbench does not read (SBAS, NavIC) are counted in
+    ``unread_systems``.
 
     Warns
     -----
@@ -283,167 +299,40 @@ def read_rinex_obs(path: str | os.PathLike[str], systems: str = "G") -> RinexObs
         within one epoch: the first record is kept.
     """
     p = os.fspath(path)
-    if not os.path.isfile(p):
-        raise _obs_error(p, "file does not exist", "check the path (relative paths start at the working directory)")
-    unknown = sorted(set(systems) - set(SIGNALS))
-    if unknown:
-        raise SimbenchError(
-            "scenario.systems", f"systems {unknown} are not supported", f"use a subset of '{''.join(SIGNALS)}'"
-        )
-    lines = read_rinex_lines(p, f"scenario.obs '{p}'", _OBS_FIX)
-    if not lines:
-        raise _obs_error(p, "is empty")
-    if "RINEX VERSION / TYPE" not in lines[0]:
-        raise _obs_error(p, "has no RINEX header")
-    version_text, kind = lines[0][:9].strip(), lines[0][20:21]
-    if kind != "O" or not version_text.startswith(("2", "3")):
-        raise _obs_error(p, f"is RINEX {version_text} type '{kind}', not RINEX 2/3 observation data")
-    version = _float(version_text)
-    if version_text.startswith("2"):
-        lines = _rinex2_as_rinex3(p, lines)
-
-    types: dict[str, list[str]] = {}
-    approx = np.zeros(3)
-    interval = np.nan
-    last_sys = ""
-    body = None
-    for i, ln in enumerate(lines):
-        label = ln[60:].strip()
-        if label == "SYS / # / OBS TYPES":
-            if ln[0] != " ":
-                last_sys = ln[0]
-                types[last_sys] = []
-            types[last_sys] += ln[7:60].split()
-        elif label == "APPROX POSITION XYZ":
-            approx = np.array([_float(ln[k : k + 14]) for k in (0, 14, 28)])
-        elif label == "INTERVAL":
-            interval = _float(ln[:10])
-        elif label == "TIME OF FIRST OBS":
-            tsys = ln[48:51].strip()
-            if tsys not in ("GPS", ""):
-                raise _obs_error(p, f"time system {tsys} is not supported", "convert the file to GPS time")
-        elif label == "END OF HEADER":
-            body = i + 1
-            break
-    if body is None:
-        raise _obs_error(p, "has no END OF HEADER line")
-
-    # Column of each wanted observable per system (16 characters per field after the 3-char sat id):
-    # first signal C, L, D, S, then C and L of each second-signal candidate the header lists.
-    cols: dict[str, list[int]] = {}
-    second: dict[str, list[str]] = {}
-    signals: dict[str, str] = {}
-    notes: dict[str, str] = {}
-    for s in dict.fromkeys(systems):
-        have = types.get(s, [])
-        band = next((b for b in first_signals(s, version) if f"C{b}" in have), None)
-        if band is None:
-            notes[s] = _codes_note(s, have)
-            continue
-        signals[s] = band
-        second[s] = [b for codes, _ in SECOND_SIGNALS.get(s, ()) for b in codes if f"C{b}" in have]
-        cols[s] = [have.index(f"{o}{band}") if f"{o}{band}" in have else -1 for o in "CLDS"]
-        cols[s] += [have.index(f"{o}{b}") if f"{o}{b}" in have else -1 for b in second[s] for o in "CL"]
-    if not cols:
-        wanted = "; ".join(f"{SYSTEM_NAMES[s]}: C{' or C'.join(first_signals(s, version))}" for s in systems)
-        found = "; ".join(f"{s}: {' '.join(types[s])}" for s in dict.fromkeys(systems) if types.get(s)) or "none"
-        raise _obs_error(
-            p,
-            f"has no pseudorange observable for the requested systems (RINEX {version_text}; known: {wanted}; "
-            f"codes in the file: {found})",
-            "pass a file with code observations, or other scenario.systems",
-        )
-    width = max(len(c) for c in cols.values())
-
-    stamps: list[str] = []
-    fracs: list[float] = []
-    e_line: list[int] = []  #: 1-based line number of each epoch header
-    r_epoch: list[int] = []
-    r_sat: list[str] = []
-    r_num: list[list[float]] = []  #: first code, phase, Doppler, C/N0, then code, phase per second candidate
-    r_lli: list[list[bool]] = []  #: first and each second candidate's loss-of-lock flag per row
-    i, n_lines = body, len(lines)
-    while i < n_lines:  # text parsing: one Python step per line is unavoidable
-        ln = lines[i]
-        i += 1
-        if not ln.startswith(">"):
-            if not ln.strip():
-                continue
-            where = (
-                f"the epoch at line {e_line[-1]} announces fewer satellites" if e_line else "no epoch header before it"
-            )
-            raise _obs_error(p, f"line {i} is outside any epoch record ({where}): '{ln[:20].strip()}'", _LINE_FIX)
-        try:
-            flag = int(ln[31:32].strip() or 0)
-            count = int(ln[32:35])
-            if flag > 1:  # event records carry header lines, not observations
-                i += count
-                continue
-            f = ln[1:29].split()
-            whole, _, frac = f[5].partition(".")
-            stamps.append(
-                f"{int(f[0]):04d}-{int(f[1]):02d}-{int(f[2]):02d}T{int(f[3]):02d}:{int(f[4]):02d}:{int(whole):02d}"
-            )
-            fracs.append(float("0." + frac) if frac else 0.0)
-        except (ValueError, IndexError):
-            raise _obs_error(p, f"has a malformed epoch line {i}: '{ln[:35].strip()}'", _LINE_FIX) from None
-        e_line.append(i)
-        e = len(stamps) - 1
-        block = lines[i : i + count]
-        # a record with fewer satellite lines than announced: the file was cut, or lines were lost
-        short = next((k for k, b in enumerate(block) if b.startswith(">")), len(block))
-        if short == len(block) < count:
-            raise _obs_error(
-                p,
-                f"epoch at line {i} announces {count} satellites but the file ends after {short} (cut file)",
-                _CUT_FIX,
-            )
-        if short < count:
-            raise _obs_error(
-                p,
-                f"epoch at line {i} announces {count} satellites but the next epoch header follows "
-                f"after {short} (line {i + short + 1})",
-                _LINE_FIX,
-            )
-        for row, ln in enumerate(block, start=i + 1):
-            c = cols.get(ln[:1])
-            if c is None:
-                continue
-            # fields are right-aligned F14.3 plus 2 flag columns: a line ending inside a number was cut
-            if 0 < (len(ln) - 3) % 16 < 14:
-                raise _obs_error(p, f"line {row} ends inside an observation field (cut line)", _CUT_FIX)
-            try:
-                nums = [_float(ln[3 + 16 * k : 17 + 16 * k]) if k >= 0 else np.nan for k in c]
-            except ValueError:
-                raise _obs_error(p, f"line {row} has a malformed observation: '{ln[:40].strip()}'", _LINE_FIX) from None
-            digits = (ln[17 + 16 * j : 18 + 16 * j].strip() if j >= 0 else "" for j in (c[1], *c[5::2]))
-            r_num.append(nums + [np.nan] * (width - len(c)))
-            r_lli.append([d.isdigit() and bool(int(d) & 1) for d in digits] + [False] * ((width - len(c)) // 2))
-            r_epoch.append(e)
-            r_sat.append(ln[:3].replace(" ", "0"))
-        i += count
-    if not r_epoch:
+    lines, version_text = _observation_lines(p, systems)
+    version = float(version_text)
+    header = _read_header(p, lines)
+    wanted = _wanted_columns(p, header.types, systems, version, version_text)
+    rec = _read_records(p, lines, header.body, wanted.cols, header.types)
+    if not rec.r_epoch:
         raise _obs_error(p, f"contains no observations of systems '{systems}'")
-    t_int = datetime64_to_gps(np.array(stamps, dtype="datetime64[s]")).astype(np.int64)
-    t_frac = np.array(fracs)
-    row_epoch = np.array(r_epoch, dtype=np.int64)
-    sat = np.array(r_sat)
-    epochs, rows = _first_records(p, t_int, t_frac, np.array(e_line), row_epoch, sat)
+    t_int = datetime64_to_gps(np.array(rec.stamps, dtype="datetime64[s]")).astype(np.int64)
+    t_frac = np.array(rec.fracs)
+    row_epoch = np.array(rec.r_epoch, dtype=np.int64)
+    sat = np.array(rec.r_sat)
+    flags = np.array(rec.r_lli, dtype=bool)
+    flags[np.isin(row_epoch, rec.power_failures)] = True
+    flags |= _slipped(rec, t_int, t_frac, row_epoch, sat, flags.shape[1])
+    epochs, rows = _first_records(p, t_int, t_frac, np.array(rec.e_line), row_epoch, sat)
     renumber = np.full(t_int.size, -1, np.int64)
     renumber[epochs] = np.arange(epochs.size)
     t_int, t_frac, row_epoch, sat = t_int[epochs], t_frac[epochs], renumber[row_epoch[rows]], sat[rows]
-    vals = np.array(r_num, dtype=float)[rows]
-    flags = np.array(r_lli, dtype=bool)[rows]
+    vals = np.array(rec.r_num, dtype=float)[rows]
+    flags = flags[rows]
     code = vals[:, 0]
+    signals, notes = dict(wanted.signals), dict(wanted.notes)
     letters = np.array([x[:1] for x in sat.tolist()])
+    seen = set(np.unique(letters).tolist()) | set(rec.other_rows)
     for s in list(signals):
         if not np.isfinite(code[letters == s]).any():
             notes[s] = f"no {SYSTEM_NAMES[s]} rows with a C{signals.pop(s)} pseudorange"
+    notes |= {s: f"no {SYSTEM_NAMES[s]} satellites in the file" for s in systems if s not in seen}
     if not signals:
         raise _obs_error(
             p, "has no pseudorange values (all code fields are blank)", "pass a file with code observations"
         )
-    code_l2, phase_l2, lli_l2, signal_l2 = _second_signal(sat, vals, flags, second)
+    code_l2, phase_l2, lli_l2, signal_l2 = _second_signal(sat, vals, flags, wanted.second)
+    interval = header.interval
     if not np.isfinite(interval) or interval <= 0:
         d = np.diff(t_int) + np.diff(t_frac)
         interval = float(np.median(d)) if d.size else 1.0
@@ -457,7 +346,7 @@ def read_rinex_obs(path: str | os.PathLike[str], systems: str = "G") -> RinexObs
         doppler_hz=vals[:, 2],
         cn0_dbhz=vals[:, 3],
         lli=flags[:, 0],
-        approx_position=approx,
+        approx_position=header.approx,
         interval_s=float(interval),
         path=p,
         code_l2=code_l2,
@@ -466,9 +355,289 @@ def read_rinex_obs(path: str | os.PathLike[str], systems: str = "G") -> RinexObs
         signal_l2=signal_l2,
         signals=signals,
         version=version,
-        header_codes=types,
+        header_codes=header.types,
         system_notes=[notes[s] for s in dict.fromkeys(systems) if s in notes],
+        unread_systems={s: n for s, n in sorted(rec.other_rows.items()) if s not in SIGNALS},
     )
+
+
+def _observation_lines(p: str, systems: str) -> tuple[list[str], str]:
+    """The lines of observation file ``p`` in RINEX 3 layout, and its version as written (``'2.11'``)."""
+    if not os.path.isfile(p):
+        raise _obs_error(p, "file does not exist", "check the path (relative paths start at the working directory)")
+    unknown = sorted(set(systems) - set(SIGNALS))
+    if unknown:
+        raise SimbenchError(
+            "scenario.systems", f"systems {unknown} are not supported", f"use a subset of '{''.join(SIGNALS)}'"
+        )
+    lines = read_rinex_lines(p, f"scenario.obs '{p}'", _OBS_FIX)
+    if not lines:
+        raise _obs_error(p, "is empty")
+    if "RINEX VERSION / TYPE" not in lines[0]:
+        raise _obs_error(p, "has no RINEX header")
+    version_text, kind = lines[0][:9].strip(), lines[0][20:21]
+    try:
+        float(version_text)
+    except ValueError:
+        raise _obs_error(p, f"has no RINEX version number in its first line ('{version_text}')") from None
+    if kind != "O" or not version_text.startswith(("2", "3", "4")):
+        raise _obs_error(p, f"is RINEX {version_text} type '{kind}', not RINEX 2/3/4 observation data")
+    return (_rinex2_as_rinex3(p, lines) if version_text.startswith("2") else lines), version_text
+
+
+@dataclass(frozen=True)
+class _Header:
+    """What an observation header (RINEX 3 layout) tells the reader."""
+
+    types: dict[str, list[str]]  #: observation codes per system
+    approx: np.ndarray  #: APPROX POSITION XYZ, zeros when absent [m]
+    interval: float  #: INTERVAL, NaN when absent [s]
+    body: int  #: index of the first line after END OF HEADER
+
+
+def _read_header(p: str, lines: list[str]) -> _Header:
+    types: dict[str, list[str]] = {}
+    approx = np.zeros(3)
+    interval = np.nan
+    last_sys = ""
+    for i, ln in enumerate(lines):
+        label = ln[60:].strip()
+        if label == "SYS / # / OBS TYPES":
+            if ln[0] != " ":
+                last_sys = ln[0]
+                types[last_sys] = []
+            types[last_sys] += ln[7:60].split()
+        elif label == "APPROX POSITION XYZ":
+            approx = np.array([_float(ln[k : k + 14]) for k in (0, 14, 28)])
+            approx = np.nan_to_num(approx)  # blank or zero fields: no position
+        elif label == "INTERVAL":
+            interval = _float(ln[:10])
+        elif label == "TIME OF FIRST OBS":
+            tsys = ln[48:51].strip()
+            if tsys not in ("GPS", ""):
+                raise _obs_error(p, f"time system {tsys} is not supported", "convert the file to GPS time")
+        elif label == "END OF HEADER":
+            return _Header(types, approx, interval, i + 1)
+    raise _obs_error(p, "has no END OF HEADER line")
+
+
+@dataclass(frozen=True)
+class _Wanted:
+    """The columns to read per system and why a requested system has none."""
+
+    #: per system: columns of the first signal's C, L, D, S, then C and L of each second candidate (-1: absent)
+    cols: dict[str, list[int]]
+    second: dict[str, list[str]]  #: second-signal candidates per system, in order of preference
+    signals: dict[str, str]  #: first signal per system
+    notes: dict[str, str]  #: why a requested system has no columns
+
+
+def _wanted_columns(p: str, types: dict[str, list[str]], systems: str, version: float, version_text: str) -> _Wanted:
+    cols: dict[str, list[int]] = {}
+    second: dict[str, list[str]] = {}
+    signals: dict[str, str] = {}
+    notes: dict[str, str] = {}
+    for s in dict.fromkeys(systems):
+        have = types.get(s, [])
+        band = next((b for b in first_signals(s, version) if f"C{b}" in have), None)
+        if band is None:
+            notes[s] = _codes_note(s, have)
+            continue
+        signals[s] = band
+        second[s] = [b for codes, _ in SECOND_SIGNALS.get(s, ()) for b in codes if f"C{b}" in have]
+        cols[s] = [_column(have, f"{o}{band}", version) for o in "CLDS"]
+        cols[s] += [_column(have, f"{o}{b}", version) for b in second[s] for o in "CL"]
+    if not cols:
+        wanted = "; ".join(f"{SYSTEM_NAMES[s]}: C{' or C'.join(first_signals(s, version))}" for s in systems)
+        found = "; ".join(f"{s}: {' '.join(types[s])}" for s in dict.fromkeys(systems) if types.get(s)) or "none"
+        raise _obs_error(
+            p,
+            f"has no pseudorange observable for the requested systems (RINEX {version_text}; known: {wanted}; "
+            f"codes in the file: {found})",
+            "pass a file with code observations, or other scenario.systems",
+        )
+    return _Wanted(cols, second, signals, notes)
+
+
+def _column(have: list[str], code: str, version: float) -> int:
+    """Index of observable ``code`` (``'L2C'``) among the file's codes ``have``, -1 when absent.
+
+    RINEX 2 names one phase, Doppler and strength per band (``L2``) whatever code is tracked: there it
+    serves every code of the band (the attribute given by :func:`_rinex3_code` is a guess).
+    """
+    if code in have:
+        return have.index(code)
+    if version < 3 and code[0] != "C":
+        return next((k for k, h in enumerate(have) if h[:2] == code[:2]), -1)
+    return -1
+
+
+@dataclass
+class _Records:
+    """The observation records of a file as lists (one Python step per line is unavoidable)."""
+
+    stamps: list[str] = field(default_factory=list)  #: ISO time tag of each epoch, whole seconds
+    fracs: list[float] = field(default_factory=list)  #: sub-second part of each time tag [s]
+    e_line: list[int] = field(default_factory=list)  #: 1-based line number of each epoch header
+    r_epoch: list[int] = field(default_factory=list)
+    r_sat: list[str] = field(default_factory=list)
+    r_num: list[list[float]] = field(default_factory=list)  #: numbers of the wanted columns per row
+    r_lli: list[list[bool]] = field(default_factory=list)  #: first and each second candidate's loss of lock
+    power_failures: list[int] = field(default_factory=list)  #: epochs of flag 1
+    #: flag 6 records: time tag, satellite and which phases slipped (first, each second candidate)
+    slips: list[tuple[str, float, str, list[bool]]] = field(default_factory=list)
+    other_rows: dict[str, int] = field(default_factory=dict)  #: rows of systems not read, per letter
+
+
+def _read_records(
+    p: str, lines: list[str], body: int, cols: dict[str, list[int]], types: dict[str, list[str]]
+) -> _Records:
+    """Every epoch record after the header: observations (flags 0, 1), cycle slips (6); events (2-5) skipped."""
+    rec = _Records()
+    width = max(len(c) for c in cols.values())
+    i, n_lines = body, len(lines)
+    while i < n_lines:  # text parsing: one Python step per line is unavoidable
+        ln = lines[i]
+        i += 1
+        if not ln.startswith(">"):
+            if not ln.strip():
+                continue
+            where = (
+                f"the epoch at line {rec.e_line[-1]} announces fewer satellites"
+                if rec.e_line
+                else "no epoch header before it"
+            )
+            raise _obs_error(p, f"line {i} is outside any epoch record ({where}): '{ln[:20].strip()}'", _LINE_FIX)
+        try:
+            flag, count = int(ln[31:32].strip() or 0), int(ln[32:35])
+        except ValueError:
+            raise _obs_error(p, f"has a malformed epoch line {i}: '{ln[:35].strip()}'", _LINE_FIX) from None
+        if 2 <= flag <= 5:  # events: a moving antenna, a new site, header lines, an external event
+            _check_event(p, lines[i : i + count], i, types)
+            i += count
+            continue
+        stamp, frac = _epoch_time(p, ln, i)
+        block = _satellite_block(p, lines, i, count)
+        rows = _satellite_rows(p, block, i + 1, cols, width, rec.other_rows)
+        if flag == 6:
+            # a slip record holds a value where a phase slipped: first phase, then each second candidate's
+            rec.slips += [(stamp, frac, sat, np.isfinite([nums[1], *nums[5::2]]).tolist()) for sat, nums, _ in rows]
+        else:
+            rec.stamps.append(stamp)
+            rec.fracs.append(frac)
+            rec.e_line.append(i)
+            e = len(rec.stamps) - 1
+            if flag == 1:
+                rec.power_failures.append(e)
+            for sat, nums, lli in rows:
+                rec.r_epoch.append(e)
+                rec.r_sat.append(sat)
+                rec.r_num.append(nums)
+                rec.r_lli.append(lli)
+        i += count
+    return rec
+
+
+def _check_event(p: str, block: list[str], line: int, types: dict[str, list[str]]) -> None:
+    """Refuse an event record that redefines a system's observation types: the columns would change mid-file.
+
+    A header line repeating the file's own types (a splice of files of one receiver) passes.
+    """
+    again: dict[str, list[str]] = {}
+    last = ""
+    for k, ln in enumerate(block, start=line + 1):
+        label = ln[60:].strip()
+        if label == "SYS / # / OBS TYPES":
+            last = ln[0] if ln[0] != " " else last
+            again.setdefault(last, []).extend(ln[7:60].split())
+        if label == "# / TYPES OF OBSERV" or any(again[s] != types.get(s) for s in again if s != last):
+            raise _obs_error(
+                p,
+                f"redefines its observation types in an event record (line {k}); a change of columns "
+                "within one file is not supported",
+                "split the file at that line (e.g. with gfzrnx or teqc) and run each part",
+            )
+    changed = [s for s in again if again[s] != types.get(s)]
+    if changed:
+        raise _obs_error(
+            p,
+            f"redefines its {', '.join(changed)} observation types in the event record at line {line}; a change "
+            "of columns within one file is not supported",
+            "split the file at that line (e.g. with gfzrnx or teqc) and run each part",
+        )
+
+
+def _epoch_time(p: str, ln: str, line: int) -> tuple[str, float]:
+    """The time tag of epoch header ``ln`` (RINEX 3 layout): ISO whole seconds and the fraction [s]."""
+    try:
+        f = ln[1:29].split()
+        whole, _, frac = f[5].partition(".")
+        stamp = f"{int(f[0]):04d}-{int(f[1]):02d}-{int(f[2]):02d}T{int(f[3]):02d}:{int(f[4]):02d}:{int(whole):02d}"
+        return stamp, (float("0." + frac) if frac else 0.0)
+    except (ValueError, IndexError):
+        raise _obs_error(p, f"has a malformed epoch line {line}: '{ln[:35].strip()}'", _LINE_FIX) from None
+
+
+def _satellite_block(p: str, lines: list[str], start: int, count: int) -> list[str]:
+    """The ``count`` satellite lines from index ``start``, checked to be all there (a cut file, lost lines)."""
+    block = lines[start : start + count]
+    short = next((k for k, b in enumerate(block) if b.startswith(">")), len(block))
+    if short == len(block) < count:
+        problem = f"epoch at line {start} announces {count} satellites but the file ends after {short} (cut file)"
+        raise _obs_error(p, problem, _CUT_FIX)
+    if short < count:
+        raise _obs_error(
+            p,
+            f"epoch at line {start} announces {count} satellites but the next epoch header follows "
+            f"after {short} (line {start + short + 1})",
+            _LINE_FIX,
+        )
+    return block
+
+
+def _satellite_rows(
+    p: str, block: list[str], first_line: int, cols: dict[str, list[int]], width: int, other: dict[str, int]
+) -> list[tuple[str, list[float], list[bool]]]:
+    """Satellite id, wanted numbers (padded to ``width``) and loss-of-lock flags of each line of a record.
+
+    Lines of systems without wanted columns are counted in ``other`` (per system letter).
+    """
+    rows = []
+    for row, ln in enumerate(block, start=first_line):
+        c = cols.get(ln[:1])
+        if c is None:
+            other[ln[:1]] = other.get(ln[:1], 0) + 1
+            continue
+        # fields are right-aligned F14.3 plus 2 flag columns: a line ending inside a number was cut
+        # (trailing blanks are padding: a software receiver pads its lines to 80 columns)
+        if 0 < (len(ln.rstrip()) - 3) % 16 < 14:
+            raise _obs_error(p, f"line {row} ends inside an observation field (cut line)", _CUT_FIX)
+        try:
+            nums = [_float(ln[3 + 16 * k : 17 + 16 * k]) if k >= 0 else np.nan for k in c]
+        except ValueError:
+            raise _obs_error(p, f"line {row} has a malformed observation: '{ln[:40].strip()}'", _LINE_FIX) from None
+        digits = (ln[17 + 16 * j : 18 + 16 * j].strip() if j >= 0 else "" for j in (c[1], *c[5::2]))
+        lli = [d.isdigit() and bool(int(d) & 1) for d in digits] + [False] * ((width - len(c)) // 2)
+        rows.append((ln[:3].replace(" ", "0"), nums + [np.nan] * (width - len(c)), lli))
+    return rows
+
+
+def _slipped(
+    rec: _Records, t_int: np.ndarray, t_frac: np.ndarray, row_epoch: np.ndarray, sat: np.ndarray, n_phases: int
+) -> np.ndarray:
+    """Loss-of-lock flags (rows x phases) set by the flag 6 records: the phases each names at its time tag."""
+    out = np.zeros((sat.size, n_phases), bool)
+    if not rec.slips:
+        return out
+    key = t_int * 10_000_000 + np.round(t_frac / _SAME_EPOCH_S).astype(np.int64)
+    row_of = {(int(key[e]), s): r for r, (e, s) in enumerate(zip(row_epoch.tolist(), sat.tolist()))}
+    s_int = datetime64_to_gps(np.array([x[0] for x in rec.slips], dtype="datetime64[s]")).astype(np.int64)
+    s_key = s_int * 10_000_000 + np.round(np.array([x[1] for x in rec.slips]) / _SAME_EPOCH_S).astype(np.int64)
+    for k, (_, _, s, phases) in zip(s_key.tolist(), rec.slips):
+        r = row_of.get((k, s))
+        if r is not None:
+            out[r, : len(phases)] |= np.array(phases[:n_phases])
+    return out
 
 
 def _rinex3_code(kind: str, system: str, types: list[str]) -> str:
@@ -477,11 +646,14 @@ def _rinex3_code(kind: str, system: str, types: list[str]) -> str:
     RINEX 2 names no tracking mode: ``C1`` is C/A (``1C``), ``P1``/``P2`` the P(Y) code (GPS ``W``,
     GLONASS ``P``), GPS ``C2`` the civil L2C (``X``), GLONASS ``C2`` its C/A on G2 (``C``); phase,
     Doppler and strength of band 2 take the mode of the band's code (P2 when the file has it).
-    Bands 5, 6, 7, 8 take ``X``; ``''`` for a type without a RINEX 3 code.
+    Bands 5, 6, 7, 8 take ``X``. BeiDou (RINEX 2.12) bands 2, 7, 6 are B1I, B2I, B3I (``I``);
+    ``''`` for a type without a RINEX 3 code.
     """
     obs, band = kind[:1], kind[1:]
     if obs not in "CLDSP" or not band.isdigit():
         return ""
+    if system == "C":  # RINEX 2.12 BeiDou: bands 2 (B1I), 7 (B2I), 6 (B3I) as in RINEX 3.01; no P code
+        return f"{obs}{band}I" if obs != "P" and band in "276" else ""
     if band == "1":
         mode = "W" if obs == "P" else "C"
     elif band == "2":
@@ -521,15 +693,24 @@ def _rinex2_as_rinex3(path: str, lines: list[str]) -> list[str]:
         if not ln.strip():
             continue
         try:
-            yy, flag, count = int(ln[1:3]), int(ln[28:29].strip() or 0), int(ln[29:32])
-            stamp = f"{yy + (1900 if yy >= 80 else 2000):04d}{ln[3:26]}"  # ' mm dd hh mi ss.sssssss' as RINEX 3
+            flag, count = int(ln[28:29].strip() or 0), int(ln[29:32])
         except ValueError:
             raise _obs_error(path, f"has a malformed RINEX 2 epoch line {i}: '{ln[:32].strip()}'", _LINE_FIX) from None
-        out.append(f"> {stamp}  {flag:1d}{count:3d}")
-        if flag > 1:  # event records carry header lines, not observations
-            out += lines[i : i + count]
+        if 2 <= flag <= 5:  # events carry header lines (their date fields may be blank), not observations
+            event = lines[i : i + count]
+            again = [k for e in event if e[60:].strip() == "# / TYPES OF OBSERV" for k in e[6:60].split()]
+            if again == kinds:  # a splice repeating the file's own types: nothing changes
+                event = [e for e in event if e[60:].strip() != "# / TYPES OF OBSERV"]
+            out.append(f">{'':30s}{flag:1d}{len(event):3d}")
+            out += event
             i += count
             continue
+        try:
+            yy = int(ln[1:3])
+        except ValueError:
+            raise _obs_error(path, f"has a malformed RINEX 2 epoch line {i}: '{ln[:32].strip()}'", _LINE_FIX) from None
+        stamp = f"{yy + (1900 if yy >= 80 else 2000):04d}{ln[3:26]}"  # ' mm dd hh mi ss.sssssss' as RINEX 3
+        out.append(f"> {stamp}  {flag:1d}{count:3d}")
         chunks = [ln[32:68].ljust(36)]  # 12 satellite ids per line, continued on the next lines
         while 12 * len(chunks) < count and i < n_lines:
             chunks.append(lines[i][32:68].ljust(36))
@@ -941,6 +1122,7 @@ def load_rinex(
         "systems_asked": asked,
         "systems_used": used_text,
         "system_notes": notes,
+        "unread_systems": obs.unread_systems,
         "signals": {s: obs.signals[s] for s in used},
         "second_signals": {s: codes for s, codes in second_used.items() if codes},
         "rows_without_ephemeris_or_code": n_dropped,

@@ -42,6 +42,7 @@ __all__ = [
     "NavRecords",
     "NavPaths",
     "SYSTEM_NAMES",
+    "UNREAD_SYSTEM_NAMES",
     "nav_paths",
     "nav_header_system",
     "files_field",
@@ -60,6 +61,8 @@ __all__ = [
 _PACKED = (b"\x1f\x8b", b"\x1f\x9d", b"BZh", b"PK\x03\x04")
 #: RINEX system letter -> name used in messages.
 SYSTEM_NAMES = {"G": "GPS", "R": "GLONASS", "E": "Galileo", "C": "BeiDou", "J": "QZSS"}
+#: Systems a RINEX file may hold that simbench recognises but does not read (counted, never dropped in silence).
+UNREAD_SYSTEM_NAMES = {"S": "SBAS", "I": "NavIC", "L": "LEO"}
 #: One navigation file or several (records merged): what ``scenario.nav`` and the per-system settings hold.
 NavPaths = str | os.PathLike[str] | Sequence[str | os.PathLike[str]]
 

@@ -55,6 +55,7 @@ from simbench.analysis.validation import MIN_ROWS_PER_CLOCK, comparison_table, r
 from simbench.analysis.variants import NO_OVERRIDES, display_names
 from simbench.contract import Scenario, read_parquet_metadata, write_bytes
 from simbench.errors import SimbenchError
+from simbench.gnss.navigation import UNREAD_SYSTEM_NAMES
 from simbench.report.figures import (
     LABELS_MARK,
     FigureFile,
@@ -468,6 +469,10 @@ def _system_notes(cache: Path) -> str:
     parts = [f"{meta.get('name', cache.name)}: asked {meta.get('systems_asked', 'n/a')}"]
     parts.append(f"used {meta.get('systems_used', 'n/a')}")
     parts += [str(n) for n in meta.get("system_notes") or []]
+    unread = meta.get("unread_systems") or {}
+    if unread:
+        names = ", ".join(f"{UNREAD_SYSTEM_NAMES.get(s, s)} ({n} satellite lines)" for s, n in unread.items())
+        parts.append(f"not read (no model for them): {names}")
     return html.escape("; ".join(str(p) for p in parts))
 
 
