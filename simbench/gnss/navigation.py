@@ -273,7 +273,9 @@ def _gps_records(p: str) -> tuple[dict[str, np.ndarray] | None, np.ndarray | Non
     if not os.path.isfile(p):
         raise _nav_error(p, "file does not exist")
     # georinex reads the unpacked, line-ending-normalized text: it misreads CR CR LF files
-    text = io.StringIO("\n".join(read_rinex_lines(p, f"nav_file '{p}'", _NAV_FIX)) + "\n")
+    lines = read_rinex_lines(p, f"nav_file '{p}'", _NAV_FIX)
+    _refuse_rinex4(lines, f"nav_file '{p}'", _NAV_FIX)
+    text = io.StringIO("\n".join(lines) + "\n")
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -518,6 +520,18 @@ def kepler_records(
     return sats, sat_idx, records
 
 
+def _refuse_rinex4(lines: list[str], field: str, fix: str) -> None:
+    """One line for a RINEX 4 navigation file: its records (``> EPH``, ``> ION`` frames) are not read yet."""
+    if lines and "RINEX VERSION / TYPE" in lines[0] and lines[0][:9].strip().startswith("4"):
+        raise SimbenchError(
+            field,
+            f"is RINEX {lines[0][:9].strip()} navigation data, which simbench does not read (its records are "
+            "framed by '> EPH' lines)",
+            "pass the day's RINEX 3 broadcast file (e.g. BRDC00IGS_R_<yyyyddd>0000_01D_MN.rnx) or convert it "
+            "with 'gfzrnx -finp FILE -fout OUT -vo 3'; " + fix,
+        )
+
+
 def read_rinex3_records(path: NavPaths, system: str, setting: str, fix: str) -> NavRecords:
     """Read the records of one system from RINEX 3 navigation files (single-system or mixed), merged.
 
@@ -563,40 +577,49 @@ def read_rinex3_records(path: NavPaths, system: str, setting: str, fix: str) -> 
 
 
 def _rinex3_records(p: str, system: str, setting: str, fix: str) -> tuple[np.ndarray, list[str], list[list[float]]]:
-    """Satellite ids, epoch stamps and numbers of the ``system`` records of one RINEX 3 navigation file."""
+    """Satellite ids, epoch stamps and numbers of the ``system`` records of one RINEX 3 navigation file
+    (or of a RINEX 2 GLONASS one, type ``G``: two-digit years, satellite numbers without a letter)."""
     field = f"{setting} '{p}'"
     if not os.path.isfile(p):
         raise SimbenchError(field, "file does not exist", fix)
     lines = read_rinex_lines(p, field, fix)
-    if not lines or lines[0][20:21] != "N" or not lines[0][:9].strip().startswith("3"):
-        raise SimbenchError(field, "is not RINEX 3 navigation data", fix)
+    _refuse_rinex4(lines, field, fix)
+    version, kind = (lines[0][:9].strip(), lines[0][20:21]) if lines else ("", "")
+    rinex2_glonass = version.startswith("2") and kind == "G"
+    if not (version.startswith("3") and kind == "N") and not rinex2_glonass:
+        what = f"RINEX {version} '{lines[0][20:40].strip()}'" if "RINEX VERSION / TYPE" in lines[0] else "not RINEX"
+        raise SimbenchError(field, f"is {what}, not RINEX 3 (or RINEX 2 GLONASS) navigation data", fix)
     body = next((i + 1 for i, ln in enumerate(lines) if "END OF HEADER" in ln), None)
     if body is None:
         raise SimbenchError(field, "has no END OF HEADER line", fix)
+    if rinex2_glonass and system != "R":
+        return np.zeros(0, str), [], []
+    # RINEX 3: 'R05 2019 04 28 ...', numbers from column 23, continued from 4; RINEX 2: ' 5 19  4 28 ...', 22, 3
+    date, first, cont = ((3, 22), 22, 3) if rinex2_glonass else ((4, 23), 23, 4)
     sv, stamps, rows = [], [], []
     i, n_lines = body, len(lines)
     while i < n_lines:  # text parsing: one Python step per line is unavoidable
         head = lines[i]
         i += 1
-        if head[:1] != system:
+        if not (head[:2].strip().isdigit() if rinex2_glonass else head[:1] == system):
             continue
-        stop = i
-        while stop < n_lines and lines[stop][:1] == " ":
+        stop = i  # continuation lines start with blanks (RINEX 2: three, then a signed number)
+        while stop < n_lines and lines[stop][:1] == " " and not (rinex2_glonass and lines[stop][:2].strip()):
             stop += 1
         try:
-            f = head[4:23].split()
+            f = head[date[0] : date[1]].split()
+            year = int(f[0]) + (2000 if rinex2_glonass and int(f[0]) < 80 else 1900 if rinex2_glonass else 0)
             stamps.append(
-                f"{int(f[0]):04d}-{int(f[1]):02d}-{int(f[2]):02d}T{int(f[3]):02d}:{int(f[4]):02d}:"
-                f"{int(float(f[5])):02d}"
+                f"{year:04d}-{int(f[1]):02d}-{int(f[2]):02d}T{int(f[3]):02d}:{int(f[4]):02d}:{int(float(f[5])):02d}"
             )
-            rec = [_field(head[23 + 19 * k : 42 + 19 * k]) for k in range(3)]
+            rec = [_field(head[first + 19 * k : first + 19 + 19 * k]) for k in range(3)]
             for ln in lines[i:stop]:
-                rec += [_field(ln[4 + 19 * k : 23 + 19 * k]) for k in range(4)]
+                rec += [_field(ln[cont + 19 * k : cont + 19 + 19 * k]) for k in range(4)]
         except (ValueError, IndexError):
             raise SimbenchError(
-                field, f"has a malformed {head[:3]} record at line {i}: '{head[:42].strip()}'", fix
+                field, f"has a malformed {head[:3].strip()} record at line {i}: '{head[:42].strip()}'", fix
             ) from None
-        sv.append(head[:3].replace(" ", "0"))
+        sv.append(f"R{int(head[:2]):02d}" if rinex2_glonass else head[:3].replace(" ", "0"))
         rows.append(rec)
         i = stop
     return np.array(sv, dtype=str), stamps, rows
