@@ -10,7 +10,7 @@ registered in the entry-point group ``simbench.sources``
     [project.entry-points."simbench.sources"]
     static_receiver = "simbench_example_estimator.static_source:StaticReceiver"
 
-The built-ins (``simulated``, ``rinex``, ``librsf``) are declared the same way
+The built-ins (``simulated``, ``rinex``, ``gnsslogger``, ``librsf``) are declared the same way
 in simbench's own ``pyproject.toml``. :mod:`simbench.runs.compose` gives each
 source its typed Hydra node (``scenario/<name>_schema``) and, unless
 ``conf/scenario/<name>.yaml`` exists, a preset of its ``Config`` defaults, so

@@ -53,10 +53,9 @@ def test_built_ins_and_the_example_are_registered_by_entry_point() -> None:
         "the example plug-in is not installed: pip install -e examples/simbench-example-estimator (.ci/run does)"
     )
     assert found[EXAMPLE].package == EXAMPLE_PACKAGE
-    assert {name: found[name].package for name in ("simulated", "rinex", "librsf")} == dict.fromkeys(
-        ("simulated", "rinex", "librsf"), "simbench"
-    )
-    assert {"simulated", "rinex", "librsf", EXAMPLE} <= set(available("scenario"))
+    built_ins = ("simulated", "rinex", "gnsslogger", "librsf")
+    assert {name: found[name].package for name in built_ins} == dict.fromkeys(built_ins, "simbench")
+    assert {*built_ins, EXAMPLE} <= set(available("scenario"))
 
 
 def test_the_example_source_builds_from_its_config_defaults() -> None:

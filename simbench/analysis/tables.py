@@ -28,7 +28,7 @@ VARIANT_FILL = {"gnss_model": "", "overrides": NO_OVERRIDES, "variant": ""}
 GROUP = ["sweep", "scenario", "receiver"]
 
 #: How a real log's format is named in labels (another source by its name).
-SOURCE_NAMES = {"rinex": "RINEX", "librsf": "libRSF"}
+SOURCE_NAMES = {"rinex": "RINEX", "gnsslogger": "GnssLogger", "librsf": "libRSF"}
 
 
 def with_variant_columns(frame: pd.DataFrame) -> pd.DataFrame:

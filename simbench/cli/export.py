@@ -1,4 +1,4 @@
-"""``python -m simbench export [overrides] format=rinex|librsf out=DIR``: write a scenario for other tools.
+"""``python -m simbench export [overrides] format=rinex|librsf|gnsslogger out=DIR``: write a scenario for other tools.
 
 The overrides are those of ``python -m simbench`` (``scenario=urban receiver=low
 seed=3 scenario.duration_s=60``); the scenario is built exactly as a run builds
@@ -17,7 +17,7 @@ from simbench.errors import SimbenchError
 from simbench.runs.compose import compose_config
 from simbench.runs.scenarios import build_scenario, scenario_settings
 
-_USAGE = "python -m simbench export scenario=urban receiver=low seed=0 format=rinex|librsf out=DIR"
+_USAGE = "python -m simbench export scenario=urban receiver=low seed=0 format=rinex|librsf|gnsslogger out=DIR"
 
 
 def main(argv: list[str]) -> int:
@@ -47,12 +47,12 @@ def main(argv: list[str]) -> int:
         return 2
     for f in files:
         print(f)
-    if fmt == ExportFormat.rinex.value:
+    if fmt in (ExportFormat.rinex.value, ExportFormat.gnsslogger.value):
         navs = [str(f) for f in files[1:] if not f.name.endswith("_truth.csv")]
         nav = navs[0] if len(navs) == 1 else f"[{','.join(navs)}]"  # several files: records merged
         truth = next((f" scenario.truth={f}" for f in files if f.name.endswith("_truth.csv")), "")
         print(
-            f"read back: python -m simbench scenario=rinex scenario.obs={files[0]} scenario.nav={nav}{truth}",
+            f"read back: python -m simbench scenario={fmt} scenario.obs={files[0]} scenario.nav={nav}{truth}",
             file=sys.stderr,
         )
     else:

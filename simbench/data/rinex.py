@@ -88,6 +88,7 @@ __all__ = [
     "RinexObs",
     "read_rinex_obs",
     "load_rinex",
+    "rinex_scenario",
     "first_signals",
     "second_frequency",
     "second_group_delays",
@@ -998,6 +999,40 @@ def load_rinex(
         errors of :func:`read_rinex_obs`.
     """
     obs = read_rinex_obs(obs_path, systems)
+    return rinex_scenario(
+        obs,
+        nav_path,
+        truth_path,
+        systems=systems,
+        nav_bds_path=nav_bds_path,
+        nav_glo_path=nav_glo_path,
+        nav_gal_path=nav_gal_path,
+        name=name,
+        truth_max_gap_s=truth_max_gap_s,
+    )
+
+
+def rinex_scenario(
+    obs: RinexObs,
+    nav_path: NavPaths,
+    truth_path: str | os.PathLike[str] | None = None,
+    *,
+    systems: str = "G",
+    nav_bds_path: NavPaths | None = None,
+    nav_glo_path: NavPaths | None = None,
+    nav_gal_path: NavPaths | None = None,
+    name: str = "",
+    truth_max_gap_s: float = 2.0,
+) -> Scenario:
+    """The :class:`~simbench.contract.Scenario` of observations already read into a :class:`RinexObs`.
+
+    Every step of :func:`load_rinex` after the observation file is read: ephemerides, satellite
+    states at transmit time, the rough fix, the observation and truth tables. Another reader of
+    raw observables (:mod:`simbench.data.gnsslogger`) fills a :class:`RinexObs` and comes here,
+    so one pipeline serves every format. The parameters after ``obs`` are :func:`load_rinex`'s;
+    ``obs.path`` stands for the observation file (the default name is its stem).
+    """
+    obs_path = obs.path
     own = {
         "G": nav_paths(nav_path),
         "C": nav_paths(nav_bds_path),

@@ -1,7 +1,7 @@
-"""Real logs as scenario sources: ``scenario.source=rinex`` and ``librsf``.
+"""Real logs as scenario sources: ``scenario.source=rinex``, ``gnsslogger`` and ``librsf``.
 
 Each has its own ``Config`` (the typed ``scenario`` node of
-``conf/scenario/rinex.yaml`` and ``librsf.yaml``; named logs such as
+``conf/scenario/rinex.yaml``, ``gnsslogger.yaml`` and ``librsf.yaml``; named logs such as
 ``hk_tst_2019.yaml`` are presets of the same node) and checks the files it needs
 before any is read: the observation file, for RINEX the navigation files, the
 reference trajectory (or point), and navigation data for every system of ``systems``.
@@ -14,13 +14,14 @@ from pathlib import Path
 from typing import Any
 
 from simbench.contract import Scenario
+from simbench.data.gnsslogger import load_gnsslogger
 from simbench.data.librsf import load_librsf
 from simbench.data.rinex import NAV_SETTINGS, load_rinex
 from simbench.errors import SimbenchError
 from simbench.gnss.navigation import SYSTEM_NAMES, nav_header_system, nav_paths
 from simbench.source import DataConfig, Source, SourceConfig, scenario_config
 
-__all__ = ["RinexConfig", "LibrsfConfig", "RinexSource", "LibrsfSource"]
+__all__ = ["RinexConfig", "GnssLoggerConfig", "LibrsfConfig", "RinexSource", "GnssLoggerSource", "LibrsfSource"]
 
 
 @dataclass
@@ -50,6 +51,15 @@ class RinexConfig(SourceConfig):
     #: each with its second frequency where the file has one (:data:`simbench.data.rinex.SECOND_SIGNALS`)
     systems: str = "G"
     truth_max_gap_s: float = 2.0  #: reference samples further apart are not interpolated [s]
+
+
+@dataclass
+class GnssLoggerConfig(RinexConfig):
+    """An Android GnssLogger log (:func:`simbench.data.gnsslogger.load_gnsslogger`): ``obs`` is the
+    GnssLogger text file (its ``Raw`` lines); navigation files, reference and systems as for RINEX
+    (the phone's log carries no ephemerides)."""
+
+    source: str = "gnsslogger"
 
 
 @dataclass
@@ -97,6 +107,27 @@ class RinexSource(Source):
         )
 
 
+class GnssLoggerSource(RinexSource):
+    """An Android GnssLogger "Raw" log (Google Smartphone Decimeter Challenge format) scored against its reference."""
+
+    name = "gnsslogger"
+    Config = GnssLoggerConfig
+
+    def load(self, cfg: DataConfig) -> Scenario:
+        s = scenario_config(cfg, GnssLoggerConfig)
+        return load_gnsslogger(
+            s.obs,
+            s.nav,
+            s.truth,
+            systems=s.systems,
+            nav_bds_path=s.nav_bds,
+            nav_glo_path=s.nav_glo,
+            nav_gal_path=s.nav_gal,
+            name=self.label(cfg),
+            truth_max_gap_s=s.truth_max_gap_s,
+        )
+
+
 class LibrsfSource(Source):
     """A real libRSF GNSS text file (smartLoc, Chemnitz City): pre-corrected pseudoranges and odometry."""
 
@@ -123,13 +154,17 @@ class LibrsfSource(Source):
 #: An example value of each file setting, for the error that asks for it.
 _EXAMPLES = {"obs": "a.obs", "nav": "a.20n (or [a.20n,b.20n])", "truth": "ref.csv (or lat,lon,h)"}
 
+#: Examples of a source whose files look otherwise.
+_SOURCE_EXAMPLES = {"gnsslogger": {"obs": "gnss_log.txt"}}
+
 
 def require_files(s: SourceConfig, keys: tuple[str, ...]) -> None:
     """Raise a one-line error naming the first of ``keys`` (file settings of ``s``) left empty, with an example
     command that sets every missing one."""
     missing = [key for key in keys if not getattr(s, key)]
     if missing:
-        example = " ".join(f"scenario.{k}={_EXAMPLES.get(k, 'path/to/file').split(' ')[0]}" for k in missing)
+        examples = _EXAMPLES | _SOURCE_EXAMPLES.get(s.source, {})
+        example = " ".join(f"scenario.{k}={examples.get(k, 'path/to/file').split(' ')[0]}" for k in missing)
         raise SimbenchError(
             f"scenario.{missing[0]}",
             f"no file given for a {s.source} scenario (missing: {', '.join(missing)})",

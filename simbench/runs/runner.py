@@ -34,8 +34,8 @@ DIVERGENCE_M = 10_000.0
 SUMMARY_COLUMNS: dict[str, str] = {
     "sweep": "str, sweep name ('' for a single run)",
     "scenario": "str, scenario name",
-    "source": "str, where the data come from: simulated, rinex or librsf (a real log), or a plug-in source's "
-    "name (scenario.source; simbench.source)",
+    "source": "str, where the data come from: simulated, rinex, gnsslogger or librsf (a real log), or a plug-in "
+    "source's name (scenario.source; simbench.source)",
     "receiver": "str, receiver preset (describes the data only when source is simulated)",
     "seed": "int, scenario seed",
     "scenario_key": "str, hash of the resolved scenario config (same key = byte-identical data)",
