@@ -35,7 +35,6 @@ Run: ``python benchmarks/calibrate_urban_deep.py`` (about 30 s on one core).
 from __future__ import annotations
 
 import itertools
-import os
 import sys
 from pathlib import Path
 
@@ -64,7 +63,6 @@ GRID: dict[str, list[object]] = {
 
 def main() -> pd.DataFrame:
     """Run the grid, print the table best first and the chosen values; return the table."""
-    os.chdir(REPO)  # the configs name ../shared relative to the repository root
     target = world_statistics(
         residual_sample(scenario_from_overrides(["scenario=hk_tst_2019", "scenario.systems=G"])[1])
     )

@@ -46,7 +46,7 @@ def main() -> None:
             *(
                 [
                     "scenario.constellation.kind=broadcast",
-                    "scenario.constellation.nav_path=../shared/data/wvu_drives/brdc.18n",
+                    "scenario.constellation.nav_path=${simbench_data:wvu_drives/brdc.18n}",
                 ]
                 if args.broadcast
                 else []

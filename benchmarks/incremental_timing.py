@@ -50,7 +50,7 @@ def main() -> None:
             "scenario.dual_frequency": False,
             "scenario.constellation.kind": "broadcast",
             "scenario.start_sow_s": 496_800.0,
-            "scenario.constellation.nav_path": "../shared/data/wvu_drives/brdc.18n",
+            "scenario.constellation.nav_path": "${simbench_data:wvu_drives/brdc.18n}",
         },
     )
     sats = sc.observations.groupby("epoch").size()

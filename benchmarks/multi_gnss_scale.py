@@ -43,7 +43,7 @@ def two_system_scenario(duration_s: float, seed: int) -> simbench.Scenario:
         **common,
         **{
             "scenario.constellation.kind": "broadcast",
-            "scenario.constellation.nav_path": "../shared/data/wvu_drives/brdc.18n",
+            "scenario.constellation.nav_path": "${simbench_data:wvu_drives/brdc.18n}",
         },
     )
     other = simbench.simulate("open_sky", "low", seed=seed, **common)

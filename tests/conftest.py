@@ -19,6 +19,7 @@ import pytest
 from threadpoolctl import threadpool_limits
 
 from simbench.errors import SimbenchError
+from simbench.paths import data_home
 from simbench.runs.compose import preset_estimator_config
 
 # One BLAS thread per test process, here and in the CLI runs the tests start: with
@@ -67,9 +68,10 @@ def shared_dir() -> Path:
 
 
 @pytest.fixture(scope="session")
-def shared_data(shared_dir: Path) -> Path:
-    """``shared/data``: the WVU drives and the Hong Kong log."""
-    return require_shared(shared_dir / "data")
+def shared_data() -> Path:
+    """The data home the named presets read (:func:`simbench.paths.data_home`): ``shared/data`` beside the
+    repository, or the folder ``SIMBENCH_DATA`` names; the WVU drives, the Hong Kong and Nagoya logs."""
+    return require_shared(data_home())
 
 
 def one_line_error(fn, *args, **kwargs) -> str:

@@ -2,8 +2,8 @@
 
     python tests/position_digests.py sim|hk
 
-Prints one JSON object ``{estimator: [status, sha256 of the float64 x, y, z bytes]}``. Run from
-the repository root (the Hong Kong preset finds ``../shared`` from there).
+Prints one JSON object ``{estimator: [status, sha256 of the float64 x, y, z bytes]}``. Runs from any
+folder (the Hong Kong preset reads the data home, :mod:`simbench.paths`).
 """
 
 from __future__ import annotations

@@ -468,7 +468,9 @@ def test_mixed_navigation_and_observations_round_trip(tmp_path: Path) -> None:
 
 
 def test_systems_setting_and_missing_navigation(tmp_path: Path) -> None:
-    sc = RinexConfig(obs="a.obs", truth="a.csv")
+    for name in ("a.obs", "a.csv", "e.rnx"):  # the door checks that every named file exists
+        (tmp_path / name).touch()
+    sc = RinexConfig(obs=str(tmp_path / "a.obs"), truth=str(tmp_path / "a.csv"))
     cfg = ScenarioSettings(scenario=sc)
     sc.nav = str(tmp_path / "gps.rnx")
     (tmp_path / "gps.rnx").write_text(
@@ -479,7 +481,7 @@ def test_systems_setting_and_missing_navigation(tmp_path: Path) -> None:
     assert "scenario.systems" in msg and "X" in msg and "GREC" in msg
     sc.systems = "GE"  # a GPS-only nav file cannot serve Galileo
     assert "scenario.nav_gal" in one_line_error(check_scenario, cfg)
-    sc.nav_gal = "e.rnx"
+    sc.nav_gal = str(tmp_path / "e.rnx")
     check_scenario(cfg)
     sc.systems = "GR"
     assert "scenario.nav_glo" in one_line_error(check_scenario, cfg)

@@ -34,7 +34,14 @@ PRIVATE_NAME_SCANNED = ("tests", "benchmarks", "examples")
 #: import its own unit and every unit of a lower layer.
 LAYERS: tuple[tuple[tuple[str, ...], ...], ...] = (
     (
-        ("simbench.errors", "simbench.typed", "simbench.contract", "simbench.source", "simbench.entry_points"),
+        (
+            "simbench.errors",
+            "simbench.typed",
+            "simbench.contract",
+            "simbench.source",
+            "simbench.entry_points",
+            "simbench.paths",
+        ),
     ),  # the shared base
     (("simbench.core",),),  # physics: frames, time, orbits, atmosphere
     (("simbench.gnss",),),  # measurement model, single point, navigation

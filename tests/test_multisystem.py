@@ -125,7 +125,10 @@ def test_hong_kong_gps_plus_beidou() -> None:
     assert all(abs(v) < 20.0 for v in medians.values()), medians
 
 
-def test_beidou_needs_its_navigation_file() -> None:
-    cfg = ScenarioSettings(scenario=RinexConfig(obs="a.obs", nav="a.19n", truth="a.csv", systems="GC"))
+def test_beidou_needs_its_navigation_file(tmp_path: Path) -> None:
+    obs, nav, truth = (tmp_path / name for name in ("a.obs", "a.19n", "a.csv"))
+    for path in (obs, nav, truth):  # the door checks that every named file exists
+        path.touch()
+    cfg = ScenarioSettings(scenario=RinexConfig(obs=str(obs), nav=str(nav), truth=str(truth), systems="GC"))
     with pytest.raises(SimbenchError, match="scenario.nav_bds"):
         build_scenario(cfg)

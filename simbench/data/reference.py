@@ -29,7 +29,15 @@ from simbench.core.frames import ecef_from_geodetic
 from simbench.core.gpstime import format_gps_time
 from simbench.errors import SimbenchError, warn
 
-__all__ = ["Reference", "read_reference", "check_near_fixes", "match_reference", "truth_table", "MAX_FIX_DISTANCE_M"]
+__all__ = [
+    "Reference",
+    "read_reference",
+    "is_point",
+    "check_near_fixes",
+    "match_reference",
+    "truth_table",
+    "MAX_FIX_DISTANCE_M",
+]
 
 #: Largest median distance of a reference from the log's single-point fixes [m]: metres to
 #: kilometres of error in urban canyons, thousands of kilometres for swapped columns.
@@ -173,6 +181,12 @@ def read_reference(
 
 #: A point with a norm above this is ECEF metres, below it latitude, longitude and height [m].
 _ECEF_NORM_M = 1.0e6
+
+
+def is_point(text: str) -> bool:
+    """Whether a reference setting is a static antenna's one point written in it (``lat,lon,h`` or ``x,y,z``),
+    not a file."""
+    return _numbers(text) is not None
 
 
 def _numbers(text: str) -> list[float] | None:

@@ -4,7 +4,9 @@ Each has its own ``Config`` (the typed ``scenario`` node of
 ``conf/scenario/rinex.yaml``, ``gnsslogger.yaml`` and ``librsf.yaml``; named logs such as
 ``hk_tst_2019.yaml`` are presets of the same node) and checks the files it needs
 before any is read: the observation file, for RINEX the navigation files, the
-reference trajectory (or point), and navigation data for every system of ``systems``.
+reference trajectory (or point), and navigation data for every system of ``systems``; each
+named file must exist (:func:`~simbench.paths.require_file`), so a preset whose data home is
+missing stops before any job, naming the setting, the path tried and ``SIMBENCH_DATA``.
 """
 
 from __future__ import annotations
@@ -16,9 +18,11 @@ from typing import Any
 from simbench.contract import Scenario
 from simbench.data.gnsslogger import load_gnsslogger
 from simbench.data.librsf import load_librsf
+from simbench.data.reference import is_point
 from simbench.data.rinex import NAV_SETTINGS, load_rinex
 from simbench.errors import SimbenchError
 from simbench.gnss.navigation import SYSTEM_NAMES, nav_header_system, nav_paths
+from simbench.paths import require_file
 from simbench.source import DataConfig, Source, SourceConfig, scenario_config
 
 __all__ = ["RinexConfig", "GnssLoggerConfig", "LibrsfConfig", "RinexSource", "GnssLoggerSource", "LibrsfSource"]
@@ -86,6 +90,12 @@ class RinexSource(Source):
         s = scenario_config(cfg, RinexConfig)
         super().check(cfg)
         require_files(s, ("obs", "nav", "truth"))
+        require_file("scenario.obs", s.obs)
+        for key in dict.fromkeys(NAV_SETTINGS.values()):
+            for path in nav_paths(getattr(s, key)):
+                require_file(f"scenario.{key}", path)
+        if not is_point(s.truth):
+            require_file("scenario.truth", s.truth)
         check_systems(s)
 
     def label(self, cfg: DataConfig) -> str:
@@ -138,6 +148,9 @@ class LibrsfSource(Source):
         s = scenario_config(cfg, LibrsfConfig)
         super().check(cfg)
         require_files(s, ("obs",))
+        require_file("scenario.obs", s.obs)
+        if s.truth:
+            require_file("scenario.truth", s.truth)
 
     def load(self, cfg: DataConfig) -> Scenario:
         s = scenario_config(cfg, LibrsfConfig)

@@ -22,6 +22,7 @@ import estimators
 from estimators.ppp_config import GnssModelConfig
 from simbench import source as sources
 from simbench.errors import SimbenchError
+from simbench.paths import data_path
 from simbench.sim.config import ImuConfig, ReceiverConfig, ScenarioConfig
 from simbench.typed import to_typed
 
@@ -268,6 +269,9 @@ def config_groups_help() -> str:
 
 # conf/config.yaml's help template lists the groups with ${simbench_config_groups:}
 OmegaConf.register_new_resolver("simbench_config_groups", config_groups_help, replace=True)
+# the named presets' files: ${simbench_data:hk_tst_2019/x.obs} is x.obs in the data home ($SIMBENCH_DATA or
+# <repository>/../shared/data, simbench.paths), so a preset reads the same files from any working directory
+OmegaConf.register_new_resolver("simbench_data", data_path, replace=True)
 
 
 def compose_config(overrides: list[str] | None = None, *, with_hydra: bool = False) -> DictConfig:

@@ -15,6 +15,7 @@ import os
 from dataclasses import dataclass, field
 
 from simbench.errors import SimbenchError, require_at_least, require_elevation_mask, require_positive
+from simbench.paths import require_file
 from simbench.sim.tracking import antenna_gain_dbi
 from simbench.source import SIMULATED, SourceConfig
 from simbench.typed import Choice, check_choices
@@ -494,18 +495,22 @@ def validate_sim(cfg: SimConfig) -> SimConfig:
     )
     cfg.imu.validate("imu")
     check_memory(cfg)
-    if s.trajectory.kind == TrajectoryKind.replay and not s.trajectory.replay.path:
-        raise SimbenchError(
-            "scenario.trajectory.replay.path",
-            "no trajectory file given",
-            "set it to a 'SOW X Y Z' file, e.g. ../shared/data/wvu_drives/drive_1.xyz",
-        )
-    if s.constellation.kind == ConstellationKind.broadcast and not s.constellation.nav_path:
-        raise SimbenchError(
-            "scenario.constellation.nav_path",
-            "no navigation file given",
-            "set it to a RINEX GPS navigation file, e.g. ../shared/data/wvu_drives/brdc.18n",
-        )
+    if s.trajectory.kind == TrajectoryKind.replay:
+        if not s.trajectory.replay.path:
+            raise SimbenchError(
+                "scenario.trajectory.replay.path",
+                "no trajectory file given",
+                "set it to a 'SOW X Y Z' file, e.g. '${simbench_data:wvu_drives/drive_1.xyz}'",
+            )
+        require_file("scenario.trajectory.replay.path", s.trajectory.replay.path)
+    if s.constellation.kind == ConstellationKind.broadcast:
+        if not s.constellation.nav_path:
+            raise SimbenchError(
+                "scenario.constellation.nav_path",
+                "no navigation file given",
+                "set it to a RINEX GPS navigation file, e.g. '${simbench_data:wvu_drives/brdc.18n}'",
+            )
+        require_file("scenario.constellation.nav_path", s.constellation.nav_path)
     cfg.receiver.validate("receiver")
     check_reachable_cn0(cfg)
     return cfg
