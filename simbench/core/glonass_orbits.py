@@ -175,6 +175,22 @@ class GlonassEphemeris:
         self._selector = ClosestRecordSelector(self._sat_idx, self._tb, m)
         self.t_coverage = (float(self._tb.min() - self.max_age_s), float(self._tb.max() + self.max_age_s))
 
+    def select_records(self, t_gps: np.ndarray) -> np.ndarray:
+        """Index of the record used for each (epoch, satellite), -1 if none (as the GPS ephemeris' method).
+
+        Parameters
+        ----------
+        t_gps : np.ndarray, shape (n,), (n, 1) or (n, m)
+            Times [s]; 1-D (or one column) means the same time for all satellites.
+
+        Returns
+        -------
+        idx : np.ndarray of int, shape (n, m)
+            Index into the record arrays of the record with the nearest tb (ties: the earlier), or -1
+            if |t - tb| > ``max_age_s`` or the satellite has no record.
+        """
+        return self._selector.select(t_gps, self.max_age_s)
+
     def states(self, t_gps: np.ndarray, offset_s: np.ndarray | float | None = None) -> SatelliteStates:
         """Satellite positions, velocities and clocks from the record with the nearest tb.
 
@@ -200,7 +216,7 @@ class GlonassEphemeris:
         """
         t, off = state_time_grid(t_gps, offset_s, self.sats.size)
         n, m = off.shape
-        idx = self._selector.select(t, self.max_age_s)
+        idx = self.select_records(t)
         ok = idx >= 0
         bad = ~ok.any(axis=1)
         if bad.any():

@@ -43,7 +43,6 @@ def read_beidou_navigation(
     path: NavPaths,
     max_age_s: float = FIT_HALF_WINDOW_S,
     setting: str = "scenario.nav_bds",
-    span: tuple[float, float] | None = None,
 ) -> BeidouEphemeris:
     """Read BeiDou ephemerides from a RINEX 3 navigation file (BeiDou-only or mixed).
 
@@ -54,14 +53,13 @@ def read_beidou_navigation(
     BeidouEphemeris
         Toe/Toc converted from BDT to continuous GPS seconds; ``tgd`` is TGD1.
     """
-    return load_beidou_navigation(path, max_age_s, setting, span)[0]
+    return load_beidou_navigation(path, max_age_s, setting)[0]
 
 
 def load_beidou_navigation(
     path: NavPaths,
     max_age_s: float = FIT_HALF_WINDOW_S,
     setting: str = "scenario.nav_bds",
-    span: tuple[float, float] | None = None,
 ) -> tuple[BeidouEphemeris, GroupDelays]:
     """Read BeiDou ephemerides and both broadcast group delays from RINEX 3 navigation files.
 
@@ -75,9 +73,6 @@ def load_beidou_navigation(
         Largest |t - Toe| at which a record may be used [s]; default 7200.
     setting : str
         Config setting that named the file, for error messages.
-    span : tuple of float, optional
-        First and last observation epoch [s, continuous GPS] that the records must cover
-        (:func:`~simbench.gnss.navigation.check_coverage`).
 
     Returns
     -------
@@ -101,9 +96,7 @@ def load_beidou_navigation(
         raise SimbenchError(field, "has no complete healthy BeiDou record", fix)
     toe = (c["week"][keep] + BDT_WEEK_OFFSET) * SECONDS_PER_WEEK + c["toe"][keep] + GPS_MINUS_BDT_S
     toc = datetime64_to_gps(nav.epoch[keep]) + GPS_MINUS_BDT_S
-    sats, sat_idx, records = kepler_records(
-        nav, c, _FIELDS, keep, toe, toc, max_age_s=max_age_s, span=span, field=field, system="C"
-    )
+    sats, sat_idx, records = kepler_records(nav, c, _FIELDS, keep, toe, toc)
     eph = BeidouEphemeris(sats, records, source=", ".join(os.path.basename(p) for p in paths), max_age_s=max_age_s)
     return eph, {"tgd2": satellite_medians(sat_idx, c["tgd2"][keep], sats.size)}
 

@@ -55,7 +55,6 @@ def read_galileo_navigation(
     path: NavPaths,
     max_age_s: float = FIT_HALF_WINDOW_S,
     setting: str = "scenario.nav_gal",
-    span: tuple[float, float] | None = None,
 ) -> GalileoEphemeris:
     """Read Galileo ephemerides from a RINEX 3 navigation file (Galileo-only or mixed).
 
@@ -67,14 +66,13 @@ def read_galileo_navigation(
         Toe/Toc in continuous GPS seconds (the RINEX Galileo week is the GPS
         week); ``tgd`` is BGD(E1,E5b) for I/NAV clocks, BGD(E1,E5a) for F/NAV.
     """
-    return load_galileo_navigation(path, max_age_s, setting, span)[0]
+    return load_galileo_navigation(path, max_age_s, setting)[0]
 
 
 def load_galileo_navigation(
     path: NavPaths,
     max_age_s: float = FIT_HALF_WINDOW_S,
     setting: str = "scenario.nav_gal",
-    span: tuple[float, float] | None = None,
 ) -> tuple[GalileoEphemeris, GroupDelays]:
     """Read Galileo ephemerides and both broadcast group delays from RINEX 3 navigation files.
 
@@ -88,9 +86,6 @@ def load_galileo_navigation(
         Largest |t - Toe| at which a record may be used [s]; default 7200.
     setting : str
         Config setting that named the file, for error messages.
-    span : tuple of float, optional
-        First and last observation epoch [s, continuous GPS] that the records must cover
-        (:func:`~simbench.gnss.navigation.check_coverage`).
 
     Returns
     -------
@@ -124,9 +119,7 @@ def load_galileo_navigation(
         raise SimbenchError(field, "has no complete healthy Galileo record", fix)
     toe = c["week"][keep] * SECONDS_PER_WEEK + c["toe"][keep]
     toc = datetime64_to_gps(nav.epoch[keep])
-    sats, sat_idx, records = kepler_records(
-        nav, c, _FIELDS, keep, toe, toc, max_age_s=max_age_s, span=span, field=field, system="E"
-    )
+    sats, sat_idx, records = kepler_records(nav, c, _FIELDS, keep, toe, toc)
     records["tgd"] = np.nan_to_num(bgd[keep])
     eph = GalileoEphemeris(sats, records, source=", ".join(os.path.basename(p) for p in paths), max_age_s=max_age_s)
     delays = {

@@ -18,7 +18,6 @@ from simbench.core.gpstime import utc_to_gps
 from simbench.errors import SimbenchError
 from simbench.gnss.navigation import (
     NavPaths,
-    check_coverage,
     files_field,
     nav_paths,
     read_rinex3_records,
@@ -36,7 +35,6 @@ def read_glonass_navigation(
     path: NavPaths,
     max_age_s: float = GLO_MAX_AGE_S,
     setting: str = "scenario.nav_glo",
-    span: tuple[float, float] | None = None,
 ) -> GlonassEphemeris:
     """Read GLONASS ephemerides from a RINEX 3 navigation file (GLONASS-only or mixed).
 
@@ -50,9 +48,6 @@ def read_glonass_navigation(
         Largest |t - tb| at which a record may be used [s]; default 1800.
     setting : str
         Config setting that named the file, for error messages.
-    span : tuple of float, optional
-        First and last observation epoch [s, continuous GPS] that the records must cover
-        (:func:`~simbench.gnss.navigation.check_coverage`).
 
     Returns
     -------
@@ -85,7 +80,6 @@ def read_glonass_navigation(
     if not keep.any():
         raise SimbenchError(field, "has no complete healthy GLONASS record", fix)
     tb = utc_to_gps(nav.epoch[keep])
-    check_coverage(tb, max_age_s, span, field, "R")
     sats, sat_idx = np.unique(nav.sv[keep], return_inverse=True)
     records = {
         "sat": sat_idx,

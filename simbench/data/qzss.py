@@ -45,7 +45,6 @@ def read_qzss_navigation(
     path: NavPaths,
     max_age_s: float = FIT_HALF_WINDOW_S,
     setting: str = "scenario.nav",
-    span: tuple[float, float] | None = None,
 ) -> BroadcastEphemeris:
     """Read QZSS ephemerides from RINEX 3 navigation files (QZSS-only or mixed), records merged.
 
@@ -58,9 +57,6 @@ def read_qzss_navigation(
         Largest |t - Toe| at which a record may be used [s]; default 7200.
     setting : str
         Config setting that named the files, for error messages.
-    span : tuple of float, optional
-        First and last observation epoch [s, continuous GPS] that the records must cover
-        (:func:`~simbench.gnss.navigation.check_coverage`).
 
     Returns
     -------
@@ -72,7 +68,7 @@ def read_qzss_navigation(
     ------
     SimbenchError
         Missing file, not RINEX 3 navigation data, a malformed record, no healthy QZSS
-        record, or records that leave part of ``span`` uncovered.
+        record.
     """
     paths = nav_paths(path)
     field = files_field(setting, paths) if paths else setting
@@ -85,7 +81,5 @@ def read_qzss_navigation(
         raise SimbenchError(field, "has no complete healthy QZSS record", fix)
     toe = c["week"][keep] * SECONDS_PER_WEEK + c["toe"][keep]
     toc = datetime64_to_gps(nav.epoch[keep])
-    sats, _, records = kepler_records(
-        nav, c, _FIELDS, keep, toe, toc, max_age_s=max_age_s, span=span, field=field, system="J"
-    )
+    sats, _, records = kepler_records(nav, c, _FIELDS, keep, toe, toc)
     return BroadcastEphemeris(sats, records, source=", ".join(os.path.basename(p) for p in paths), max_age_s=max_age_s)

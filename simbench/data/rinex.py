@@ -39,8 +39,10 @@ with the most code values), so its inter-frequency bias stays constant.
 A requested system without usable rows is left out with a one-line warning and
 a line in ``meta['system_notes']``. Navigation data of a system come from its own
 files (``nav_glo``, ``nav_gal``, ``nav_bds``) when given, else from ``nav``, which
-may be mixed RINEX 3 files; several files have their records merged, and the
-merged records must cover the whole observation span. With several
+may be mixed RINEX 3 files; several files have their records merged, and each
+observed satellite must have a record near each epoch it is observed at
+(:func:`served_rows`; a system's hours without records in which none of its
+satellites is observed are no gap). With several
 systems the single-point solution and the shared model give every non-GPS
 system its own receiver clock offset (``PppObservations.system_index``),
 which absorbs the system time offsets and inter-system biases.
@@ -75,6 +77,7 @@ from simbench.data.logs import epoch_grid_of, log_scenario, log_truth, observati
 from simbench.data.qzss import read_qzss_navigation
 from simbench.data.reference import read_reference
 from simbench.errors import SimbenchError, warn
+from simbench.gnss.coverage import check_coverage
 from simbench.gnss.navigation import (
     SYSTEM_NAMES,
     GroupDelays,
@@ -92,6 +95,7 @@ __all__ = [
     "first_signals",
     "second_frequency",
     "second_group_delays",
+    "served_rows",
     "SIGNALS",
     "SECOND_SIGNALS",
     "NAV_SETTINGS",
@@ -811,7 +815,7 @@ def _first_records(
 
 
 Ephemeris = BroadcastEphemeris | GlonassEphemeris
-#: Navigation reader of GLONASS and QZSS, called with ``(paths, setting=..., span=...)``.
+#: Navigation reader of GLONASS and QZSS, called with ``(paths, setting=...)``.
 _READERS: dict[str, Callable[..., Ephemeris]] = {"R": read_glonass_navigation, "J": read_qzss_navigation}
 #: Navigation reader of Galileo and BeiDou, called as :data:`_READERS`: their second signals need
 #: group delays the ephemeris does not keep, which these return beside it.
@@ -821,14 +825,10 @@ _LOADERS: dict[str, Callable[..., tuple[Ephemeris, GroupDelays]]] = {
 }
 
 
-def _load_ephemeris(
-    paths: tuple[str, ...], own_files: bool, obs: RinexObs, system: str
-) -> tuple[Ephemeris, GroupDelays]:
-    """Ephemeris of one system from ``paths`` (records merged), checked to cover the whole observation span,
-    and its group delays (:data:`~simbench.gnss.navigation.GroupDelays`, ``tgd`` from the ephemeris).
-
-    ``own_files`` says whether ``paths`` are the system's own setting or ``scenario.nav`` standing in for it.
-    """
+def _load_ephemeris(paths: tuple[str, ...], setting: str, system: str) -> tuple[Ephemeris, GroupDelays]:
+    """Ephemeris of one system from ``paths`` (records merged), read for ``setting`` (the parameter that named
+    them: the system's own, or ``scenario.nav`` standing in for it), and its group delays
+    (:data:`~simbench.gnss.navigation.GroupDelays`, ``tgd`` from the ephemeris)."""
     key = f"scenario.{NAV_SETTINGS[system]}"
     if not paths:
         raise SimbenchError(
@@ -837,19 +837,29 @@ def _load_ephemeris(
             f"set {key} to a RINEX navigation file holding {SYSTEM_NAMES[system]} records, "
             "or scenario.nav to a mixed RINEX 3 navigation file",
         )
-    setting = key if own_files else f"scenario.nav (no {key} given)"
-    span = (
-        float(obs.epoch_t_int[0]) + obs.epoch_t_frac[0],
-        float(obs.epoch_t_int[-1]) + obs.epoch_t_frac[-1],
-    )
     delays: GroupDelays = {}
     if system == "G":
-        eph: Ephemeris = read_gps_navigation(paths, span=span, setting=setting)
+        eph: Ephemeris = read_gps_navigation(paths, setting=setting)
     elif system in _LOADERS:
-        eph, delays = _LOADERS[system](paths, setting=setting, span=span)
+        eph, delays = _LOADERS[system](paths, setting=setting)
     else:
-        eph = _READERS[system](paths, setting=setting, span=span)
+        eph = _READERS[system](paths, setting=setting)
     return eph, {"tgd": eph.tgd, **delays}
+
+
+def served_rows(
+    obs: RinexObs, ephs: dict[str, Ephemeris], settings: dict[str, str], paths: dict[str, tuple[str, ...]]
+) -> np.ndarray:
+    """Rows with a code whose satellite has a record within validity at the row's epoch
+    (:func:`~simbench.gnss.coverage.check_coverage` per system, which refuses a file gap and warns about
+    satellites left out)."""
+    letters = obs.sat.astype("<U1")
+    t_epoch = obs.epoch_t_int.astype(float)  # the states select records at the whole-second tag too
+    out = np.zeros(obs.sat.size, bool)
+    for system, eph in ephs.items():
+        rows = np.flatnonzero((letters == system) & np.isfinite(obs.code))
+        out[rows] = check_coverage(eph, t_epoch, obs.row_epoch[rows], obs.sat[rows], settings[system], paths[system])
+    return out
 
 
 def second_group_delays(
@@ -914,21 +924,27 @@ def second_group_delays(
     return out
 
 
-def satellite_states(obs: RinexObs, ephs: dict[str, Ephemeris]) -> dict[str, np.ndarray]:
-    """Per-row satellite state at transmit time (NaN where the ephemeris has no record)."""
+def satellite_states(obs: RinexObs, ephs: dict[str, Ephemeris], served: np.ndarray) -> dict[str, np.ndarray]:
+    """Satellite state at transmit time of each ``served`` row (:func:`served_rows`); NaN elsewhere.
+
+    Each ephemeris is evaluated at the epochs its served rows have only: between them its records may
+    serve no satellite at all (a station's file without records where the system is not observed).
+    """
     out = {k: np.full(obs.sat.size, np.nan) for k in ("x", "y", "z", "vx", "vy", "vz", "clock", "drift")}
-    n = obs.epoch_t_int.size
     for eph in ephs.values():
         m = eph.sats.size
         col = {s: j for j, s in enumerate(eph.sats.tolist())}
         j = np.array([col.get(s, -1) for s in obs.sat.tolist()])
-        has = (j >= 0) & np.isfinite(obs.code)
-        e_r, j_r = obs.row_epoch[has], j[has]
+        has = (j >= 0) & served
+        if not has.any():
+            continue
+        epochs, e_r = np.unique(obs.row_epoch[has], return_inverse=True)
+        j_r = j[has]
         # (epoch, satellite) grid of transit offsets relative to the whole-second tag.
-        tau = np.full((n, m), _TAU_NOMINAL_S)
+        tau = np.full((epochs.size, m), _TAU_NOMINAL_S)
         tau[e_r, j_r] = obs.code[has] / C_LIGHT
-        t_ref = obs.epoch_t_int.astype(float)
-        base = obs.epoch_t_frac[:, None] - tau
+        t_ref = obs.epoch_t_int[epochs].astype(float)
+        base = obs.epoch_t_frac[epochs, None] - tau
         # The satellite clock moves the transmit time by up to ~1 ms (4 m of orbit);
         # one fixed-point step converges it to < 1e-12 s.
         st = eph.states(t_ref, base)
@@ -962,7 +978,7 @@ def load_rinex(
     obs_path : str or PathLike
         RINEX 3 observation file.
     nav_path : str, PathLike or sequence of them
-        RINEX 2/3 GPS navigation file(s) covering the observation span, or mixed
+        RINEX 2/3 GPS navigation file(s) of the observation time, or mixed
         RINEX 3 files that also serve the systems without files of their own (QZSS
         always comes from here); several files have their records merged.
     truth_path : str or PathLike, optional
@@ -994,9 +1010,15 @@ def load_rinex(
     Raises
     ------
     SimbenchError
-        Unreadable files, navigation records that leave part of the observation span
-        uncovered, a reference far from the log's own fixes (> 100 km), and the
+        Unreadable files, navigation records that serve none of a system's observed satellites
+        at some epoch it is observed at, or none of its epochs (another day's file;
+        :func:`served_rows`), a reference far from the log's own fixes (> 100 km), and the
         errors of :func:`read_rinex_obs`.
+
+    Warns
+    -----
+    SimbenchWarning
+        Observed satellites without a record near their epochs: their rows are left out.
     """
     obs = read_rinex_obs(obs_path, systems)
     return rinex_scenario(
@@ -1040,12 +1062,13 @@ def rinex_scenario(
         "E": nav_paths(nav_gal_path),
         "J": (),
     }
-    # the navigation files actually read for each system
+    # the navigation files actually read for each system, and the setting that named them
     paths = {s: own[s] or own["G"] for s in own}
+    settings = {s: f"scenario.{NAV_SETTINGS[s]}" if own[s] else "scenario.nav" for s in own}
     used = [s for s in dict.fromkeys(systems) if s in obs.signals]
-    loaded = {s: _load_ephemeris(paths[s], bool(own[s]), obs, s) for s in used}
+    loaded = {s: _load_ephemeris(paths[s], settings[s], s) for s in used}
     ephs = {s: eph for s, (eph, _) in loaded.items()}
-    st = satellite_states(obs, ephs)
+    st = satellite_states(obs, ephs, served_rows(obs, ephs, settings, paths))
     keep = np.isfinite(st["x"])
     n_dropped = int((~keep).sum())
     all_letters = np.array([s[:1] for s in obs.sat.tolist()])

@@ -28,7 +28,7 @@ import lazy_loader
 import numpy as np
 
 from simbench.core.constants import SECONDS_PER_WEEK
-from simbench.core.gpstime import datetime64_to_gps, format_gps_time
+from simbench.core.gpstime import datetime64_to_gps
 from simbench.core.orbits import FIT_HALF_WINDOW_S, BroadcastEphemeris
 from simbench.errors import SimbenchError
 
@@ -46,7 +46,6 @@ __all__ = [
     "nav_paths",
     "nav_header_system",
     "files_field",
-    "check_coverage",
     "unique_rows",
     "satellite_medians",
     "GroupDelays",
@@ -221,53 +220,6 @@ def satellite_medians(record_sat: np.ndarray, values: np.ndarray, n_sats: int) -
     return out
 
 
-def check_coverage(
-    record_t: np.ndarray, max_age_s: float, span: tuple[float, float] | None, field: str, system: str
-) -> None:
-    """Raise a one-line error when records valid ``max_age_s`` around ``record_t`` leave part of ``span`` uncovered.
-
-    Parameters
-    ----------
-    record_t : np.ndarray, shape (R,)
-        Reference time (Toe, tb) of each usable record of one system, continuous GPS seconds [s].
-    max_age_s : float
-        A record serves |t - record_t| <= ``max_age_s`` [s].
-    span : tuple of float or None
-        First and last observation epoch [s, continuous GPS]; None checks nothing.
-    field : str
-        The setting and its files (:func:`files_field`).
-    system : str
-        System letter, for the message.
-
-    Raises
-    ------
-    SimbenchError
-        Naming the first uncovered stretch of the span in GPS time.
-    """
-    if span is None:
-        return
-    t0, t1 = span
-    t = np.sort(np.asarray(record_t, dtype=float))
-    starts, stops = t - max_age_s, t + max_age_s
-    covered_to = t0
-    for a, b in zip(starts, stops):  # sweep over the union of the (equally long) validity windows
-        if a > covered_to:
-            break
-        covered_to = max(covered_to, b)
-    if covered_to >= t1:
-        return
-    resume = starts[starts > covered_to]
-    gap_end = min(t1, float(resume[0])) if resume.size else t1
-    raise SimbenchError(
-        field,
-        f"covers {format_gps_time(float(starts[0]))} .. {format_gps_time(float(stops[-1]))} GPS with its "
-        f"{SYSTEM_NAMES.get(system, system)} records, leaving {format_gps_time(covered_to)} .. "
-        f"{format_gps_time(gap_end)} GPS of the observations ({format_gps_time(t0)} .. {format_gps_time(t1)} GPS) "
-        "uncovered",
-        "add the navigation file(s) of that time, e.g. scenario.nav=[a.rnx,b.rnx]",
-    )
-
-
 def _gps_records(p: str) -> tuple[dict[str, np.ndarray] | None, np.ndarray | None]:
     """The healthy complete GPS records of one file as flat arrays (None when it has none), and its Klobuchar."""
     if not os.path.isfile(p):
@@ -326,7 +278,6 @@ def read_gps_navigation(
     path: NavPaths,
     max_age_s: float = FIT_HALF_WINDOW_S,
     *,
-    span: tuple[float, float] | None = None,
     setting: str = "nav_file",
 ) -> BroadcastEphemeris:
     """Read GPS ephemerides from RINEX 2 or 3 navigation files (via georinex), records merged.
@@ -340,9 +291,6 @@ def read_gps_navigation(
         files is kept once; files whose header names another system are skipped.
     max_age_s : float
         Largest |t - Toe| at which a record may be used [s]; default 7200.
-    span : tuple of float, optional
-        First and last observation epoch [s, continuous GPS]: every instant of it
-        must have a record within ``max_age_s`` (:func:`check_coverage`).
     setting : str
         Config setting that named the files, for error messages.
 
@@ -354,8 +302,7 @@ def read_gps_navigation(
     Raises
     ------
     SimbenchError
-        Missing file, not a navigation file, no healthy GPS record, or records
-        that leave part of ``span`` uncovered.
+        Missing file, not a navigation file, or no healthy GPS record.
     """
     paths = nav_paths(path)
     if not paths:
@@ -374,7 +321,6 @@ def read_gps_navigation(
     rows = unique_rows(numbers)
     records = {k: x[rows] for k, x in merged.items()}
     records["sat"] = sat_idx[rows]
-    check_coverage(records["toe"], max_age_s, span, field, "G")
     klobuchar = next((k for _, k in found if k is not None), None)
     alpha, beta = (klobuchar[:4], klobuchar[4:]) if klobuchar is not None else (None, None)
     source = ", ".join(os.path.basename(p) for p in paths)
@@ -433,7 +379,8 @@ def read_rinex_lines(path: str, field: str, fix: str) -> list[str]:
     Raises
     ------
     SimbenchError
-        A compressed file that cannot be unpacked (cut or damaged).
+        A compressed file that cannot be unpacked (cut or damaged); a file of NUL bytes, or
+        one that ends in them (an interrupted copy).
     """
     with open(path, "rb") as fh:
         raw = fh.read()
@@ -445,11 +392,33 @@ def read_rinex_lines(path: str, field: str, fix: str) -> list[str]:
             raise SimbenchError(
                 field, f"cannot be unpacked ({msg}); the compressed file is damaged or cut", fix
             ) from None
+    _refuse_nul_bytes(raw, field)
     text = raw.decode("utf-8", errors="replace")
     lines = [ln.rstrip("\r") for ln in text.split("\n" if "\n" in text else "\r")]
     if lines and not lines[-1]:
         lines.pop()
     return lines
+
+
+def _refuse_nul_bytes(raw: bytes, field: str) -> None:
+    """Raise a one-line error for a file of NUL bytes, or one that ends in a run of them.
+
+    Such a file was allocated but not (completely) written: an interrupted copy or download, a disk
+    that lost its last blocks. Read as text, the NULs would pass for blanks (missing values) or end
+    the file without a word. NULs among other bytes (a binary file) are left to the reader's checks.
+    """
+    body = raw.rstrip(b"\0")
+    tail = len(raw) - len(body)
+    if not tail:
+        return
+    fix = "copy the file again from its source"
+    if not body:
+        raise SimbenchError(field, f"holds only NUL bytes ({tail:,}): the file was never written", fix)
+    if b"\0" not in body:
+        line = body.count(b"\n") + 1
+        raise SimbenchError(
+            field, f"ends in {tail:,} NUL bytes after line {line}: the file was not completely written", fix
+        )
 
 
 def record_columns(nav: NavRecords, layout: Sequence[str], system: str, field: str, fix: str) -> dict[str, np.ndarray]:
@@ -481,13 +450,8 @@ def kepler_records(
     keep: np.ndarray,
     toe: np.ndarray,
     toc: np.ndarray,
-    *,
-    max_age_s: float,
-    span: tuple[float, float] | None,
-    field: str,
-    system: str,
 ) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
-    """The kept records as an ephemeris takes them, Toe moved into Toc's week and their coverage checked.
+    """The kept records as an ephemeris takes them, Toe moved into Toc's week.
 
     Parameters
     ----------
@@ -500,8 +464,6 @@ def kepler_records(
         Records to use.
     toe, toc : ndarray
         Toe and Toc of the kept records [s, continuous GPS time].
-    max_age_s, span, field, system
-        As :func:`check_coverage` takes them.
 
     Returns
     -------
@@ -513,7 +475,6 @@ def kepler_records(
         ``fields`` of the kept records, with ``sat``, ``toe`` and ``toc``.
     """
     toe = toe + SECONDS_PER_WEEK * np.round((toc - toe) / SECONDS_PER_WEEK)
-    check_coverage(toe, max_age_s, span, field, system)
     sats, sat_idx = np.unique(nav.sv[keep], return_inverse=True)
     records = {k: columns[k][keep] for k in fields}
     records.update(sat=sat_idx, toe=toe, toc=toc)
