@@ -167,7 +167,7 @@ def test_a_log_whose_copy_ends_in_nul_bytes_is_refused_in_one_line(tmp_path: Pat
 
 def test_a_log_of_event_records_only_is_refused_in_one_line(tmp_path: Path) -> None:
     """Header, then special records only (flag 4: header lines follow; flag 5: an external event): no epoch to
-    read. (The message is the reader's; its event-record handling is being reworked.)"""
+    read, and the message says so."""
     lines = NG_OBS.read_text().splitlines()
     end = next(i for i, ln in enumerate(lines) if "END OF HEADER" in ln) + 1
     events = ["> 2024 06 24 08 20 00.0000000  5  0"] + [
@@ -177,4 +177,4 @@ def test_a_log_of_event_records_only_is_refused_in_one_line(tmp_path: Path) -> N
     path = tmp_path / "events.obs"
     path.write_text("\n".join(lines[:end] + events) + "\n")
     msg = one_line_error(read_rinex_obs, path, "G")
-    assert msg.startswith(f"scenario.obs '{path}': ")
+    assert msg.startswith(f"scenario.obs '{path}': has no observation epochs: its 4 epoch records are all event")

@@ -310,6 +310,13 @@ def read_rinex_obs(path: str | os.PathLike[str], systems: str = "G") -> RinexObs
     wanted = _wanted_columns(p, header.types, systems, version, version_text)
     rec = _read_records(p, lines, header.body, wanted.cols, header.types)
     if not rec.r_epoch:
+        if not rec.stamps and rec.events:
+            raise _obs_error(
+                p,
+                f"has no observation epochs: its {rec.events} epoch records are all event records (flags 2-5: "
+                "antenna moved, new site, header lines, external event)",
+                "pass the log's observation file",
+            )
         raise _obs_error(p, f"contains no observations of systems '{systems}'")
     t_int = datetime64_to_gps(np.array(rec.stamps, dtype="datetime64[s]")).astype(np.int64)
     t_frac = np.array(rec.fracs)
@@ -492,6 +499,7 @@ class _Records:
     #: flag 6 records: time tag, satellite and which phases slipped (first, each second candidate)
     slips: list[tuple[str, float, str, list[bool]]] = field(default_factory=list)
     other_rows: dict[str, int] = field(default_factory=dict)  #: rows of systems not read, per letter
+    events: int = 0  #: event records (flags 2-5) skipped
 
 
 def _read_records(
@@ -519,6 +527,7 @@ def _read_records(
             raise _obs_error(p, f"has a malformed epoch line {i}: '{ln[:35].strip()}'", _LINE_FIX) from None
         if 2 <= flag <= 5:  # events: a moving antenna, a new site, header lines, an external event
             _check_event(p, lines[i : i + count], i, types)
+            rec.events += 1
             i += count
             continue
         stamp, frac = _epoch_time(p, ln, i)

@@ -165,7 +165,7 @@ def nav_header_system(path: str) -> str:
     except (OSError, SimbenchError):
         return ""
     first = lines[0] if lines else ""
-    if first[:9].strip().startswith("3") and first[20:21] == "N":
+    if first[:9].strip().startswith(("3", "4")) and first[20:21] == "N":  # RINEX 4: refused by the readers
         return first[40:41]
     return {"N": "G", "G": "R"}.get(first[20:21], "")  # RINEX 2: N is GPS, G is GLONASS
 
