@@ -38,8 +38,8 @@ from simbench.core import atmosphere
 from simbench.core.constants import DEG, F_L1
 from simbench.core.frames import geodetic_from_ecef
 from simbench.core.gpstime import day_of_year
-from simbench.errors import SimbenchError
-from simbench.gnss.arcs import arc_ids
+from simbench.errors import SimbenchError, warn
+from simbench.gnss.arcs import CODE_PHASE_MAX_RATE_MPS, CodePhaseCheck, arc_ids, check_code_phase
 from simbench.gnss.geometry import sagnac_range_gradient
 from simbench.gnss.measured_ionosphere import geometry_free_delay, levelled_phase_delay, measured_ionosphere
 from simbench.gnss.signals import L1_FREQUENCY_HZ, l1_wavelength_m
@@ -54,6 +54,7 @@ __all__ = [
     "VC_MIN_REDUNDANCY",
     "VC_MIN_ROWS",
     "arc_ids",
+    "checked_arcs",
     "if_combination",
     "klobuchar_scale",
     "prepare_ppp",
@@ -253,6 +254,9 @@ class PppObservations:
     #: factor on the code sigma per variance group ("G", "C 35-40 dB-Hz", ...); empty without
     #: variance components
     variance_factors: dict[str, float] = field(default_factory=dict)
+    #: what :func:`checked_arcs` found and did: the drift of code minus phase the arcs share [m/s], the
+    #: jumps at which arcs were broken, the arcs and rows whose phase was dropped; empty without phase
+    phase_check: dict[str, Any] = field(default_factory=dict)
 
     def model_info(self) -> dict[str, Any]:
         """The measurement model's data-driven choices, for an estimator's diagnostics (JSON values)."""
@@ -264,6 +268,7 @@ class PppObservations:
             "ionosphere_fits": {k: [round(a, 3), round(b, 3)] for k, (a, b) in self.ionosphere_fits.items()},
             "code_variance_factors": dict(self.variance_factors),
             "systems": list(self.systems),
+            **self.phase_check,
         }
 
     @property
@@ -353,7 +358,10 @@ def prepare_ppp(
     arcs are identified on all rows with a valid phase (before the mask and
     the epoch selection: a satellite that dips under the mask while the
     receiver keeps lock keeps its arc); a row without phase ends its
-    satellite's arc.
+    satellite's arc. Each arc's code minus phase is then held to what the
+    ionosphere can do (:func:`checked_arcs`): an arc is broken at a jump, and
+    the phase of an arc, or of every row when code and phase run on different
+    clocks, is dropped where it drifts faster, with one warning (``phase_check``).
 
     Parameters
     ----------
@@ -383,10 +391,10 @@ def prepare_ppp(
     max_gap_epochs, doppler_slip_m : int, float
         See :func:`arc_ids`.
     measurements : MeasurementMode
-        ``code_phase`` (default) drops rows without carrier phase; ``auto`` keeps
-        them as code-only rows (real receivers often report code without phase);
-        ``code`` ignores the phase everywhere. A code-only row has ``phase`` NaN
-        and ``arc`` -1.
+        ``code_phase`` (default) drops rows without carrier phase (or whose phase
+        the check dropped); ``auto`` keeps them as code-only rows (real receivers
+        often report code without phase); ``code`` ignores the phase everywhere.
+        A code-only row has ``phase`` NaN and ``arc`` -1.
     sigma_model, cn0_ref_dbhz : SigmaModel, float
         How the sigmas follow elevation and C/N0 (:func:`sigma_factor`).
     variance_components : VarianceComponents
@@ -442,6 +450,11 @@ def prepare_ppp(
     with_phase = with_phase[valid]
     arc = np.full(len(obs), -1, np.int64)
     arc[with_phase] = arc_ids(obs.loc[with_phase], max_gap_epochs, use_l2=free, doppler_slip_m=doppler_slip_m)
+    sigma = code_sigma_m * sigma_factor(obs["el"].to_numpy(float) * DEG, _cn0(obs), sigma_model, cn0_ref_dbhz)
+    checked = checked_arcs(obs, arc, sigma, free=free, origin=id(data.observations))
+    arc = checked.arc
+    if require_phase:
+        obs, arc = obs.loc[arc >= 0], arc[arc >= 0]
 
     el = obs["el"].to_numpy(float) * DEG
     keep = el > elevation_mask_deg * DEG
@@ -490,7 +503,7 @@ def prepare_ppp(
 
     epoch_ids, epoch_start, n_per = np.unique(epoch, return_index=True, return_counts=True)
     epoch_stop = epoch_start + n_per
-    cn0 = sub["cn0_l1"].to_numpy(float) if "cn0_l1" in sub.columns else np.full(len(sub), np.nan)
+    cn0 = _cn0(sub)
     sigma_scale = sigma_factor(el, cn0, sigma_model, cn0_ref_dbhz)
 
     sat_names, sat_index = np.unique(sat, return_inverse=True)
@@ -574,6 +587,7 @@ def prepare_ppp(
         odometry=_odometry_per_epoch(data.odometry, t[epoch_start]) if len(data.odometry) else None,
         n_single_frequency_dropped=n_dropped,
         variance_factors=factors,
+        phase_check=_phase_check_info(checked),
     )
 
 
@@ -713,6 +727,9 @@ def variance_factors(
 #: rows, and one estimate costs ~10 s on the Hong Kong log
 _VC_CACHE: dict[str, np.ndarray] = {}
 _VC_CACHE_SIZE = 8
+#: warnings :func:`_warn_once` issued (table, field, problem, consequence), the last few
+_WARNED: set[str] = set()
+_WARNED_SIZE = 64
 
 
 def _digest(*arrays: np.ndarray) -> str:
@@ -803,6 +820,74 @@ def _decide_ionosphere(mode: IonosphereMode, sat: np.ndarray, second: np.ndarray
     return IonosphereMode.free if share.min() >= AUTO_FREE_MIN_FRACTION else IonosphereMode.measured
 
 
+def checked_arcs(
+    obs: pd.DataFrame, arc: np.ndarray, sigma: np.ndarray, *, free: bool, origin: int = 0
+) -> CodePhaseCheck:
+    """``arc`` after :func:`~simbench.gnss.arcs.check_code_phase`, with a one-line warning when it changed any.
+
+    Parameters
+    ----------
+    obs : pandas.DataFrame
+        Observation rows with ``epoch, t, sat, code_l1, phase_l1`` (and ``code_l2, phase_l2,
+        f1_f2_ratio`` when ``free``).
+    arc : numpy.ndarray of int, shape (len(obs),)
+        Phase arc of each row, -1 without phase.
+    sigma : numpy.ndarray, shape (len(obs),)
+        Code standard deviation of each row [m] (of the combination when ``free``).
+    free : bool
+        Code minus phase of the ionosphere-free combinations, else of the first frequency.
+    origin : int
+        Identity of the table the rows come from (``id`` of the receiver's observation table): the
+        warning is said once per table, though every estimator of a run prepares it.
+    """
+    code, phase = obs["code_l1"].to_numpy(float), obs["phase_l1"].to_numpy(float)
+    if free:
+        gamma = obs["f1_f2_ratio"].to_numpy(float) ** 2
+        code = if_combination(code, obs["code_l2"].to_numpy(float), gamma)
+        phase = if_combination(phase, obs["phase_l2"].to_numpy(float), gamma)
+    epoch, sat, t = obs["epoch"].to_numpy(), obs["sat"].to_numpy(), obs["t"].to_numpy(float)
+    found = check_code_phase(arc, epoch, sat, t, code - phase, sigma)
+    said = _phase_check_warning(found)
+    if said:
+        _warn_once(f"{origin}:{_digest(arc, t, code - phase)}", "observations", *said)
+    return found
+
+
+def _phase_check_warning(found: CodePhaseCheck) -> tuple[str, str] | None:
+    """The problem and the consequence :func:`checked_arcs` warns of; None when it changed no arc."""
+    bound = f"physics allows {CODE_PHASE_MAX_RATE_MPS} m/s"
+    if found.receiver_mismatch:
+        return (
+            f"code minus phase drifts {found.receiver_rate_mps:+.3g} m/s on all {found.n_arcs_dropped} phase arcs "
+            f"({bound}): code and phase on different clocks (a phone's steered code beside its raw phase)",
+            f"dropped the phase of all {found.n_rows_dropped} rows; the estimators use the code alone",
+        )
+    problems, done = [], []
+    if found.n_receiver_jumps:
+        problems.append(f"jumps on every arc at {found.n_receiver_jumps} epoch{'s' * (found.n_receiver_jumps != 1)}")
+        done.append("broke every arc there (a receiver clock jump in the code or the phase alone)")
+    if found.n_jumps:
+        problems.append(f"jumps {found.n_jumps} time{'s' * (found.n_jumps != 1)} within phase arcs")
+        done.append("broke the arcs at the jumps (a new ambiguity after each)")
+    if found.n_arcs_dropped:
+        problems.append(f"drifts beyond {bound} on {found.n_arcs_dropped} arc{'s' * (found.n_arcs_dropped != 1)}")
+        done.append(f"dropped the phase of the drifting arcs ({found.n_rows_dropped} rows)")
+    return ("code minus phase " + " and ".join(problems), "; ".join(done)) if problems else None
+
+
+def _warn_once(table: str, field: str, problem: str, consequence: str) -> None:
+    """:func:`simbench.errors.warn` unless this warning was issued for ``table`` (the observation table's
+    identity and the rows' content hash): every estimator of a run prepares the same rows, and the run
+    should say it once, not once per estimator."""
+    key = "\n".join((table, field, problem, consequence))
+    if key in _WARNED:
+        return
+    if len(_WARNED) >= _WARNED_SIZE:
+        _WARNED.clear()
+    _WARNED.add(key)
+    warn(field, problem, consequence)
+
+
 def split_arcs(arc: np.ndarray, stretch: np.ndarray) -> np.ndarray:
     """``arc`` (rows in epoch order, -1: no phase) cut where ``stretch`` changes, renumbered by start.
 
@@ -824,6 +909,24 @@ def split_arcs(arc: np.ndarray, stretch: np.ndarray) -> np.ndarray:
     rank[np.argsort(first, kind="stable")] = np.arange(len(first))
     key[keyed] = rank[inverse.ravel()]
     return key
+
+
+def _phase_check_info(found: CodePhaseCheck) -> dict[str, Any]:
+    """:func:`checked_arcs`' result for :attr:`PppObservations.phase_check` (JSON values)."""
+    rate = found.receiver_rate_mps
+    return {
+        "code_phase_drift_mps": round(rate, 4) if np.isfinite(rate) else None,
+        "phase_receiver_mismatch": found.receiver_mismatch,
+        "phase_receiver_jumps": found.n_receiver_jumps,
+        "phase_jumps": found.n_jumps,
+        "phase_arcs_dropped": found.n_arcs_dropped,
+        "phase_rows_dropped": found.n_rows_dropped,
+    }
+
+
+def _cn0(obs: pd.DataFrame) -> np.ndarray:
+    """Each row's L1 C/N0 [dB-Hz] (NaN where the receiver reports none)."""
+    return obs["cn0_l1"].to_numpy(float) if "cn0_l1" in obs.columns else np.full(len(obs), np.nan)
 
 
 def _sat_dcb(obs: pd.DataFrame) -> np.ndarray | float:
