@@ -74,7 +74,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import pandas as pd
 from sklearn.mixture import BayesianGaussianMixture
 
 from estimators import register
@@ -254,8 +253,15 @@ class BceAd(_IterativeCovariance):
         n = self.config.feature_sample
         self._sample_idx = np.sort(rng.choice(obs.n_obs, n, replace=False)) if 0 < n < obs.n_obs else slice(None)
         self._chosen: np.ndarray | None = None
+        cn0, self._cn0_note = _cn0_feature(obs.cn0)
+        # a log without C/N0 (RINEX without S observables) offers the other four features only
+        self._features = FEATURES if cn0 is not None else FEATURES[:-1]
         # elevation, azimuth and C/N0 do not change between iterations: standardised once
-        self._metadata = _standardised(np.c_[obs.el, obs.az, _cn0(data, obs)])
+        self._metadata = _standardised(np.c_[obs.el, obs.az] if cn0 is None else np.c_[obs.el, obs.az, cn0])
+
+    def _run(self, data, obs, g, structure):
+        values, diag = super()._run(data, obs, g, structure)
+        return values, {**diag, "cn0_feature": self._cn0_note}
 
     def _noise(self, data, obs, r, it):
         cfg: BceAdConfig = self.config
@@ -293,7 +299,7 @@ class BceAd(_IterativeCovariance):
             for key in ("code_phase_cov", "code_offset", "phase_offset"):
                 noise[key] = np.where(small, 0.0, noise[key])
         record = {
-            "selected_features": [FEATURES[i] for i in chosen],
+            "selected_features": [self._features[i] for i in chosen],
             "mcfs_scores": scores.tolist(),
             "mixture": {
                 "weights": mix.weights.tolist(),
@@ -350,8 +356,12 @@ def _residual_statistics(r: np.ndarray, mix: Mixture, fallback: np.ndarray) -> t
     return means, covs
 
 
-def _cn0(data: ReceiverData, obs: PppObservations) -> np.ndarray:
-    """C/N0 [dB-Hz] of each prepared row, looked up by (epoch, satellite)."""
-    table = data.observations.set_index(["epoch", "sat"])["cn0_l1"]
-    cn0 = table.reindex(pd.MultiIndex.from_arrays([obs.epoch, obs.sat])).to_numpy(float)
-    return np.where(np.isfinite(cn0), cn0, np.nanmedian(cn0))
+def _cn0_feature(cn0: np.ndarray) -> tuple[np.ndarray | None, str]:
+    """The C/N0 feature [dB-Hz] of the prepared rows and how it was formed: rows without C/N0 take the
+    median of the others; None (and the feature is left out) when no row has one."""
+    missing = np.isnan(cn0)
+    if missing.all():
+        return None, "no C/N0 in the data: feature left out"
+    if not missing.any():
+        return cn0, "measured on every row"
+    return np.where(missing, np.median(cn0[~missing]), cn0), f"missing on {int(missing.sum())} rows: the median"

@@ -3,7 +3,7 @@
 The code is :func:`estimators.measurement.prepare_ppp`'s corrected L1 code
 (satellite clock and broadcast ionosphere removed, elevation-dependent sigma)
 minus the modelled troposphere; the Doppler becomes an observed range rate
-``-lambda D + satellite drift`` with a C/N0-dependent sigma. All epochs' single
+``-lambda D + satellite drift`` with a C/N0-dependent sigma (elevation-dependent without C/N0). All epochs' single
 point solutions come from one call of :func:`simbench.gnss.spp.solve_epochs`:
 they place the troposphere and give the filter its first fix.
 """
@@ -16,8 +16,8 @@ from typing import NamedTuple
 import numpy as np
 
 from estimators.gnss_ins_config import GnssInsConfig
-from estimators.measurement import prepare_ppp
-from estimators.ppp_config import IonosphereMode, MeasurementMode
+from estimators.measurement import prepare_ppp, sigma_factor
+from estimators.ppp_config import IonosphereMode, MeasurementMode, SigmaModel
 from simbench.contract import ReceiverData
 from simbench.core import atmosphere
 from simbench.core.frames import geodetic_from_ecef
@@ -53,6 +53,8 @@ class GnssInsData:
     t: np.ndarray  #: s, time of every epoch index 0..n-1 (filled where the receiver had nothing)
     gnss: dict[int, GnssEpoch]  #: epochs with at least 4 usable satellites, by epoch index
     fixes: dict[int, SinglePointFix]  #: trusted single point solutions, by epoch index
+    #: rows without C/N0, whose Doppler sigma follows the elevation instead
+    rows_without_cn0: int = 0
 
 
 def prepare_gnss_ins(data: ReceiverData, cfg: GnssInsConfig) -> GnssInsData:
@@ -85,7 +87,8 @@ def prepare_gnss_ins(data: ReceiverData, cfg: GnssInsConfig) -> GnssInsData:
         measurements=MeasurementMode.code,
     )  # code and Doppler only: code-only logs run
     assert obs.range_rate is not None and obs.sat_vel is not None  # prepare_ppp always sets them
-    sig_rr = cfg.doppler_sigma_mps * 10.0 ** ((cfg.doppler_ref_cn0_dbhz - obs.cn0) / 20.0)
+    # the C/N0 model (1/sin(elevation) on a row without C/N0, as for the code)
+    sig_rr = cfg.doppler_sigma_mps * sigma_factor(obs.el, obs.cn0, SigmaModel.cn0, cfg.doppler_ref_cn0_dbhz)
     # range rates as prepare_ppp forms them (NaN where unusable, e.g. GLONASS FDMA rows)
     ok_rr = np.isfinite(obs.range_rate) & np.isfinite(sig_rr)
     w_rr = np.where(ok_rr, 1.0 / np.where(ok_rr, sig_rr, 1.0), 0.0)
@@ -120,4 +123,4 @@ def prepare_gnss_ins(data: ReceiverData, cfg: GnssInsConfig) -> GnssInsData:
     idx = np.arange(len(times))
     good = np.isfinite(times)
     t = np.interp(idx, idx[good], times[good]) if good.sum() > 1 else np.where(good, times, 0.0)
-    return GnssInsData(t=t, gnss=gnss, fixes=fixes)
+    return GnssInsData(t=t, gnss=gnss, fixes=fixes, rows_without_cn0=int(np.isnan(obs.cn0).sum()))

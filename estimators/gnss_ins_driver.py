@@ -328,6 +328,7 @@ def _diagnostics(
         "n_epochs": len(track.epoch),
         "first_epoch": int(first),
         "gnss_epochs": len(prep.gnss),
+        "rows_without_cn0": prep.rows_without_cn0,
         "iterations_mean": float(np.mean(track.iterations)) if track.iterations else 0.0,
         "iterations_max": max(track.iterations, default=0),
         "n_iteration_capped": int(track.n_capped),

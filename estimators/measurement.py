@@ -268,6 +268,7 @@ class PppObservations:
             "ionosphere_fits": {k: [round(a, 3), round(b, 3)] for k, (a, b) in self.ionosphere_fits.items()},
             "code_variance_factors": dict(self.variance_factors),
             "systems": list(self.systems),
+            "rows_without_cn0": int(np.isnan(self.cn0).sum()),
             **self.phase_check,
         }
 
@@ -505,6 +506,7 @@ def prepare_ppp(
     epoch_stop = epoch_start + n_per
     cn0 = _cn0(sub)
     sigma_scale = sigma_factor(el, cn0, sigma_model, cn0_ref_dbhz)
+    _say_missing_cn0(cn0, sigma_model, variance_components, id(data.observations))
 
     sat_names, sat_index = np.unique(sat, return_inverse=True)
     letters = np.array([str(s)[:1] for s in sat_names])
@@ -909,6 +911,23 @@ def split_arcs(arc: np.ndarray, stretch: np.ndarray) -> np.ndarray:
     rank[np.argsort(first, kind="stable")] = np.arange(len(first))
     key[keyed] = rank[inverse.ravel()]
     return key
+
+
+def _say_missing_cn0(cn0: np.ndarray, sigma_model: SigmaModel, variance: VarianceComponents, origin: int) -> None:
+    """Warn (once per table ``origin``, :func:`checked_arcs`) when rows without C/N0 fall back in a model
+    that weights by C/N0."""
+    missing = int(np.isnan(cn0).sum())
+    if not missing:
+        return
+    fallback = {
+        SigmaModel.cn0: "their sigmas follow 1/sin(elevation)",
+        SigmaModel.elevation_cn0: "their sigmas follow the elevation alone",
+    }.get(SigmaModel(sigma_model), "")
+    if VarianceComponents(variance) == VarianceComponents.system_cn0:
+        fallback += ("; " if fallback else "") + "their code variance group is their system's"
+    if fallback:
+        key = f"{origin}:{_digest(np.isnan(cn0))}"
+        _warn_once(key, "observations.cn0_l1", f"missing on {missing} of {len(cn0)} rows", fallback)
 
 
 def _phase_check_info(found: CodePhaseCheck) -> dict[str, Any]:

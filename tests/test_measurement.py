@@ -20,7 +20,7 @@ from simbench.core.constants import DEG, F_L1, F_L2, IONO_L2_SCALE, LAMBDA_L1, L
 from simbench.core.frames import geodetic_from_ecef
 from simbench.core.gpstime import day_of_year
 from simbench.core.orbits import NominalConstellation
-from simbench.errors import SimbenchError
+from simbench.errors import SimbenchError, SimbenchWarning
 from simbench.gnss.arcs import doppler_phase_jumps
 from simbench.gnss.geometry import sagnac_range
 from simbench.sim.geometry import line_of_sight
@@ -267,7 +267,8 @@ def test_prepare_ppp_errors() -> None:
 
 
 def test_sigma_models_follow_elevation_and_cn0() -> None:
-    """Each model's per-row factor against its formula; rows without a C/N0 fall back to the elevation."""
+    """Each model's per-row factor against its formula; rows without a C/N0 fall back to the elevation,
+    with a warning."""
     data, _ = synthetic_data(3, dual=False)
     o = data.observations
     cn0 = np.where(np.arange(len(o)) % 4 == 0, np.nan, 25.0 + (np.arange(len(o)) % 25))
@@ -278,12 +279,14 @@ def test_sigma_models_follow_elevation_and_cn0() -> None:
     with_cn0 = by_el.cn0
     assert np.isnan(with_cn0).any() and np.isfinite(with_cn0).any()
     ratio = np.where(np.isfinite(with_cn0), 10.0 ** ((40.0 - with_cn0) / 20.0), np.nan)
-    by_cn0 = prepare_ppp(data, **kw, sigma_model=SigmaModel.cn0, cn0_ref_dbhz=40.0)
+    with pytest.warns(SimbenchWarning, match=r"cn0_l1: missing on \d+ of \d+ rows -- their sigmas follow 1/sin"):
+        by_cn0 = prepare_ppp(data, **kw, sigma_model=SigmaModel.cn0, cn0_ref_dbhz=40.0)
     np.testing.assert_allclose(by_cn0.sigma_code, np.where(np.isfinite(ratio), 2.5 * ratio, by_el.sigma_code))
     np.testing.assert_allclose(by_cn0.sigma_phase / by_cn0.sigma_code, 0.01)
     # 20 dB below the reference: ten times the sigma (a hundred times the variance)
     assert sigma_factor(np.array([0.3]), np.array([20.0]), SigmaModel.cn0, 40.0) == pytest.approx(10.0)
-    both = prepare_ppp(data, **kw, sigma_model=SigmaModel.elevation_cn0, cn0_ref_dbhz=40.0)
+    with pytest.warns(SimbenchWarning, match="follow the elevation alone"):
+        both = prepare_ppp(data, **kw, sigma_model=SigmaModel.elevation_cn0, cn0_ref_dbhz=40.0)
     np.testing.assert_allclose(both.sigma_code, by_el.sigma_code * np.where(np.isfinite(ratio), ratio, 1.0))
     np.testing.assert_allclose(both.sigma_scale, both.sigma_code / 2.5)
 
