@@ -1,11 +1,12 @@
 """Write ``rinex_corpus_counts.json``: what georinex, an independent reader, reads from each observation file of
 ``../shared/data/rinex_corpus`` (tests/test_rinex_corpus.py compares simbench's reader with it).
 
-Per observation file: the number of epochs and, per observable (georinex's names: RINEX 3 codes, RINEX 2 types) and
-satellite, the count of values that are neither blank nor 0.000 (RINEX: both mean missing). georinex 1.16
-needs about a minute per hour of a one-day 30 s multi-GNSS file, so the six files over 1 MB are read over
-their first two hours (``tlim``). Per RINEX 2/3 navigation file: per system, the satellites with a healthy
-record (health 0; QZSS health bit 0, L1C/B, masked as simbench and RTKLIB do). Run from the repository root::
+Per file its size; per observation file: the number of epochs and, per observable (georinex's names:
+RINEX 3 codes, RINEX 2 types) and satellite, the count of values that are neither blank nor 0.000 (RINEX:
+both mean missing). georinex 1.16 needs about a minute per hour of a one-day 30 s multi-GNSS file, so the
+six files over 1 MB are read over their first two hours (``tlim``). Per RINEX 2/3 navigation file: per
+system, the satellites with a healthy record (health 0; QZSS health bit 0, L1C/B, masked as simbench and
+RTKLIB do). Run from the repository root::
 
     python -W ignore tests/data/make_rinex_corpus_counts.py
 """
@@ -99,6 +100,7 @@ def main(names: list[str]) -> None:
             continue
         start = time.perf_counter()
         out[name] = healthy_satellites(path) if name.startswith("NAV/") else counts(path, WINDOWS.get(name))
+        out[name]["bytes"] = path.stat().st_size
         print(f"{name}: {time.perf_counter() - start:.1f} s", flush=True)
         OUT.write_text(json.dumps(out, indent=0, sort_keys=True) + "\n")
 
