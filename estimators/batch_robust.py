@@ -187,6 +187,7 @@ class BatchGraphEstimator(Estimator):
             "linearizations": self._rows.linearizations,
             "inter_system_bias_m": isb,
             **obs.model_info(),
+            **g.wet_delay.info(),
             **diag,
             "config": asdict(self.config),
         }

@@ -18,12 +18,13 @@ the phase, trusted at centimetres, turns that code-phase divergence into
 position error (several metres on the simulator's open-sky scenario).
 
 Stochastic model (Table 4.4.2): position random walk, zenith wet delay random
-walk, phase biases constant. The receiver clock has "correlation time 0", i.e.
-it is white noise: with ``clock_model="white"`` (default) it is re-initialised
-every epoch (correlations removed, variance ``clock_noise_m_rts^2 dt``, the
-previous estimate kept as the linearisation point, which the linear clock
-term makes irrelevant); ``"random_walk"`` adds that variance instead. The a
-priori 3e6 m is the variance at the first epoch.
+walk (``wet_delay = estimate``; with ``model``, the default, the state holds the
+modelled wet delay at zero variance), phase biases constant. The receiver clock
+has "correlation time 0", i.e. it is white noise: with ``clock_model="white"``
+(default) it is re-initialised every epoch (correlations removed, variance
+``clock_noise_m_rts^2 dt``, the previous estimate kept as the linearisation point,
+which the linear clock term makes irrelevant); ``"random_walk"`` adds that variance
+instead. The a priori 3e6 m is the variance at the first epoch.
 
 Motion model (``motion_model``, the fields of
 :class:`~estimators.ppp_config.MotionModelConfig` the graph estimators share):
@@ -103,6 +104,7 @@ from estimators.measurement import (
     PppObservations,
     predict_given_troposphere,
     prepare_ppp,
+    zenith_wet_delay_m,
 )
 from estimators.ppp_config import (
     DIRECTION_MIN_SPEED_MPS,
@@ -110,9 +112,10 @@ from estimators.ppp_config import (
     ClockModel,
     MotionModel,
     MotionModelConfig,
+    WetDelayMode,
 )
+from estimators.ppp_graph import WetDelayChoice, wet_delay_choice
 from simbench.contract import ReceiverData
-from simbench.core import atmosphere
 from simbench.core.frames import geodetic_from_ecef
 from simbench.errors import SimbenchError
 from simbench.gnss.doppler import doppler_velocities, range_rate
@@ -176,16 +179,17 @@ class EkfPpp(Estimator):
 
     def _estimate(self, data: ReceiverData) -> tuple[pd.DataFrame, dict[str, Any]]:
         obs = prepare_ppp(data, **self.config.prepare_kwargs())
+        wet = wet_delay_choice(obs, self.config)  # decided on all the rows, kept by the phase guard's pass
         anchor = None
         if obs.n_arcs and self.config.phase_guard:
-            anchor = self.run(code_only(obs))
-        track = self.run(obs, anchor)
+            anchor = self.run(code_only(obs), wet=wet)
+        track = self.run(obs, anchor, wet=wet)
         if anchor is not None:
             track.update_s += anchor.update_s
         # the filter's own position covariance goes out with the positions (the report's consistency check)
         return solution_frame(obs.epoch_ids, obs.epoch_t, track.pos, track.update_s, track.pos_cov), track.diagnostics
 
-    def run(self, obs: PppObservations, anchor: EkfTrack | None = None) -> EkfTrack:
+    def run(self, obs: PppObservations, anchor: EkfTrack | None = None, wet: WetDelayChoice | None = None) -> EkfTrack:
         """Filter prepared observations epoch by epoch.
 
         Parameters
@@ -198,6 +202,8 @@ class EkfPpp(Estimator):
             epoch where the position departs from the anchor's by more than the anchor's
             covariance allows (``d^T P_code^-1 d > GUARD_CHI2``), the filter takes the anchor's
             position and covariance and restarts every phase arc.
+        wet : WetDelayChoice, optional
+            The resolved ``wet_delay`` (default: :func:`~estimators.ppp_graph.wet_delay_choice` on ``obs``).
 
         Returns
         -------
@@ -243,9 +249,8 @@ class EkfPpp(Estimator):
                     raise
         pos0, clock0 = fix.pos[0], float(fix.clock_m[0, 0])
         lat0, _, h0 = geodetic_from_ecef(pos0)
-        _, zwd0 = atmosphere.saastamoinen_zenith_m(lat0, h0)
         x = np.zeros(nx)
-        x[_POS], x[_CLK], x[_ZWD] = pos0, clock0, float(zwd0)
+        x[_POS], x[_CLK] = pos0, clock0
         x[isb0:vel0] = system_clock_offsets(fix, row_k, obs.system_index[rows])
         if doppler:
             assert obs.range_rate is not None and obs.sat_vel is not None  # Doppler rows come with both
@@ -263,7 +268,11 @@ class EkfPpp(Estimator):
         p_diag = np.full(nx, cfg.ambiguity_sigma_m**2)
         p_diag[_POS] = cfg.pos_sigma_m**2
         p_diag[_CLK] = cfg.clock_sigma_m**2
-        p_diag[_ZWD] = cfg.zwd_sigma_m**2
+        # wet_delay resolved to model: the state holds the modelled wet delay, which nothing then moves
+        wet = wet if wet is not None else wet_delay_choice(obs, cfg)
+        estimate_zwd = wet.mode == WetDelayMode.estimate
+        p_diag[_ZWD] = cfg.zwd_sigma_m**2 if estimate_zwd else 0.0
+        x[_ZWD] = zenith_wet_delay_m(wet.mode, float(lat0), float(h0), obs.doy)
         p_diag[iono0:] = cfg.iono_sigma_m**2
         p_diag[isb0:vel0] = cfg.isb_sigma_m**2
         if cv:
@@ -274,7 +283,8 @@ class EkfPpp(Estimator):
 
         slot_arc = np.full(n_slots, -1, np.int64)  # arc currently held by each slot
         amb_var = cfg.ambiguity_sigma_m**2
-        q_pos, q_zwd, q_clk = cfg.pos_rw_m_rts**2, cfg.zwd_rw_m_rts**2, cfg.clock_noise_m_rts**2
+        q_pos, q_clk = cfg.pos_rw_m_rts**2, cfg.clock_noise_m_rts**2
+        q_zwd = cfg.zwd_rw_m_rts**2 if estimate_zwd else 0.0
         q_iono, iono_var = cfg.iono_rw_m_rts**2, cfg.iono_sigma_m**2
         iono_diag = np.arange(iono0, isb0)
         isb_diag = np.arange(isb0, vel0)
@@ -428,6 +438,7 @@ class EkfPpp(Estimator):
             "n_ambiguity_resets": n_resets,
             "n_phase_fallbacks": n_fallbacks,
             **obs.model_info(),
+            **wet.info(),
             "iono_states": bool(n_iono),
             "inter_system_bias_m": {s: float(kf.x[isb0 + k]) for k, s in enumerate(obs.systems[1:])},
             "arc_sat": [str(v) for v in arc_sat] if n_slots else [],

@@ -212,6 +212,7 @@ class IncrementalGraphEstimator(Estimator):
             "epochs_without_gnss_update": int(skipped),
             "arcs_restarted_after_window": restarted,
             **obs.model_info(),
+            **g.wet_delay.info(),
             "config": asdict(cfg),
             **self._diagnostics(),
         }
@@ -232,11 +233,16 @@ class IncrementalGraphEstimator(Estimator):
         ]
         offset = isb[g.row_system[rows]]
         prior_pos, prior_root = None, None
+        # the ZWD state beyond what code_z/phase_z had removed (wet_delay=model: nothing)
+        zwd = 0.0
         if k == 0:
-            pos, clock, zwd = g.spp_pos[0].copy(), float(g.spp_clock_m[0]), g.zwd0
+            pos, clock = g.spp_pos[0].copy(), float(g.spp_clock_m[0])
+            if g.estimate_zwd:
+                zwd = g.zwd0
         else:
             pos = np.asarray(isam.point3(pos_key(k - 1)), float).copy()
-            zwd = isam.double(zwd_key(k - 1))
+            if g.estimate_zwd:
+                zwd = isam.double(zwd_key(k - 1))
             clock = float(g.spp_clock_m[k])
             if g.constant_velocity:
                 prior_pos, prior_root = self._motion_prior(k, g, isam, pos)
@@ -312,7 +318,8 @@ class IncrementalGraphEstimator(Estimator):
             return None
         v = gtsam.Values()
         v.insert(pos_key(k - 1), isam.point3(pos_key(k - 1)))
-        insert_double(v, zwd_key(k - 1), isam.double(zwd_key(k - 1)))
+        if g.estimate_zwd:
+            insert_double(v, zwd_key(k - 1), isam.double(zwd_key(k - 1)))
         if g.constant_velocity:
             v.insert(vel_key(k - 1), isam.point3(vel_key(k - 1)))
             insert_double(v, drift_key(k - 1), isam.double(drift_key(k - 1)))

@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from estimators.ppp_config import IonosphereMode, MeasurementMode, SigmaModel, VarianceComponents
+from estimators.ppp_config import IonosphereMode, MeasurementMode, SigmaModel, VarianceComponents, WetDelayMode
 from simbench.contract import ReceiverData
 from simbench.core import atmosphere
 from simbench.core.constants import DEG, F_L1
@@ -55,6 +55,7 @@ __all__ = [
     "VC_MIN_ROWS",
     "arc_ids",
     "checked_arcs",
+    "content_digest",
     "if_combination",
     "klobuchar_scale",
     "prepare_ppp",
@@ -63,6 +64,7 @@ __all__ = [
     "split_arcs",
     "sigma_factor",
     "variance_factors",
+    "zenith_wet_delay_m",
     "ionosphere_choice",
     "ionosphere_free",
     "N_BASE_STATES",
@@ -162,6 +164,27 @@ def predict(
         Partials w.r.t. ``[x, y, z, clock_m, zwd_m]``: ``[-los_unit (+ Sagnac), 1, m_w]``.
     """
     return predict_given_troposphere(sat_pos, rx_pos, clock_m, zwd_m, *troposphere_terms(el, lat, h, doy))
+
+
+def zenith_wet_delay_m(mode: WetDelayMode, lat: float, h: float, doy: float) -> float:
+    """The zenith wet delay the model starts from [m] at one receiver position.
+
+    ``model``: the RTCA MOPS climatology (:func:`simbench.core.atmosphere.mops_zenith_wet_m`), which
+    follows latitude and season, held as the model's wet delay. ``estimate``: Table 4.4.2's prior
+    mean of the ZWD state, Saastamoinen's wet delay of the standard atmosphere
+    (:func:`simbench.core.atmosphere.saastamoinen_zenith_m`).
+
+    Parameters
+    ----------
+    mode : WetDelayMode
+    lat, h : float
+        Geodetic latitude [rad] and height [m].
+    doy : float
+        Day of year.
+    """
+    if WetDelayMode(mode) == WetDelayMode.model:
+        return float(atmosphere.mops_zenith_wet_m(lat, h, doy))
+    return float(atmosphere.saastamoinen_zenith_m(lat, h)[1])
 
 
 # --------------------------------------------------------------------------- preparation
@@ -686,7 +709,7 @@ def variance_factors(
     ndarray, shape (G,)
         Factor per group on the code sigma (dimensionless), geometric mean over the rows 1.
     """
-    key = _digest(epoch, sat_pos, code, sigma, group, system_index, el, np.array([doy, iterations], float))
+    key = content_digest(epoch, sat_pos, code, sigma, group, system_index, el, np.array([doy, iterations], float))
     if key in _VC_CACHE:
         return _VC_CACHE[key].copy()
     n_groups = int(group.max(initial=-1)) + 1
@@ -734,8 +757,8 @@ _WARNED: set[str] = set()
 _WARNED_SIZE = 64
 
 
-def _digest(*arrays: np.ndarray) -> str:
-    """Content hash of arrays (dtype, shape and bytes)."""
+def content_digest(*arrays: np.ndarray) -> str:
+    """Content hash of arrays (dtype, shape and bytes): the key of a cache of results computed from them."""
     h = hashlib.blake2b(digest_size=20)
     for a in arrays:
         a = np.ascontiguousarray(a)
@@ -851,7 +874,7 @@ def checked_arcs(
     found = check_code_phase(arc, epoch, sat, t, code - phase, sigma)
     said = _phase_check_warning(found)
     if said:
-        _warn_once(f"{origin}:{_digest(arc, t, code - phase)}", "observations", *said)
+        _warn_once(f"{origin}:{content_digest(arc, t, code - phase)}", "observations", *said)
     return found
 
 
@@ -926,7 +949,7 @@ def _say_missing_cn0(cn0: np.ndarray, sigma_model: SigmaModel, variance: Varianc
     if VarianceComponents(variance) == VarianceComponents.system_cn0:
         fallback += ("; " if fallback else "") + "their code variance group is their system's"
     if fallback:
-        key = f"{origin}:{_digest(np.isnan(cn0))}"
+        key = f"{origin}:{content_digest(np.isnan(cn0))}"
         _warn_once(key, "observations.cn0_l1", f"missing on {missing} of {len(cn0)} rows", fallback)
 
 

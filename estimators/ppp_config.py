@@ -34,6 +34,7 @@ __all__ = [
     "MotionModelConfig",
     "SigmaModel",
     "StochasticModelConfig",
+    "WetDelayMode",
     "VarianceComponents",
 ]
 
@@ -85,6 +86,35 @@ class IonosphereMode(Choice):
     #: pair, else a running median along the satellite) and the broadcast delay fitted to those
     #: measurements on the rows without a second frequency (:mod:`simbench.gnss.measured_ionosphere`)
     measured = "measured"
+
+
+class WetDelayMode(Choice):
+    """How the zenith wet delay enters the model (member names are the YAML words).
+
+    The hydrostatic delay is always modelled (Saastamoinen with the standard atmosphere, Niell
+    mapping, :func:`simbench.gnss.troposphere.troposphere_terms`).
+    """
+
+    #: ``estimate`` where the log's own estimate is a wet delay, else ``model``: a batch L2 solve with the
+    #: ZWD state decides, and an estimate further than :data:`WET_DELAY_GATE_SIGMAS` times
+    #: :data:`WET_DELAY_CLIMATOLOGY_SIGMA_M` from the MOPS climatology is an elevation-dependent error
+    #: the state took up, not the atmosphere (:func:`estimators.ppp_graph.wet_delay_choice`)
+    auto = "auto"
+
+    #: the wet delay modelled too, no state: the zenith wet delay of the RTCA MOPS climatology (by
+    #: latitude and season) at the first fix, Niell's wet mapping
+    #: (:func:`~estimators.measurement.zenith_wet_delay_m`)
+    model = "model"
+    #: a zenith wet delay state per epoch (Table 4.4.2): prior ``zwd_sigma_m`` around Saastamoinen's
+    #: wet delay of the standard atmosphere, random walk ``zwd_rw_m_rts``
+    estimate = "estimate"
+
+
+#: Standard deviation of the MOPS climatology's vertical tropospheric delay [m] (RTCA DO-229
+#: A.4.2.4, sigma_TVE): how far a true zenith wet delay may be from it.
+WET_DELAY_CLIMATOLOGY_SIGMA_M = 0.12
+#: ``wet_delay=auto`` keeps the ZWD state when its estimate is within this many of those sigmas.
+WET_DELAY_GATE_SIGMAS = 3.0
 
 
 class VarianceComponents(Choice):
@@ -163,6 +193,16 @@ class GnssModelConfig:
     #: 1000-1004 (e.g. DCS 3.89/3.30/5.44/4.31/3.44 -> 2.61/3.24/4.07/3.57/2.93 m), of L2 and MM on
     #: urban 1000-1002 and on one hour of single-frequency open sky, and Hong Kong DCS 2.97 -> 2.39 m
     iono_sigma_m: float = 1.0
+    #: the zenith wet delay: a state (``estimate``, Table 4.4.2), modelled (``model``: the MOPS
+    #: climatology, no state) or ``auto``: the state where the log's estimate of it is plausible.
+    #: Only the mapping function's elevation dependence separates the state from the height and the
+    #: clock, and elevation-dependent code errors (GLONASS inter-frequency biases, NLOS delays, an
+    #: ionosphere model's residual) have it too: counted as hundreds of independent epochs they
+    #: outweighed the state's 0.3 m prior, which took them up and moved the height by 3-12 times as
+    #: much. Estimates: Nagoya GLONASS only -1.08 m (code only +6.4 m), Nagoya cut to a u-blox F9P's
+    #: signals -0.19 m, Hong Kong 1.15 m, simulated urban/urban_deep seeds 1000-1004 -0.33 .. +0.58 m
+    #: where the truth is 0.07-0.13 m (docs/estimators.md, "The height of a static receiver")
+    wet_delay: WetDelayMode = WetDelayMode.auto
     #: values of the fields above for one estimator, where its published code differs from the
     #: others (estimator name -> field -> value), e.g. ``{mm: {outlier_scale: 1.0e6}}``
     per_estimator: dict[str, dict[str, Any]] = field(default_factory=dict)
@@ -180,8 +220,10 @@ class StochasticModelConfig:
 
     pos_sigma_m: float = 1.0  #: a priori position sigma per axis at the first epoch [m]
     pos_rw_m_rts: float = 5.0  #: position random walk [m/sqrt(s)]
-    zwd_sigma_m: float = 0.3  #: a priori zenith wet delay sigma [m] (about the Saastamoinen value)
-    zwd_rw_m_rts: float = 3e-5  #: zenith wet delay random walk [m/sqrt(s)]
+    #: auto | model (the MOPS wet delay, no state) | estimate (a ZWD state, Table 4.4.2)
+    wet_delay: WetDelayMode = GnssModelConfig.wet_delay
+    zwd_sigma_m: float = 0.3  #: a priori zenith wet delay sigma [m] (about the Saastamoinen value; ``estimate`` only)
+    zwd_rw_m_rts: float = 3e-5  #: zenith wet delay random walk [m/sqrt(s)] (``estimate`` only)
     clock_sigma_m: float = 3e6  #: a priori receiver clock sigma [m]
     clock_noise_m_rts: float = 2000.0  #: receiver clock process noise [m/sqrt(s)] (random_walk only)
     clock_model: ClockModel = ClockModel.white  #: white (each epoch free, Table 4.4.2) | random_walk

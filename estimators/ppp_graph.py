@@ -15,7 +15,9 @@ key                type        meaning
 =================  ==========  ===============================================
 ``pos_key(k)``     Point3      receiver ECEF position [m]
 ``clock_key(k)``   double      receiver clock offset **in seconds** (GTSAM's convention)
-``zwd_key(k)``     double      zenith wet delay [m]
+``zwd_key(k)``     double      zenith wet delay [m] (``wet_delay = estimate`` only; with
+                               ``model`` the modelled wet delay leaves the measurements and
+                               the factors' ZWD slot is ``ZERO_KEY``)
 ``iono_key(r)``    double      slant ionosphere residual of row ``r`` [m] (L1 with
                                ``estimate_iono`` only; code ``+I``, phase ``-I``)
 ``amb_key(a)``     double      float carrier-phase bias of arc ``a`` [m]; one key per
@@ -35,8 +37,9 @@ Factors
   :func:`simbench.gnss.geometry.sagnac_range` in the tests), so nothing is pre-applied for
   Earth rotation. The satellite clock is already in ``obs.code`` (``prepare_ppp``), so the
   factor's satellite clock argument is 0. The modelled slant hydrostatic delay
-  (Saastamoinen + Niell at a per-epoch single point position) is subtracted from the
-  measurement (:attr:`PppGraph.code_z`).
+  (Saastamoinen + Niell at a per-epoch single point position), and with ``wet_delay = model``
+  the modelled wet delay (:attr:`PppGraph.zwd0` times the Niell wet mapping), is subtracted from
+  the measurement (:attr:`PppGraph.code_z`).
 * phase: ``gtsam.UndifferencedCarrierPhaseFactor`` -- ``phi = geodist + c dt + m_w ZWD
   - I + lambda N`` (the factor flips the ionosphere sign itself) with ``lambda = 1`` and
   ``N`` the arc bias in metres (:attr:`PppGraph.phase_z`).
@@ -102,24 +105,26 @@ with ``rows=obs.epoch_slice(k)``) for estimators that gate or reweight measureme
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass, fields, replace
 from typing import Any
 
 import gtsam
 import numpy as np
 
-from estimators.measurement import PppObservations
+from estimators.measurement import PppObservations, content_digest, zenith_wet_delay_m
 from estimators.ppp_config import (
     DIRECTION_MIN_SPEED_MPS,
     STANDSTILL_MPS,
+    WET_DELAY_CLIMATOLOGY_SIGMA_M,
+    WET_DELAY_GATE_SIGMAS,
     ClockModel,
     MotionModel,
     MotionModelConfig,
+    WetDelayMode,
 )
-from simbench.core import atmosphere
 from simbench.core.constants import C_LIGHT
 from simbench.core.frames import geodetic_from_ecef
-from simbench.errors import SimbenchError
+from simbench.errors import SimbenchError, warn
 from simbench.gnss.doppler import doppler_velocities, range_rate
 from simbench.gnss.geometry import enu_basis, sagnac_range
 from simbench.gnss.spp import solve_epochs, system_clock_offsets
@@ -129,6 +134,7 @@ __all__ = [
     "ZERO_KEY",
     "PppGraph",
     "PppGraphConfig",
+    "WetDelayChoice",
     "amb_key",
     "isb_key",
     "sysclock_key",
@@ -141,6 +147,7 @@ __all__ = [
     "iono_key",
     "pos_key",
     "solve",
+    "wet_delay_choice",
     "zwd_key",
 ]
 
@@ -230,9 +237,17 @@ class PppGraph:
     ----------
     code_z, phase_z : ndarray, shape (N,)
         Measurements handed to the factors [m]: ``obs.code`` / ``obs.phase`` minus the
-        modelled slant hydrostatic delay.
+        modelled slant hydrostatic delay, and with ``wet_delay = model`` the modelled wet one.
     wet_mapping : ndarray, shape (N,)
         Niell wet mapping per row.
+    wet_delay : WetDelayChoice
+        What ``cfg.wet_delay`` resolved to on these observations (:func:`wet_delay_choice`).
+    zwd0 : float
+        Zenith wet delay at the first single point fix [m]: the modelled one (``wet_delay`` resolved
+        to ``model``) or the ZWD state's prior mean (``estimate``),
+        :func:`~estimators.measurement.zenith_wet_delay_m`.
+    estimate_zwd : bool
+        Whether there are ZWD states (``zwd_key``); else the factors' ZWD slot is ``ZERO_KEY``.
     row_epoch : ndarray of int, shape (N,)
         Solved-epoch index ``k`` of each row.
     prev_row : ndarray of int, shape (N,)
@@ -289,8 +304,14 @@ class PppGraph:
         self.isb0_m = system_clock_offsets(spp, self.row_epoch, self.row_system)
         lat, _, h = geodetic_from_ecef(self.spp_pos)
         hydro, self.wet_mapping = troposphere_terms(obs.el, lat[self.row_epoch], h[self.row_epoch], obs.doy)
-        self.code_z = obs.code - hydro
-        self.phase_z = obs.phase - hydro
+        lat0, _, h0 = geodetic_from_ecef(self.spp_pos[0])
+        self.wet_delay = wet_delay_choice(obs, cfg)
+        self.zwd0 = zenith_wet_delay_m(self.wet_delay.mode, float(lat0), float(h0), obs.doy)
+        #: a zenith wet delay state per epoch (``wet_delay = estimate``); else the modelled one is applied
+        self.estimate_zwd = self.wet_delay.mode == WetDelayMode.estimate
+        modelled = hydro if self.estimate_zwd else hydro + self.zwd0 * self.wet_mapping
+        self.code_z = obs.code - modelled
+        self.phase_z = obs.phase - modelled
         self.has_phase = obs.has_phase
         prev = obs.previous_rows()
         self.prev_row = prev
@@ -302,8 +323,6 @@ class PppGraph:
         self.arc_first_row = first
         #: rows with an ionosphere key: phase rows when the slant ionosphere is estimated
         self.iono_rows = self.has_phase & self.with_iono
-        lat0, _, h0 = geodetic_from_ecef(self.spp_pos[:1])
-        self.zwd0 = float(atmosphere.saastamoinen_zenith_m(lat0, h0)[1][0])
         self._unit = gtsam.noiseModel.Unit.Create(1)
         self._row_keys = self._measurement_keys()
 
@@ -317,7 +336,7 @@ class PppGraph:
         epochs = self.row_epoch.tolist()
         pos = [pos_key(k) for k in epochs]
         clock = [clock_key(k) if s == 0 else sysclock_key(s, k) for k, s in zip(epochs, self.row_system.tolist())]
-        zwd = [zwd_key(k) for k in epochs]
+        zwd = [zwd_key(k) for k in epochs] if self.estimate_zwd else [ZERO_KEY] * len(epochs)
         iono = [iono_key(r) if w else ZERO_KEY for r, w in enumerate(self.iono_rows.tolist())]
         bias = [amb_key(a) if a >= 0 else ZERO_KEY for a in obs.arc.tolist()]  # code-only rows have no arc
         return pos, clock, zwd, iono, bias
@@ -351,7 +370,8 @@ class PppGraph:
                     )
                 )
                 g.add(gtsam.PriorFactorDouble(drift_key(0), float(self.drift0[0]), self._sigma1(cfg.drift_sigma_mps)))
-            g.add(gtsam.PriorFactorDouble(zwd_key(0), self.zwd0, self._sigma1(cfg.zwd_sigma_m)))
+            if self.estimate_zwd:
+                g.add(gtsam.PriorFactorDouble(zwd_key(0), self.zwd0, self._sigma1(cfg.zwd_sigma_m)))
             g.add(gtsam.PriorFactorDouble(ZERO_KEY, 0.0, self._sigma1(_ZERO_SIGMA)))
         if self.constant_velocity:  # the epoch's range rates (a measurement, but not reweighted)
             g.push_back(self._doppler_factor(k))
@@ -407,7 +427,10 @@ class PppGraph:
                     gtsam.noiseModel.Isotropic.Sigma(3, self._rw(cfg.pos_rw_m_rts, dt)),
                 )
             )
-        g.add(gtsam.BetweenFactorDouble(zwd_key(k - 1), zwd_key(k), 0.0, self._sigma1(self._rw(cfg.zwd_rw_m_rts, dt))))
+        if self.estimate_zwd:
+            g.add(
+                gtsam.BetweenFactorDouble(zwd_key(k - 1), zwd_key(k), 0.0, self._sigma1(self._rw(cfg.zwd_rw_m_rts, dt)))
+            )
         if cfg.clock_model == ClockModel.random_walk:
             g.add(
                 gtsam.BetweenFactorDouble(
@@ -742,10 +765,12 @@ class PppGraph:
         zwd = self.zwd0
         if previous is not None and k > 0 and previous.exists(pos_key(k - 1)):
             pos = previous.atPoint3(pos_key(k - 1))
-            zwd = previous.atDouble(zwd_key(k - 1))
+            if self.estimate_zwd:
+                zwd = previous.atDouble(zwd_key(k - 1))
         v.insert(pos_key(k), gtsam.Point3(*np.asarray(pos, float)))
         insert_double(v, clock_key(k), self.spp_clock_m[k] / C_LIGHT)
-        insert_double(v, zwd_key(k), zwd)
+        if self.estimate_zwd:
+            insert_double(v, zwd_key(k), zwd)
         if self.constant_velocity:
             vel = np.zeros(3)
             if previous is not None and k > 0 and previous.exists(vel_key(k - 1)):
@@ -813,6 +838,13 @@ class PppGraph:
         """Estimated position of every solved epoch, shape (n_epochs, 3) [m]."""
         return np.array([values.atPoint3(pos_key(k)) for k in range(self.obs.n_epochs)])
 
+    def wet_delays(self, values: gtsam.Values) -> np.ndarray:
+        """Estimated zenith wet delay of every solved epoch beyond what the measurements had removed [m]:
+        the ZWD states (``wet_delay = estimate``), else zeros (the modelled delay left the measurements)."""
+        if not self.estimate_zwd:
+            return np.zeros(self.obs.n_epochs)
+        return np.array([values.atDouble(zwd_key(k)) for k in range(self.obs.n_epochs)])
+
     def inter_system_biases(self, values: gtsam.Values) -> dict[str, list[float]]:
         """Estimated inter-system bias of each further system at every epoch [m].
 
@@ -833,7 +865,7 @@ class PppGraph:
         nk = obs.n_epochs
         pos = self.positions(values)
         clock = np.array([values.atDouble(clock_key(k)) for k in range(nk)]) * C_LIGHT
-        zwd = np.array([values.atDouble(zwd_key(k)) for k in range(nk)])
+        zwd = self.wet_delays(values)
         amb = np.array([values.atDouble(amb_key(a)) for a in range(obs.n_arcs)])
         iono = np.zeros(obs.n_obs)
         iono_keys = self._row_keys[3]
@@ -847,6 +879,89 @@ class PppGraph:
         geo = sagnac_range(obs.sat_pos, pos[e]) + clocks[e, self.row_system] + zwd[e] * self.wet_mapping
         bias = np.where(self.has_phase, amb[np.maximum(obs.arc, 0)] if amb.size else 0.0, np.nan)
         return self.code_z - (geo + iono), self.phase_z - (geo - iono + bias)
+
+
+@dataclass(frozen=True)
+class WetDelayChoice:
+    """What a ``wet_delay`` setting resolved to on one set of prepared observations."""
+
+    mode: WetDelayMode  #: ``model`` or ``estimate``
+    #: median ZWD of the batch L2 solve with the state that decided ``auto`` [m] (NaN otherwise)
+    estimate_m: float = float("nan")
+    #: the MOPS climatology's zenith wet delay at the first fix [m] (NaN unless ``auto``)
+    climatology_m: float = float("nan")
+
+    def info(self) -> dict[str, Any]:
+        """For an estimator's diagnostics (JSON values)."""
+        out: dict[str, Any] = {"wet_delay": self.mode.value}
+        if np.isfinite(self.estimate_m):
+            out["wet_delay_estimate_m"] = round(self.estimate_m, 3)
+            out["wet_delay_climatology_m"] = round(self.climatology_m, 3)
+        return out
+
+
+def wet_delay_choice(obs: PppObservations, cfg: MotionModelConfig) -> WetDelayChoice:
+    """Resolve ``cfg.wet_delay`` on ``obs``: ``model`` and ``estimate`` as they are; ``auto`` by the log itself.
+
+    ``auto`` solves the batch L2 graph with the ZWD state (Levenberg-Marquardt, the a-priori noise
+    model) and keeps the state (``estimate``) when the median of its estimate lies within
+    ``WET_DELAY_GATE_SIGMAS`` x ``WET_DELAY_CLIMATOLOGY_SIGMA_M`` (0.36 m) of the MOPS climatology's
+    wet delay at the first fix; else the state took up an elevation-dependent error, not the
+    atmosphere, and the wet delay is modelled (``model``), with a one-line warning. The decision of
+    one set of observations and model is cached, so every estimator of a job that shares them
+    solves once.
+
+    Parameters
+    ----------
+    obs : PppObservations
+    cfg : MotionModelConfig
+        The estimator's model (its :class:`~estimators.ppp_config.MotionModelConfig` fields are used).
+
+    Returns
+    -------
+    WetDelayChoice
+    """
+    requested = WetDelayMode(cfg.wet_delay)
+    if requested != WetDelayMode.auto:
+        return WetDelayChoice(requested)
+    model = PppGraphConfig(**{f.name: getattr(cfg, f.name) for f in fields(MotionModelConfig)})
+    model = replace(model, wet_delay=WetDelayMode.estimate)
+    key = content_digest(
+        obs.epoch, obs.sat_pos, obs.code, obs.phase, obs.sigma_code, obs.sigma_phase, obs.arc, obs.el
+    ) + repr(sorted(asdict(model).items()))
+    if key not in _WET_DELAY_CACHE:
+        if len(_WET_DELAY_CACHE) >= _WET_DELAY_CACHE_SIZE:
+            del _WET_DELAY_CACHE[next(iter(_WET_DELAY_CACHE))]
+        _WET_DELAY_CACHE[key] = _decide_wet_delay(obs, model)
+    choice = _WET_DELAY_CACHE[key]
+    if choice.mode == WetDelayMode.model:
+        bound = WET_DELAY_GATE_SIGMAS * WET_DELAY_CLIMATOLOGY_SIGMA_M
+        warn(
+            "gnss_model.wet_delay",
+            f"auto: the log's zenith wet delay estimate {choice.estimate_m:+.2f} m is "
+            f"{abs(choice.estimate_m - choice.climatology_m):.2f} m from the MOPS climatology's "
+            f"{choice.climatology_m:.2f} m (beyond {bound:.2f} m): the state took up an elevation-dependent "
+            "error, not the atmosphere",
+            "the wet delay is modelled (wet_delay=model); set wet_delay=estimate to keep the state",
+        )
+    return choice
+
+
+def _decide_wet_delay(obs: PppObservations, model: PppGraphConfig) -> WetDelayChoice:
+    """``auto``'s decision: the L2 graph's ZWD estimate against the climatology (see :func:`wet_delay_choice`)."""
+    g = PppGraph(obs, model)
+    graph = g.structure_factors()
+    graph.push_back(g.measurement_factors())
+    estimate = float(np.median(g.wet_delays(solve(graph, g.initial_values(), ordering=g.elimination_ordering(graph)))))
+    lat0, _, h0 = geodetic_from_ecef(g.spp_pos[0])
+    climatology = zenith_wet_delay_m(WetDelayMode.model, float(lat0), float(h0), obs.doy)
+    plausible = abs(estimate - climatology) <= WET_DELAY_GATE_SIGMAS * WET_DELAY_CLIMATOLOGY_SIGMA_M
+    return WetDelayChoice(WetDelayMode.estimate if plausible else WetDelayMode.model, estimate, climatology)
+
+
+#: :func:`wet_delay_choice` of the last few inputs (every graph estimator of a job asks for the same one).
+_WET_DELAY_CACHE: dict[str, WetDelayChoice] = {}
+_WET_DELAY_CACHE_SIZE = 8
 
 
 def _carry_forward(x: np.ndarray) -> np.ndarray:

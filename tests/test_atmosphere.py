@@ -9,6 +9,7 @@ import pytest
 
 from simbench.core.atmosphere import (
     klobuchar_l1_delay_m,
+    mops_zenith_wet_m,
     niell_mapping,
     saastamoinen_zenith_m,
     standard_atmosphere,
@@ -195,6 +196,26 @@ def test_saastamoinen_zenith_hydrostatic_and_wet():
     lat_arr = np.radians([[10.0], [50.0]])
     zhd_b, zwd_b = saastamoinen_zenith_m(lat_arr, np.array([[0.0, 500.0, 3000.0]]))
     assert zhd_b.shape == zwd_b.shape == (2, 3)
+
+
+def test_mops_zenith_wet_delay_follows_the_do229_table_by_latitude_and_season():
+    """RTCA DO-229 A.4.2.4 by hand: at 15 deg (no season) e = 26.31 hPa, T = 299.65 K, beta = 6.30e-3 K/m,
+    lambda = 2.77; at 30 deg N on day 28 (the seasonal minimum) each parameter is its average minus its
+    variation; the south is half a year later; height lowers the delay by the table's lapse rates."""
+    k2_rd = 1e-6 * 382_000.0 * 287.054
+    tropic = k2_rd / (9.784 * 3.77 - 6.30e-3 * 287.054) * 26.31 / 299.65
+    assert mops_zenith_wet_m(math.radians(15.0), 0.0, 100.0) == pytest.approx(tropic, rel=1e-12)
+    assert tropic == pytest.approx(0.2745, abs=1e-4)
+    e, t, beta, lam = 21.79 - 8.85, 294.15 - 7.0, 6.05e-3 - 0.25e-3, 3.15 - 0.33
+    winter = k2_rd / (9.784 * (lam + 1.0) - beta * 287.054) * e / t
+    assert mops_zenith_wet_m(math.radians(30.0), 0.0, 28.0) == pytest.approx(winter, rel=1e-12)
+    assert mops_zenith_wet_m(math.radians(-30.0), 0.0, 211.0) == pytest.approx(winter, rel=1e-12)
+    summer = mops_zenith_wet_m(math.radians(30.0), 0.0, 28.0 + 365.25 / 2)
+    assert summer > 1.8 * winter  # humid summer, dry winter
+    high = mops_zenith_wet_m(math.radians(30.0), 1000.0, 28.0)
+    assert high == pytest.approx(winter * (1.0 - beta * 1000.0 / t) ** ((lam + 1.0) * 9.80665 / (287.054 * beta) - 1.0))
+    grid = mops_zenith_wet_m(np.radians([[10.0], [80.0]]), np.array([0.0, 500.0]), 176.0)
+    assert grid.shape == (2, 2) and grid[0, 0] == pytest.approx(tropic)  # held beyond the table
 
 
 # --------------------------------------------------------------------------- Niell

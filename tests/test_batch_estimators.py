@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import gtsam
 import numpy as np
 import pytest
@@ -22,7 +24,7 @@ from estimators.ekf_ppp import EkfPpp, EkfPppConfig
 from estimators.gauss_newton import GaussNewton
 from estimators.measurement import prepare_ppp
 from estimators.oracle import Oracle
-from estimators.ppp_config import IonosphereMode, VarianceComponents
+from estimators.ppp_config import IonosphereMode, VarianceComponents, WetDelayMode
 from estimators.ppp_graph import PppGraph, PppGraphConfig, solve
 from estimators.whitened_rows import DcsKernel, WhitenedRows
 from simbench.analysis.metrics import enu_errors
@@ -383,10 +385,14 @@ def test_bce_ad_records_selected_features(open_sky: Scenario, n_features: int) -
 
 
 def test_dcs_gauss_newton_steps_reach_levenberg_marquardts_solution() -> None:
-    """Each step re-weights (IRLS): run to 1e-10 the steps end where LM does; the default stop is near it."""
+    """Each step re-weights (IRLS): run to 1e-10 the steps end where LM does; the default stop is near it.
+
+    On the ZWD-state model the bounds were measured with (``wet_delay=estimate``): with the modelled
+    wet delay the default ``rel_tol`` stops after 28 steps instead of 70, 0.10 m (median) from the
+    1e-10 solution instead of 0.05 m."""
     base = simbench.simulate("open_sky", "high", seed=1001, **{"scenario.duration_s": 90})
     data = _with_injected_nlos(base, 0.1, seed=1).receiver_view()
-    cfg = DcsConfig()
+    cfg = DcsConfig(wet_delay=WetDelayMode.estimate)
     obs = prepare_ppp(data, **cfg.prepare_kwargs())
     g = PppGraph(obs, cfg)
     l2 = g.structure_factors()
@@ -396,7 +402,7 @@ def test_dcs_gauss_newton_steps_reach_levenberg_marquardts_solution() -> None:
     start = solve(l2, g.initial_values())
     reference = g.positions(solve(robust, start, max_iterations=500, relative_tol=1e-10))
     assert np.abs(g.positions(start) - reference).max() > 1.0  # the outliers matter here
-    tight = DcsBatch(DcsConfig(rel_tol=1e-10, max_iterations=500)).estimate(data)
+    tight = DcsBatch(dataclasses.replace(cfg, rel_tol=1e-10, max_iterations=500)).estimate(data)
     assert np.abs(tight.epochs[["x", "y", "z"]].to_numpy() - reference).max() < 0.005
     default = DcsBatch(cfg).estimate(data)
     assert default.diagnostics["stop_reason"] == "converged" and default.diagnostics["iterations"] < 100

@@ -23,7 +23,14 @@ import yaml
 from omegaconf import OmegaConf
 
 import estimators
-from estimators.ppp_config import GnssModelConfig, IonosphereMode, MotionModel, SigmaModel, VarianceComponents
+from estimators.ppp_config import (
+    GnssModelConfig,
+    IonosphereMode,
+    MotionModel,
+    SigmaModel,
+    VarianceComponents,
+    WetDelayMode,
+)
 from simbench.data.sources import RinexConfig
 from simbench.errors import SimbenchError
 from simbench.runs.compose import CONF_DIR, available, compose_config, estimator_yaml, overrides_from_kwargs
@@ -134,6 +141,7 @@ def test_composed_estimator_configs_are_the_dataclass_defaults_but_for_the_gnss_
         "ionosphere": IonosphereMode.auto,
         "variance_components": VarianceComponents.system,
         "iono_sigma_m": 1.0,
+        "wet_delay": WetDelayMode.auto,
     }
     table = {
         "motion_model": MotionModel.random_walk,
@@ -145,6 +153,7 @@ def test_composed_estimator_configs_are_the_dataclass_defaults_but_for_the_gnss_
         "ionosphere": IonosphereMode.broadcast,
         "variance_components": VarianceComponents.none,
         "iono_sigma_m": 2.0,
+        "wet_delay": WetDelayMode.estimate,
     }
     shared = 0
     for name in NAMES:
