@@ -33,7 +33,7 @@ import numpy as np
 import pandas as pd
 
 from estimators.ppp_config import IonosphereMode, MeasurementMode, SigmaModel, VarianceComponents, WetDelayMode
-from simbench.contract import ReceiverData
+from simbench.contract import NavInfo, ReceiverData
 from simbench.core import atmosphere
 from simbench.core.constants import DEG, F_L1
 from simbench.core.frames import geodetic_from_ecef
@@ -41,15 +41,21 @@ from simbench.core.gpstime import day_of_year
 from simbench.errors import SimbenchError, warn
 from simbench.gnss.arcs import CODE_PHASE_MAX_RATE_MPS, CodePhaseCheck, arc_ids, check_code_phase
 from simbench.gnss.geometry import sagnac_range_gradient
-from simbench.gnss.measured_ionosphere import geometry_free_delay, levelled_phase_delay, measured_ionosphere
+from simbench.gnss.measured_ionosphere import (
+    BROADCAST_RELATIVE_ERROR,
+    geometry_free_delay,
+    levelled_phase_delay,
+    measured_ionosphere,
+)
 from simbench.gnss.signals import L1_FREQUENCY_HZ, l1_wavelength_m
-from simbench.gnss.spp import SppSolution, solve_epochs
+from simbench.gnss.spp import SppSolution, position_gains, solve_epochs
 from simbench.gnss.troposphere import troposphere_terms
 
 __all__ = [
     "AUTO_FREE_MIN_FRACTION",
     "PppObservations",
     "SAT_DCB_COLUMN",
+    "SAT_DCB_SIGMA_COLUMN",
     "VC_CLIP",
     "VC_MIN_REDUNDANCY",
     "VC_MIN_ROWS",
@@ -58,6 +64,7 @@ __all__ = [
     "content_digest",
     "if_combination",
     "klobuchar_scale",
+    "pair_against_broadcast",
     "prepare_ppp",
     "predict",
     "predict_given_troposphere",
@@ -87,6 +94,9 @@ AUTO_FREE_MIN_FRACTION = 0.9
 #: B1I/B3I ``-c TGD1``; NaN or absent: 0). ``sat_clock`` is the first frequency's clock (``c (dt -
 #: TGD)``); the ionosphere-free combination needs ``sat_clock + sat_dcb / (gamma - 1)``.
 SAT_DCB_COLUMN = "sat_dcb"
+#: Optional observation column [m]: the stated RMS of what :data:`SAT_DCB_COLUMN` misses of the pair's
+#: group-delay difference (:func:`simbench.data.rinex.second_group_delay_sigmas`; NaN or absent: nothing known)
+SAT_DCB_SIGMA_COLUMN = "sat_dcb_sigma"
 #: GLONASS L1 FDMA carrier of channel 0 [Hz] (the table does not carry the channel)
 _F_GLONASS_L1_NOMINAL_HZ = 1_602.0e6
 #: Fewest usable rows a variance group needs for its own factor.
@@ -274,6 +284,9 @@ class PppObservations:
     n_ionosphere_measured: int = 0
     #: per system, ``(a, b)`` of the broadcast delay fitted to the measured ones [-, m] (``measured`` only)
     ionosphere_fits: dict[str, tuple[float, float]] = field(default_factory=dict)
+    #: per system with code pairs, the position error expected from the pairs' unbroadcast biases and from the
+    #: broadcast model's error [m] (:func:`pair_against_broadcast`; ``ionosphere=auto`` only, where it decided)
+    ionosphere_expected_m: dict[str, tuple[float, float]] = field(default_factory=dict)
     #: factor on the code sigma per variance group ("G", "C 35-40 dB-Hz", ...); empty without
     #: variance components
     variance_factors: dict[str, float] = field(default_factory=dict)
@@ -288,7 +301,10 @@ class PppObservations:
             "ionosphere": self.ionosphere.value,
             "single_frequency_rows_dropped": int(self.n_single_frequency_dropped),
             "ionosphere_measured_rows": int(self.n_ionosphere_measured),
-            "ionosphere_fits": {k: [round(a, 3), round(b, 3)] for k, (a, b) in self.ionosphere_fits.items()},
+            "ionosphere_fits": _rounded_pairs(self.ionosphere_fits),
+            "ionosphere_expected_m": {
+                k: [round(a, 3), round(b, 3)] for k, (a, b) in self.ionosphere_expected_m.items()
+            },
             "code_variance_factors": dict(self.variance_factors),
             "systems": list(self.systems),
             "rows_without_cn0": int(np.isnan(self.cn0).sum()),
@@ -403,8 +419,12 @@ def prepare_ppp(
         every satellite above the mask has a second frequency on at least
         :data:`AUTO_FREE_MIN_FRACTION` of its rows, ``measured`` when some rows have one and some
         system's code pairs measure the delay better than the broadcast model
-        (:func:`simbench.gnss.measured_ionosphere.measured_ionosphere`), else ``broadcast``; the
-        decision is the result's ``ionosphere`` (and ``ionosphere_free``).
+        (:func:`simbench.gnss.measured_ionosphere.measured_ionosphere`), else ``broadcast``; a
+        system whose pairs' unbroadcast group delays are expected to move the position more than
+        the broadcast model's error (:func:`pair_against_broadcast`) keeps the broadcast delay
+        (``free`` then becomes ``measured``, or ``broadcast`` when that is every system, in one
+        warning line); the decision is the result's ``ionosphere`` (and ``ionosphere_free``), the
+        expected errors its ``ionosphere_expected_m``.
     code_sigma_m, phase_sigma_m : float
         Zenith standard deviations [m] of the (combined) code and phase; scaled per row by
         :func:`sigma_factor`.
@@ -462,6 +482,12 @@ def prepare_ppp(
     second = _second_frequency(obs)
     above = obs["el"].to_numpy(float) > elevation_mask_deg
     choice = ionosphere_choice(obs, ionosphere, elevation_mask_deg)
+    expected: dict[str, tuple[float, float]] = {}
+    declined: set[str] = set()
+    if ionosphere == IonosphereMode.auto and choice != IonosphereMode.broadcast:
+        expected = pair_against_broadcast(data, valid & above, code_sigma_m, sigma_model, cn0_ref_dbhz)
+        declined = {s for s, (pairs, broadcast) in expected.items() if not pairs < broadcast}
+        choice = _without_declined(choice, expected, declined, id(data.observations))
     free = choice == IonosphereMode.free
     n_dropped = int((valid & above & ~second).sum()) if free else 0
     if free:
@@ -538,10 +564,8 @@ def prepare_ppp(
 
     n_measured, iono_fits = 0, {}
     if not free and not data.nav.iono_corrected:
-        lat, lon = _rough_lat_lon(sat_pos, code, sigma_scale, el, doy, t, epoch_start, epoch_stop, system_index)
-        iono = atmosphere.klobuchar_l1_delay_m(
-            data.nav.start_sow_s + t, lat, lon, el, az, np.asarray(data.nav.iono_alpha), np.asarray(data.nav.iono_beta)
-        ) * klobuchar_scale(sat)
+        rough = _rough_positions(sat_pos, code, sigma_scale, el, doy, t, epoch_start, epoch_stop, system_index)
+        iono = _klobuchar_delay(data.nav, t, rough, el, az, sat)
         if choice == IonosphereMode.measured:
             pair = _second_frequency(sub)
             gamma = sub["f1_f2_ratio"].to_numpy(float) ** 2
@@ -556,7 +580,9 @@ def prepare_ppp(
                 lost = lost | sub["lli_l2"].fillna(False).to_numpy(bool)
             code_pair = np.where(pair, gf, np.nan)
             levelled, stretch = levelled_phase_delay(code_pair, np.where(pair, phase_pair, np.nan), sat, t, lost)
-            found = measured_ionosphere(iono, code_pair, sat, t, levelled_m=levelled, stretch=stretch)
+            found = measured_ionosphere(
+                iono, code_pair, sat, t, levelled_m=levelled, stretch=stretch, exclude=tuple(sorted(declined))
+            )
             if not found.fits and ionosphere == IonosphereMode.auto:
                 # no system's second frequency measures the delay better than the broadcast model
                 choice = IonosphereMode.broadcast
@@ -604,6 +630,7 @@ def prepare_ppp(
         ionosphere=choice,
         n_ionosphere_measured=n_measured,
         ionosphere_fits=iono_fits,
+        ionosphere_expected_m=expected,
         doy=doy,
         systems=systems,
         system_index=system_index,
@@ -614,6 +641,11 @@ def prepare_ppp(
         variance_factors=factors,
         phase_check=_phase_check_info(checked),
     )
+
+
+def _rounded_pairs(pairs: dict[str, tuple[float, float]]) -> dict[str, list[float]]:
+    """``{key: (a, b)}`` as JSON lists to the millimetre."""
+    return {k: [round(a, 3), round(b, 3)] for k, (a, b) in pairs.items()}
 
 
 def if_combination(first: np.ndarray, second: np.ndarray, gamma: np.ndarray) -> np.ndarray:
@@ -793,8 +825,9 @@ def ionosphere_choice(obs: pd.DataFrame, mode: IonosphereMode, elevation_mask_de
         ``broadcast``: always; ``free`` and ``measured``: always (an error without any second
         frequency); ``auto``: ``free`` when every satellite above the mask has a second frequency on
         at least :data:`AUTO_FREE_MIN_FRACTION` of its rows, ``measured`` when some rows have one,
-        else ``broadcast`` (:func:`prepare_ppp` may still turn ``measured`` into ``broadcast`` when no
-        system's second frequency measures the delay better than the broadcast model).
+        else ``broadcast`` (:func:`prepare_ppp` may still turn ``free`` into ``measured`` and either
+        into ``broadcast`` where a system's pairs are expected to do worse than the broadcast model,
+        :func:`pair_against_broadcast`, or measure the delay less well).
     elevation_mask_deg : float
         Rows at or below this elevation [deg], and rows without a usable code, do not count.
 
@@ -815,6 +848,105 @@ def ionosphere_free(obs: pd.DataFrame, mode: IonosphereMode, elevation_mask_deg:
     program (RTKLIB) and must choose the same way.
     """
     return ionosphere_choice(obs, mode, elevation_mask_deg) == IonosphereMode.free
+
+
+def pair_against_broadcast(
+    data: ReceiverData, rows: np.ndarray, code_sigma_m: float, sigma_model: SigmaModel, cn0_ref_dbhz: float
+) -> dict[str, tuple[float, float]]:
+    """Per system: the position error expected from its code pairs against that from the broadcast model [m].
+
+    A code pair removes the ionosphere but leaves on each satellite's ionosphere-free code, and on the
+    delay it measures, the part of its group-delay difference that no broadcast message gives,
+    ``sat_dcb_sigma / (gamma - 1)`` (:data:`SAT_DCB_SIGMA_COLUMN`; a C/A code against the P(Y) code
+    that GPS's TGD refers to: 0.34 m / 0.647 = 0.53 m per satellite), independent from satellite to
+    satellite. The broadcast (Klobuchar) model leaves about half of the delay
+    (:data:`~simbench.gnss.measured_ionosphere.BROADCAST_RELATIVE_ERROR`), an error with the model's own
+    shape, so that much of it goes into the receiver clock. Both are carried to the position of a
+    weighted single-point fix of every epoch at a rough position
+    (:func:`simbench.gnss.spp.position_gains`): ``sqrt(mean_k sum_r |g_r|^2 s_r^2)`` for the pairs,
+    ``sqrt(mean_k |sum_r g_r K_r / 2|^2)`` for the broadcast model, over the system's rows with a pair.
+
+    Parameters
+    ----------
+    data : ReceiverData
+    rows : ndarray of bool, shape (len(data.observations),)
+        Rows used (a finite code above the mask).
+    code_sigma_m, sigma_model, cn0_ref_dbhz
+        The sigma model (:func:`sigma_factor`), for the weights.
+
+    Returns
+    -------
+    dict
+        ``{system: (pairs, broadcast)}`` for every system with a row with a code pair; empty without
+        :data:`SAT_DCB_SIGMA_COLUMN`, or when the observations have no ionosphere left to remove.
+    """
+    obs = data.observations.loc[rows]
+    if SAT_DCB_SIGMA_COLUMN not in obs.columns or data.nav.iono_corrected or not len(obs):
+        return {}
+    obs = obs.iloc[np.lexsort((obs["sat"].to_numpy(), obs["epoch"].to_numpy()))]
+    epoch_ids, start, n_per = np.unique(obs["epoch"].to_numpy(np.int64), return_index=True, return_counts=True)
+    k = np.repeat(np.arange(len(epoch_ids)), n_per)
+    sat = obs["sat"].to_numpy().astype(str)
+    letters = np.array([s[:1] for s in sat.tolist()])
+    systems, system_index = np.unique(letters, return_inverse=True)
+    el, az = obs["el"].to_numpy(float) * DEG, obs["az"].to_numpy(float) * DEG
+    sat_pos, t = obs[["sat_x", "sat_y", "sat_z"]].to_numpy(float), obs["t"].to_numpy(float)
+    sigma = code_sigma_m * sigma_factor(el, _cn0(obs), sigma_model, cn0_ref_dbhz)
+    code = obs["code_l1"].to_numpy(float) + obs["sat_clock"].to_numpy(float)
+    doy = day_of_year(data.nav.gps_week, data.nav.start_sow_s)
+    rough = _rough_positions(sat_pos, code, sigma, el, doy, t, start, start + n_per, system_index)
+    broadcast = BROADCAST_RELATIVE_ERROR * _klobuchar_delay(data.nav, t, rough, el, az, sat)
+    gains = position_gains(k, sat_pos, rough, sigma, system_index)
+    pair = _second_frequency(obs) & np.isfinite(obs[SAT_DCB_SIGMA_COLUMN].to_numpy(float))
+    bias = obs[SAT_DCB_SIGMA_COLUMN].to_numpy(float) / (obs["f1_f2_ratio"].to_numpy(float) ** 2 - 1.0)
+    out = {}
+    for s, letter in enumerate(systems.tolist()):
+        mine = pair & (system_index == s) & np.isfinite(gains).all(axis=1)
+        if not mine.any():
+            continue
+        spread = np.bincount(k[mine], (gains[mine] ** 2).sum(axis=1) * bias[mine] ** 2, len(epoch_ids))
+        shift = np.stack([np.bincount(k[mine], gains[mine, i] * broadcast[mine], len(epoch_ids)) for i in range(3)])
+        epochs = np.bincount(k[mine], minlength=len(epoch_ids)) > 0
+        out[letter] = (
+            float(np.sqrt(np.mean(spread[epochs]))),
+            float(np.sqrt(np.mean((shift[:, epochs] ** 2).sum(axis=0)))),
+        )
+    return out
+
+
+def _without_declined(
+    choice: IonosphereMode, expected: dict[str, tuple[float, float]], declined: set[str], origin: int
+) -> IonosphereMode:
+    """``auto``'s choice once the systems whose pairs are expected to do worse than the broadcast model keep it:
+    ``broadcast`` when that is every system with pairs, ``measured`` (which keeps the broadcast delay per
+    system) when it is some, the choice as it was when none; said in one warning line."""
+    if not declined:
+        return choice
+    numbers = ", ".join(f"{s} {expected[s][0]:.2f} m against {expected[s][1]:.2f} m" for s in sorted(declined))
+    if declined >= set(expected):
+        choice = IonosphereMode.broadcast
+        consequence = "every system uses its first frequency with the broadcast delay"
+    else:
+        choice = IonosphereMode.measured
+        consequence = f"{', '.join(sorted(declined))} keep the broadcast delay; the other systems measure it"
+    _warn_once(
+        f"{origin}:ionosphere:{numbers}",
+        "gnss_model.ionosphere",
+        "auto: the code pairs' unbroadcast group delays are expected to move the position more than the "
+        f"broadcast model's error does ({numbers})",
+        consequence,
+    )
+    return choice
+
+
+def _klobuchar_delay(
+    nav: NavInfo, t: np.ndarray, rx_pos: np.ndarray, el: np.ndarray, az: np.ndarray, sat: np.ndarray
+) -> np.ndarray:
+    """Broadcast (Klobuchar) slant delay on each row's first carrier [m] at receiver positions ``rx_pos``."""
+    lat, lon, _ = geodetic_from_ecef(rx_pos)
+    return atmosphere.klobuchar_l1_delay_m(
+        nav.start_sow_s + t, lat, lon, el, az, np.asarray(nav.iono_alpha), np.asarray(nav.iono_beta)
+    ) * klobuchar_scale(sat)
 
 
 def _second_frequency(obs: pd.DataFrame) -> np.ndarray:
@@ -990,7 +1122,7 @@ def _odometry_per_epoch(odo: pd.DataFrame, epoch_t: np.ndarray) -> np.ndarray:
     return out
 
 
-def _rough_lat_lon(
+def _rough_positions(
     sat_pos: np.ndarray,
     code: np.ndarray,
     sigma: np.ndarray,
@@ -1000,8 +1132,8 @@ def _rough_lat_lon(
     start: np.ndarray,
     stop: np.ndarray,
     system_index: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Receiver latitude/longitude per row for the Klobuchar pierce points.
+) -> np.ndarray:
+    """Receiver ECEF position per row [m], shape (N, 3), for the Klobuchar pierce points and the geometry.
 
     Single point solutions every ~60 s (each epoch takes the latest one before
     it, the first one before that); the Klobuchar delay changes by far less
@@ -1044,7 +1176,5 @@ def _rough_lat_lon(
         except SimbenchError:
             if solve_at is candidates:
                 raise
-    lats, lons, _ = geodetic_from_ecef(sol.pos)
     which = np.maximum(np.searchsorted(solve_at, np.arange(n), side="right") - 1, 0)
-    per_row = np.repeat(which, stop - start)
-    return lats[per_row], lons[per_row]
+    return sol.pos[np.repeat(which, stop - start)]

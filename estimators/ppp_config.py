@@ -75,7 +75,9 @@ class IonosphereMode(Choice):
 
     #: ``free`` when every tracked satellite has a second frequency (decided on the data by
     #: :func:`~estimators.measurement.prepare_ppp`), ``measured`` when some have and their code pairs
-    #: measure the delay better than the broadcast model does, else ``broadcast``
+    #: measure the delay better than the broadcast model does, else ``broadcast``; a system whose code
+    #: pairs' unbroadcast group delays are expected to cost the position more than the broadcast
+    #: model's error keeps the broadcast delay (:func:`~estimators.measurement.pair_against_broadcast`)
     auto = "auto"
     #: first frequency only, the broadcast Klobuchar delay removed (scaled to the row's carrier)
     broadcast = "broadcast"
@@ -178,8 +180,9 @@ class GnssModelConfig:
     outlier_scale: float = 10.0
     #: ionosphere-free combination where every tracked satellite has a second frequency; L1 with
     #: the delay its second frequency measures where only some have (a u-blox F9P sees no L2 on
-    #: the GPS IIR satellites); else L1 with the broadcast Klobuchar delay; ``free``,
-    #: ``measured`` or ``broadcast`` force one
+    #: the GPS IIR satellites); else L1 with the broadcast Klobuchar delay; and per system the
+    #: broadcast delay where its pairs' unbroadcast group delays (a C/A code against the P(Y) code that
+    #: TGD refers to, L2C, L5) are expected to cost more; ``free``, ``measured`` or ``broadcast`` force one
     ionosphere: IonosphereMode = IonosphereMode.auto
     #: code variance factors estimated from the log, relative between the GNSS systems, so that
     #: sigmas calibrated on one receiver carry over to another's systems (a no-op on one system).

@@ -70,6 +70,10 @@ OPTIONAL_OBSERVATION_COLUMNS: dict[str, str] = {
     "BeiDou B1I/B3I -c TGD1, B1I/B2I c (TGD2 - TGD1), gamma = f1_f2_ratio^2); the ionosphere-free clock is "
     "sat_clock + sat_dcb / (gamma - 1). NaN where nothing is broadcast (GLONASS, GPS/QZSS L5) or without a second "
     "frequency",
+    "sat_dcb_sigma": "m, stated RMS of what sat_dcb misses of the row's two codes' group-delay difference: the "
+    "inter-signal biases no broadcast message of the file gives (GPS/QZSS C/A against the P(Y) code TGD refers "
+    "to, L2C against P2, L5), 0 where the message gives the pair's (Galileo BGD, BeiDou TGD, GPS P1/P2); NaN "
+    "where nothing is stated (GLONASS) or without a second frequency",
 }
 
 #: IMU table, one row per IMU sample; body axes x forward, y right, z down.

@@ -61,7 +61,8 @@ def table_value(obs: pd.DataFrame, sat: str) -> float:
 
 def test_sat_dcb_is_the_hand_formula_of_each_systems_nav_record(nagoya: Scenario, nagoya_dir: Path) -> None:
     nav, obs = nagoya_dir / "base.nav", nagoya.observations
-    assert "sat_dcb" in OPTIONAL_OBSERVATION_COLUMNS and list(obs.columns)[-1] == "sat_dcb"
+    assert list(OPTIONAL_OBSERVATION_COLUMNS) == ["sat_dcb", "sat_dcb_sigma"]
+    assert list(obs.columns)[-2:] == list(OPTIONAL_OBSERVATION_COLUMNS)
     tgd = one_value([f[2] for f in record_fields(nav, "G13", BGD_LINE)])
     gamma = (F_L1 / F_L2) ** 2
     assert table_value(obs, "G13") == pytest.approx((gamma - 1.0) * C_LIGHT * tgd, abs=1e-6)

@@ -12,7 +12,7 @@ from simbench.core.gpstime import day_of_year
 from simbench.core.orbits import NominalConstellation
 from simbench.errors import SimbenchError
 from simbench.gnss.geometry import sagnac_range, sagnac_range_gradient
-from simbench.gnss.spp import solve_epochs
+from simbench.gnss.spp import position_gains, solve_epochs
 from simbench.sim.geometry import line_of_sight
 
 LAT, LON, H = 39.6295, -79.9559, 290.0  # deg, deg, m
@@ -142,3 +142,24 @@ def test_huber_reweighting_and_redundancy_numbers() -> None:
     assert np.allclose(
         plain.residual_m, code - sagnac_range(g["sat_pos"], plain.pos[g["epoch"]]) - plain.clock_m[g["epoch"], 0]
     )
+
+
+def test_position_gains_are_how_range_errors_move_the_fix() -> None:
+    """Small range errors move the weighted two-system fix by sum_r g_r d_r (to 1e-6 m); an error common to
+    one system's rows moves it by nothing (its clock takes it)."""
+    g = _epochs(30)
+    rng = np.random.default_rng(2)
+    system = (g["sat_j"] % 2).astype(np.int64)
+    sigma = rng.uniform(0.5, 3.0, len(system))
+    code = sagnac_range(g["sat_pos"], g["rx"][g["epoch"]]) + 100.0 + 40.0 * system
+    error = rng.normal(0.0, 0.5, len(system))
+    fit = {"sigma": sigma, "system_index": system, "x0": g["rx"][0]}
+    moved = (
+        solve_epochs(g["epoch"], g["sat_pos"], code + error, **fit).pos
+        - solve_epochs(g["epoch"], g["sat_pos"], code, **fit).pos
+    )
+    gains = position_gains(g["epoch"], g["sat_pos"], g["rx"][g["epoch"]], sigma, system)
+    predicted = np.stack([np.bincount(g["epoch"], gains[:, i] * error, 30) for i in range(3)], axis=1)
+    assert np.abs(moved - predicted).max() < 1e-6 and np.abs(moved).max() > 0.1
+    common = np.stack([np.bincount(g["epoch"], gains[:, i] * (system == 1), 30) for i in range(3)], axis=1)
+    assert np.abs(common).max() < 1e-9

@@ -95,6 +95,9 @@ __all__ = [
     "first_signals",
     "second_frequency",
     "second_group_delays",
+    "second_group_delay_sigmas",
+    "CIVIL_CODE_BIAS_RMS_M",
+    "INTER_FREQUENCY_BIAS_RMS_M",
     "served_rows",
     "SIGNALS",
     "SECOND_SIGNALS",
@@ -933,6 +936,51 @@ def second_group_delays(
     return out
 
 
+#: Stated RMS of a GPS C/A code's group delay against the P(Y) code's, which the LNAV TGD and clock refer to
+#: (the inter-signal correction ISC_L1CA is in CNAV only) [m]: CODE's monthly P1-C1 differential code biases
+#: of December 2018 (``../shared/data/wvu_drives/p1c1_12.DCB``), 32 satellites, RMS 1.14 ns. L2C against P2
+#: (ISC_L2C, CNAV only) is taken to be of the same order.
+CIVIL_CODE_BIAS_RMS_M = 0.34
+#: Stated RMS of a GPS/QZSS L5 code's group delay relative to L1, which LNAV does not give (ISC_L5 is in CNAV
+#: only) [m]: the size of the L1-L2 ones it does give, CODE's P1-P2 differential code biases of December 2018
+#: (``../shared/data/wvu_drives/p1p2_12.DCB``), 32 satellites, RMS 5.37 ns.
+INTER_FREQUENCY_BIAS_RMS_M = 1.61
+
+
+def second_group_delay_sigmas(sat: np.ndarray, signal_l1: np.ndarray, signal_l2: np.ndarray) -> np.ndarray:
+    """``sat_dcb_sigma`` of each row: the stated RMS of what :func:`second_group_delays` misses [m].
+
+    * GPS and QZSS: TGD is the P(Y) codes' (P1, P2); a C/A first code (``1C``) adds
+      :data:`CIVIL_CODE_BIAS_RMS_M`, an L2C second code (``2L``, ``2S``, ``2X``) as much again (in
+      quadrature); an L5 second code, whose group delay LNAV does not give, :data:`INTER_FREQUENCY_BIAS_RMS_M`;
+    * Galileo (BGD) and BeiDou (TGD1, TGD2): 0, the message gives the pair's;
+    * GLONASS: NaN, nothing stated (its L1-L2 satellite delays are not in RINEX 3 navigation, and the
+      receiver's own differ per FDMA channel; no source here gives their size);
+    * rows without a second signal: NaN.
+
+    Parameters
+    ----------
+    sat : np.ndarray of str, shape (N,)
+        Satellite id of each row.
+    signal_l1, signal_l2 : np.ndarray of str, shape (N,)
+        RINEX code of each row's first and second signal (``'1C'``, ``'2W'``); ``''`` without a second one.
+
+    Returns
+    -------
+    np.ndarray, shape (N,)
+        ``sat_dcb_sigma`` [m].
+    """
+    letters = sat.astype("<U1")
+    gps_like = np.isin(letters, ["G", "J"])
+    civil_first = gps_like & (signal_l1 == "1C")
+    civil_second = gps_like & np.isin(signal_l2, ["2L", "2S", "2X"])
+    l5 = gps_like & (signal_l2.astype("<U1") == "5")
+    out = np.sqrt(
+        CIVIL_CODE_BIAS_RMS_M**2 * (civil_first.astype(float) + civil_second) + INTER_FREQUENCY_BIAS_RMS_M**2 * l5
+    )
+    return np.where((signal_l2 != "") & (letters != "R"), out, np.nan)
+
+
 def satellite_states(obs: RinexObs, ephs: dict[str, Ephemeris], served: np.ndarray) -> dict[str, np.ndarray]:
     """Satellite state at transmit time of each ``served`` row (:func:`served_rows`); NaN elsewhere.
 
@@ -1153,6 +1201,10 @@ def rinex_scenario(
         # observation_table sorted the rows: align by (epoch, satellite), unique per row
         by_row = pd.Series(dcb, index=pd.MultiIndex.from_arrays([grid.index[re], obs.sat[keep]]))
         observations["sat_dcb"] = by_row.reindex(pd.MultiIndex.from_frame(observations[["epoch", "sat"]])).to_numpy()
+        first = np.array([obs.signals[s] for s in letters.tolist()])
+        sigma = second_group_delay_sigmas(obs.sat[keep], first, np.where(has_l2, signal_l2, ""))
+        rows = pd.MultiIndex.from_frame(observations[["epoch", "sat"]])
+        observations["sat_dcb_sigma"] = pd.Series(sigma, index=by_row.index).reindex(rows).to_numpy()
 
     t0_gps = float(obs.epoch_t_int[0]) + obs.epoch_t_frac[0]
     week_hint = int(obs.epoch_t_int[0] // SECONDS_PER_WEEK)

@@ -198,6 +198,7 @@ def measured_ionosphere(
     window_s: float = MEDIAN_WINDOW_S,
     levelled_m: np.ndarray | None = None,
     stretch: np.ndarray | None = None,
+    exclude: tuple[str, ...] = (),
 ) -> MeasuredIonosphere:
     """Each row's slant delay: measured where its second frequency gives one, else the fitted broadcast model.
 
@@ -217,6 +218,9 @@ def measured_ionosphere(
         :func:`levelled_phase_delay` of each row [m]; taken where finite, the running median elsewhere.
     stretch : ndarray of int, shape (N,), optional
         Its stretch ids (-1: none); a levelled delay is as good as its stretch is long.
+    exclude : tuple of str
+        System letters that keep the broadcast delay on every row whatever their pairs measure (their
+        pairs' biases are expected to cost more than the broadcast model's error).
 
     Returns
     -------
@@ -246,7 +250,7 @@ def measured_ionosphere(
     for letter in np.unique(system).tolist():
         rows = system == letter
         have = rows & measured
-        if have.sum() < MIN_FIT_ROWS or np.unique(sat[have]).size < MIN_FIT_SATELLITES:
+        if letter in exclude or have.sum() < MIN_FIT_ROWS or np.unique(sat[have]).size < MIN_FIT_SATELLITES:
             continue
         # written so that an unknown (NaN) scatter fails too
         if not np.median(sigma[have]) <= np.median(BROADCAST_RELATIVE_ERROR * np.abs(broadcast_m[rows])):

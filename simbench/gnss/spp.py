@@ -27,7 +27,7 @@ from simbench.gnss.geometry import sagnac_range_gradient
 from simbench.gnss.normal_equations import pinv_solve, pinv_stack
 from simbench.gnss.troposphere import troposphere_terms
 
-__all__ = ["SppSolution", "solve_epochs", "system_clock_offsets", "ROUGH_FIX_MAX_RMS_M"]
+__all__ = ["SppSolution", "position_gains", "solve_epochs", "system_clock_offsets", "ROUGH_FIX_MAX_RMS_M"]
 
 #: Trust limit of the post-fit RMS for rough positions from raw logs (elevation, azimuth) [m]:
 #: generous, since street-canyon NLOS leaves tens of metres, but a wrong ephemeris leaves kilometres.
@@ -260,6 +260,55 @@ def solve_epochs(
         refit = np.divide(total, count, out=np.zeros_like(total), where=count > 0)
         clock[bad] = refit[bad]
     return SppSolution(pos=pos, clock_m=clock, trusted=trusted, rms_m=rms, n_rows=n_rows, **per_row)
+
+
+def position_gains(
+    epoch: np.ndarray,
+    sat_pos: np.ndarray,
+    rx_pos: np.ndarray,
+    sigma: np.ndarray,
+    system_index: np.ndarray,
+) -> np.ndarray:
+    """How a range error of each row moves its epoch's weighted single-point position [m/m].
+
+    Row ``r`` of epoch ``k`` gets ``g_r``, the position columns of ``N_k^+ a_r / sigma_r^2`` with
+    ``a_r`` the row's partials (line of sight with the Sagnac term, a one in its system's clock
+    column) and ``N_k`` the epoch's normal matrix, so range errors ``d`` move the epoch's fix by
+    ``sum_r g_r d_r``; an error common to the rows of one system moves it by nothing (that
+    system's clock takes it).
+
+    Parameters
+    ----------
+    epoch : np.ndarray of int, shape (N,)
+        Epoch index of each row.
+    sat_pos, rx_pos : np.ndarray, shape (N, 3)
+        Satellite position and the receiver position (linearisation point) of each row [m].
+    sigma : np.ndarray, shape (N,)
+        Code standard deviations [m].
+    system_index : np.ndarray of int, shape (N,)
+        System of each row, 0..n_systems-1 (one clock each).
+
+    Returns
+    -------
+    np.ndarray, shape (N, 3)
+        ECEF gains; NaN rows where an input is not finite.
+    """
+    epoch = np.asarray(epoch, np.int64)
+    sys_idx = np.asarray(system_index, np.int64)
+    w = 1.0 / np.asarray(sigma, float) ** 2
+    ok = np.isfinite(sat_pos).all(axis=1) & np.isfinite(rx_pos).all(axis=1) & np.isfinite(w)
+    rows = np.flatnonzero(ok)
+    rows = rows[np.argsort(epoch[rows], kind="stable")]
+    out = np.full((len(epoch), 3), np.nan)
+    if not rows.size:
+        return out
+    _, starts, counts = np.unique(epoch[rows], return_index=True, return_counts=True)
+    A = np.zeros((rows.size, 3 + int(sys_idx.max(initial=0)) + 1))
+    A[:, :3] = sagnac_range_gradient(sat_pos[rows], rx_pos[rows])[1]
+    A[np.arange(rows.size), 3 + sys_idx[rows]] = 1.0
+    n_inv = pinv_stack(_normal_matrices(A, w[rows], starts))
+    out[rows] = np.einsum("rij,rj->ri", n_inv[np.repeat(np.arange(starts.size), counts)][:, :3, :], A) * w[rows, None]
+    return out
 
 
 def system_clock_offsets(sol: SppSolution, epoch: np.ndarray, system_index: np.ndarray) -> np.ndarray:
