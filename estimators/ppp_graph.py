@@ -909,7 +909,7 @@ def wet_delay_choice(obs: PppObservations, cfg: MotionModelConfig) -> WetDelayCh
     wet delay at the first fix; else the state took up an elevation-dependent error, not the
     atmosphere, and the wet delay is modelled (``model``), with a one-line warning. The decision of
     one set of observations and model is cached, so every estimator of a job that shares them
-    solves once.
+    solves once, and the warning is said once (not once per estimator: 11 lines in the smoke sweep).
 
     Parameters
     ----------
@@ -929,11 +929,11 @@ def wet_delay_choice(obs: PppObservations, cfg: MotionModelConfig) -> WetDelayCh
     key = content_digest(
         obs.epoch, obs.sat_pos, obs.code, obs.phase, obs.sigma_code, obs.sigma_phase, obs.arc, obs.el
     ) + repr(sorted(asdict(model).items()))
-    if key not in _WET_DELAY_CACHE:
-        if len(_WET_DELAY_CACHE) >= _WET_DELAY_CACHE_SIZE:
-            del _WET_DELAY_CACHE[next(iter(_WET_DELAY_CACHE))]
-        _WET_DELAY_CACHE[key] = _decide_wet_delay(obs, model)
-    choice = _WET_DELAY_CACHE[key]
+    if key in _WET_DELAY_CACHE:  # decided, and said, for an earlier estimator of the job
+        return _WET_DELAY_CACHE[key]
+    if len(_WET_DELAY_CACHE) >= _WET_DELAY_CACHE_SIZE:
+        del _WET_DELAY_CACHE[next(iter(_WET_DELAY_CACHE))]
+    choice = _WET_DELAY_CACHE[key] = _decide_wet_delay(obs, model)
     if choice.mode == WetDelayMode.model:
         bound = WET_DELAY_GATE_SIGMAS * WET_DELAY_CLIMATOLOGY_SIGMA_M
         warn(
