@@ -101,6 +101,15 @@ class Source(ABC):
         """
         return cfg.scenario.name
 
+    def input_files(self, cfg: DataConfig) -> dict[str, tuple[str, ...]]:
+        """The files :meth:`load` reads, by the setting that names them (after :meth:`check`).
+
+        Their content enters the scenario's cache key (:func:`simbench.runs.scenarios.scenario_key`),
+        so a file edited in place, or a relative path naming another file from another folder, is
+        read again. The default: none (a source that reads files lists them).
+        """
+        return {}
+
     @abstractmethod
     def load(self, cfg: DataConfig) -> Scenario:
         """The scenario ``cfg.scenario`` describes (after :meth:`check`).

@@ -102,6 +102,11 @@ class RinexSource(Source):
         s = scenario_config(cfg, RinexConfig)
         return s.name or Path(s.obs).stem
 
+    def input_files(self, cfg: DataConfig) -> dict[str, tuple[str, ...]]:
+        s = scenario_config(cfg, RinexConfig)
+        files = {f"scenario.{key}": nav_paths(getattr(s, key)) for key in dict.fromkeys(NAV_SETTINGS.values())}
+        return {"scenario.obs": (s.obs,), **files, "scenario.truth": () if is_point(s.truth) else (s.truth,)}
+
     def load(self, cfg: DataConfig) -> Scenario:
         s = scenario_config(cfg, RinexConfig)
         return load_rinex(
@@ -151,6 +156,10 @@ class LibrsfSource(Source):
         require_file("scenario.obs", s.obs)
         if s.truth:
             require_file("scenario.truth", s.truth)
+
+    def input_files(self, cfg: DataConfig) -> dict[str, tuple[str, ...]]:
+        s = scenario_config(cfg, LibrsfConfig)
+        return {"scenario.obs": (s.obs,), "scenario.truth": (s.truth,) if s.truth else ()}
 
     def load(self, cfg: DataConfig) -> Scenario:
         s = scenario_config(cfg, LibrsfConfig)

@@ -8,6 +8,7 @@ up by name, so the CLI and the sweep cache need not know any of them.
 from __future__ import annotations
 
 import dataclasses
+import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -17,6 +18,7 @@ from omegaconf import DictConfig, OmegaConf
 from simbench import source as sources
 from simbench.contract import Scenario
 from simbench.errors import SimbenchError
+from simbench.paths import file_digest
 from simbench.runs.compose import compose_config, overrides_from_kwargs
 from simbench.runs.provenance import code_identity
 from simbench.runs.store import config_key
@@ -76,9 +78,18 @@ def sim_config(cfg: Mapping[str, Any]) -> SimConfig:
 
 def scenario_key(cfg: ScenarioSettings) -> str:
     """The cache key of the scenario ``cfg`` describes (:func:`simbench.runs.store.config_key`): its
-    settings and the code identity of its source (:func:`source_code`), so a scenario is generated
-    or read again once that code changes."""
-    return config_key({**dataclasses.asdict(cfg), "code": source_code(cfg.scenario.source)})
+    settings, the code identity of its source (:func:`source_code`) and the content of every file the
+    source reads (:func:`input_digests`), so a scenario is generated or read again once that code or
+    an input file changes (a truth file edited in place; a relative path naming another file)."""
+    code = source_code(cfg.scenario.source)
+    return config_key({**dataclasses.asdict(cfg), "code": code, "inputs": input_digests(cfg)})
+
+
+def input_digests(cfg: DataConfig) -> dict[str, list[str]]:
+    """The content digest (:func:`simbench.paths.file_digest`) of each file the source of ``cfg`` reads, by
+    setting; a file that does not exist (yet) is ``'missing'``, left to the source's own check."""
+    files = sources.get(cfg.scenario.source)().input_files(cfg)
+    return {key: [file_digest(p) if os.path.isfile(p) else "missing" for p in paths] for key, paths in files.items()}
 
 
 def source_code(name: str) -> str:
