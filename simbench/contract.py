@@ -276,11 +276,12 @@ class Scenario:
 
     # ------------------------------------------------------------------ Parquet I/O
 
-    def save(self, directory: str | Path) -> Path:
+    def save(self, directory: str | Path, key: str = "") -> Path:
         """Write the five tables as Parquet files into ``directory`` (atomic per file).
 
         The nav info and ``meta`` go into each file's key-value metadata under
-        ``simbench.scenario``; :data:`MANIFEST` names the sha256 of each table.
+        ``simbench.scenario``; :data:`MANIFEST` names the sha256 of each table and, when given,
+        the cache ``key`` the folder is saved under (:data:`MANIFEST_KEY`), so a moved folder is told.
         """
         out = Path(directory)
         out.mkdir(parents=True, exist_ok=True)
@@ -295,7 +296,7 @@ class Scenario:
                 write_parquet(table, out / f"{name}.parquet", {"simbench.scenario": meta})
         # written last, so a folder with a manifest is complete; readers check its tables against it
         tables = {p.name: file_sha256(p) for p in sorted(out.glob("*.parquet"))}
-        write_bytes(out / MANIFEST, json.dumps(tables).encode())
+        write_bytes(out / MANIFEST, json.dumps(({MANIFEST_KEY: key} if key else {}) | tables).encode())
         return out
 
     @classmethod
@@ -429,6 +430,8 @@ def temporary_name(path: Path) -> Path:
 
 #: The file of a saved scenario (:meth:`Scenario.save`) naming the sha256 of each of its tables.
 MANIFEST = "manifest.json"
+#: The manifest's entry naming the cache key its folder was saved under (not a file).
+MANIFEST_KEY = "scenario_key"
 
 
 def file_sha256(path: Path) -> str:

@@ -45,6 +45,7 @@ import pyarrow.parquet as pq
 
 from simbench.contract import (
     MANIFEST,
+    MANIFEST_KEY,
     METADATA_SHA256,
     Scenario,
     decode_metadata,
@@ -269,6 +270,9 @@ def cache_problem(directory: Path) -> str:
         return f"{manifest}: cannot be read ({one_line(exc)})"
     if not isinstance(recorded, dict) or "observations.parquet" not in recorded:
         return f"{manifest}: names no observations.parquet"
+    saved_as = recorded.pop(MANIFEST_KEY, directory.name)
+    if saved_as != directory.name:
+        return f"{manifest}: holds scenario {saved_as}, not {directory.name} (a cache folder moved or swapped)"
     for name, digest in recorded.items():
         path = directory / name
         if not path.is_file():
@@ -303,7 +307,7 @@ def cached_scenario(run_dir: Path, key: str, build: Callable[[], Scenario]) -> S
     scenario = build()
     target.parent.mkdir(parents=True, exist_ok=True)
     tmp = temporary_name(target)  # not tempfile.mkdtemp: the cache folder gets the run's usual permissions
-    scenario.save(tmp)
+    scenario.save(tmp, key=key)
     if target.is_dir() and cache_problem(target):  # still damaged (no other job rebuilt it): set it aside
         trash = temporary_name(target)
         try:
