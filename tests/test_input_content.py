@@ -13,7 +13,9 @@ import pytest
 from test_rinex_wild import NG_NAV, NG_OBS, cut
 
 import simbench
+from simbench.contract import read_parquet_metadata
 from simbench.errors import SimbenchWarning
+from simbench.paths import file_digest
 from simbench.runs.compose import compose_config
 from simbench.runs.scenarios import scenario_key, scenario_settings
 from simbench.runs.store import cache_problem, cached_scenario
@@ -38,8 +40,12 @@ def test_a_file_edited_in_place_changes_the_key_and_the_result(tmp_path: Path) -
     key = key_of({"scenario": "rinex", **overrides})
     truth.write_text(NORTH)  # the same path, another point
     moved = simbench.run(overrides=overrides, **run).summary["horizontal_median"].iloc[0]
-    assert key_of({"scenario": "rinex", **overrides}) != key
+    new_key = key_of({"scenario": "rinex", **overrides})
+    assert new_key != key
     assert first < 5.0 and abs(moved - first) > 100.0  # scored against the new point, not the cached one
+    stored = next((tmp_path / "run" / "jobs" / new_key).glob("wls_spp-*.summary.parquet"))
+    inputs = read_parquet_metadata(stored)["simbench.inputs"]  # the provenance names what was read
+    assert inputs["scenario.truth"] == [file_digest(str(truth))] and len(inputs["scenario.obs"]) == 1
     # each input kind: observations and navigation edited in place change the key too
     for path in (obs, Path(NG_NAV)):
         edited = tmp_path / f"edited_{path.name}"

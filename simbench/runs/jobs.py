@@ -26,7 +26,7 @@ from simbench.errors import SimbenchError, one_line
 from simbench.runs.compose import preset_estimator_config
 from simbench.runs.provenance import code_identity, provenance
 from simbench.runs.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS, run_estimators
-from simbench.runs.scenarios import check_scenario, scenario_key, scenario_settings, source_code
+from simbench.runs.scenarios import check_scenario, input_digests, scenario_key, scenario_settings, source_code
 from simbench.runs.store import (
     adopt_cache,
     adopt_result,
@@ -114,6 +114,7 @@ def _run_job(cfg: DictConfig, opts: RunOptions, *, fail_fast: bool, bar: tqdm) -
         adopt_cache(root, key, shared)
     bar.update(len(estimator_cfgs) - len(pending))  # found in the store: done
     meta = provenance(cast(dict[str, Any], OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)))
+    meta["simbench.inputs"] = input_digests(sim)  # the content of each file read (also in the scenario key)
     # a damaged cached scenario is rebuilt even when every result is finished: later jobs and the report read it
     # a receiver preset describes simulated data only; a log's receiver is in its own files
     receiver = sim.receiver.name if sim.scenario.source == SIMULATED else ""
