@@ -102,6 +102,11 @@ CASES: list[tuple[list[str], str, str]] = [
     (["estimator=[l2,nosuch]"], "estimator", "unknown estimator 'nosuch'"),
     (["estimator=nosuch"], "estimator", "unknown estimator 'nosuch'"),
     (["scenario=mars"], "scenario", "unknown scenario 'mars'"),
+    # run options (before: numpy's message or an OverflowError after the estimators ran, after the bar started)
+    (["seed=-1"], "seed", "0 .. 2**63-1"),
+    (["seed=99999999999999999999"], "seed", "0 .. 2**63-1"),
+    (["seed=1.5"], "seed", "0 .. 2**63-1"),
+    (["progress=maybe"], "progress", "true or false"),
     # results_dir
     (["results_dir="], "results_dir", "is empty"),
     (["results_dir=/proc/simbench_run"], "results_dir", "cannot write"),

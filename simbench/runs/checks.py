@@ -45,11 +45,15 @@ def check_run(cfg: DictConfig) -> None:
     SimbenchError
         Naming the field: ``results_dir`` (:func:`check_results_dir`), ``estimator`` (none
         selected), a scenario, receiver or IMU field (the source's check), a key a ``+``
-        override added that the typed schema lacks, ``estimator.<name>.<field>``, or
-        ``report.formats`` (:func:`check_report_formats`).
+        override added that the typed schema lacks, ``estimator.<name>.<field>``,
+        ``report.formats`` (:func:`check_report_formats`), ``seed`` (:func:`check_seed`) or ``progress``.
     """
     check_results_dir(str(cfg.results_dir))
     check_report_formats(OmegaConf.select(cfg, "report.formats", default=None))
+    check_seed(OmegaConf.select(cfg, "seed", default=0))
+    progress = OmegaConf.select(cfg, "progress", default=True)
+    if not isinstance(progress, bool):
+        raise SimbenchError("progress", f"'{progress}' is not true or false", "use progress=true or progress=false")
     selected = list(cfg.get("estimator") or {})  # estimator=[] composes to no node at all
     if not selected:
         raise SimbenchError(
@@ -61,6 +65,21 @@ def check_run(cfg: DictConfig) -> None:
         # resolved here: the node's gnss_model fields are interpolations into the root config
         node = cast(dict[str, Any], OmegaConf.to_container(cfg.estimator[name], resolve=True) or {})
         validate_config(to_typed(node, estimators.get(name).Config, where), where)
+
+
+#: Seeds are stored as int64 in the result tables (and numpy's generators take any non-negative integer).
+MAX_SEED = 2**63 - 1
+
+
+def check_seed(seed: Any) -> None:
+    """Raise a one-line :class:`SimbenchError` unless ``seed`` is an integer in ``0 .. MAX_SEED``.
+
+    Checked at the door: a negative seed failed in numpy's generator and a huge one overflowed the
+    result table, both after the progress bar started (the second after the estimators ran).
+    """
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
+        fix = "give a non-negative seed, e.g. seed=0 or -m seed=range(5)"
+        raise SimbenchError("seed", f"{seed!r} is not an integer in 0 .. 2**63-1", fix)
 
 
 def check_report_formats(formats: Sequence[str] | str | None) -> None:
