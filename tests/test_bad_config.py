@@ -37,6 +37,9 @@ CASES: list[tuple[list[str], str, str]] = [
     (["scenario.rate_hz=1e6"], "scenario.duration_s", "GB"),
     (["scenario.duration_s=abc"], "scenario.duration_s", ""),
     (["scenario.rate_hz=0"], "scenario.rate_hz", "positive"),
+    # one epoch or none failed with an IndexError in the troposphere model after the bar started
+    (["scenario.duration_s=1"], "scenario.duration_s", "gives 1 epoch(s), fewer than 2"),
+    (["scenario.rate_hz=0.001"], "scenario.duration_s", "gives 0 epoch(s), fewer than 2"),
     (["scenario.constellation.elevation_mask_deg=-30"], "scenario.constellation.elevation_mask_deg", "[0, 90)"),
     (["scenario.constellation.elevation_mask_deg=90"], "scenario.constellation.elevation_mask_deg", "[0, 90)"),
     (["scenario.trajectory.kind=boat"], "scenario.trajectory.kind", ""),

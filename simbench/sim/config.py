@@ -472,6 +472,10 @@ class SimConfig:
     seed: int = 0
 
 
+#: The fewest GNSS epochs a simulated scenario can have (one epoch failed deep in the atmosphere model).
+MIN_EPOCHS = 2
+
+
 def validate_sim(cfg: SimConfig) -> SimConfig:
     """Check what the types cannot: value ranges, and the files a trajectory or constellation kind needs."""
     check_choices(cfg)
@@ -495,6 +499,13 @@ def validate_sim(cfg: SimConfig) -> SimConfig:
     )
     cfg.imu.validate("imu")
     check_memory(cfg)
+    epochs = round(s.duration_s * s.rate_hz)  # the trajectory's samples (finite: check_memory bounds it)
+    if epochs < MIN_EPOCHS:
+        raise SimbenchError(
+            "scenario.duration_s",
+            f"{s.duration_s:g} s at {s.rate_hz:g} Hz gives {epochs} epoch(s), fewer than {MIN_EPOCHS}",
+            "lengthen scenario.duration_s or raise scenario.rate_hz, e.g. scenario.duration_s=60",
+        )
     if s.trajectory.kind == TrajectoryKind.replay:
         if not s.trajectory.replay.path:
             raise SimbenchError(
