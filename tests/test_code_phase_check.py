@@ -10,9 +10,7 @@ the rules; cuts of the Nagoya log (``../shared``) for a real receiver.
 from __future__ import annotations
 
 import dataclasses
-import importlib.util
 import re
-import sys
 import warnings
 from pathlib import Path
 
@@ -20,6 +18,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from omegaconf import OmegaConf
+from test_rinex_wild import NG_NAV, NG_OBS, NG_POINT, cut
 
 from estimators.measurement import prepare_ppp
 from estimators.ppp_config import StochasticModelConfig
@@ -29,14 +28,6 @@ from simbench.errors import SimbenchWarning
 from simbench.gnss.arcs import CODE_PHASE_MAX_RATE_MPS, check_code_phase
 from simbench.runs.compose import compose_config
 from simbench.runs.runner import run_estimators
-
-# the RINEX cutter lives with the reader's wild-input tests
-if "test_rinex_wild" not in sys.modules:
-    _spec = importlib.util.spec_from_file_location("test_rinex_wild", Path(__file__).with_name("test_rinex_wild.py"))
-    _mod = importlib.util.module_from_spec(_spec)
-    sys.modules["test_rinex_wild"] = _mod
-    _spec.loader.exec_module(_mod)
-from test_rinex_wild import NG_NAV, NG_OBS, NG_POINT, cut
 
 #: A phone's code-minus-phase drift (the held-out log's) [m/s], and a slow one twice the bound.
 PHONE_MPS = 151.0

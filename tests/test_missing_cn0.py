@@ -10,8 +10,6 @@ GNSS/INS estimators, which a GNSS-only log skips.
 from __future__ import annotations
 
 import dataclasses
-import importlib.util
-import sys
 import warnings
 from collections.abc import Callable
 from pathlib import Path
@@ -19,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from omegaconf import OmegaConf
+from test_rinex_wild import NG_NAV, NG_OBS, NG_POINT, cut
 
 import estimators
 import simbench
@@ -27,14 +26,6 @@ from simbench.data.rinex import load_rinex
 from simbench.errors import SimbenchWarning
 from simbench.runs.compose import compose_config
 from simbench.runs.runner import RunResult, run_estimators
-
-# the RINEX cutter lives with the reader's wild-input tests
-if "test_rinex_wild" not in sys.modules:
-    _spec = importlib.util.spec_from_file_location("test_rinex_wild", Path(__file__).with_name("test_rinex_wild.py"))
-    _mod = importlib.util.module_from_spec(_spec)
-    sys.modules["test_rinex_wild"] = _mod
-    _spec.loader.exec_module(_mod)
-from test_rinex_wild import NG_NAV, NG_OBS, NG_POINT, cut
 
 #: Epochs of the cut: enough for every estimator to run, few enough for all of them to run fast.
 N_EPOCHS = 20

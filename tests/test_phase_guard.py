@@ -4,23 +4,13 @@ short arcs and a receiver clock jump, each measured against truth."""
 from __future__ import annotations
 
 import dataclasses
-import importlib.util
-import sys
-from pathlib import Path
 
 import numpy as np
 from conftest import dissertation
+from test_measurement import horizontal_error, synthetic_data
 
 from estimators.ekf_ppp import EkfPpp
 from simbench.contract import ReceiverData
-
-# the synthetic-data builder lives with the measurement-model tests
-if "test_measurement" not in sys.modules:
-    _spec = importlib.util.spec_from_file_location("test_measurement", Path(__file__).with_name("test_measurement.py"))
-    _mod = importlib.util.module_from_spec(_spec)
-    sys.modules["test_measurement"] = _mod
-    _spec.loader.exec_module(_mod)
-from test_measurement import horizontal_error, synthetic_data
 
 N_EPOCHS = 300
 

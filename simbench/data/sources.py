@@ -85,6 +85,8 @@ class RinexSource(Source):
 
     name = "rinex"
     Config = RinexConfig
+    #: reads the observation file and builds the scenario; a raw format of its own overrides it (same arguments)
+    loader = staticmethod(load_rinex)
 
     def check(self, cfg: DataConfig) -> None:
         s = scenario_config(cfg, RinexConfig)
@@ -109,7 +111,7 @@ class RinexSource(Source):
 
     def load(self, cfg: DataConfig) -> Scenario:
         s = scenario_config(cfg, RinexConfig)
-        return load_rinex(
+        return self.loader(
             s.obs,
             s.nav,
             s.truth,
@@ -128,19 +130,7 @@ class GnssLoggerSource(RinexSource):
     name = "gnsslogger"
     Config = GnssLoggerConfig
 
-    def load(self, cfg: DataConfig) -> Scenario:
-        s = scenario_config(cfg, GnssLoggerConfig)
-        return load_gnsslogger(
-            s.obs,
-            s.nav,
-            s.truth,
-            systems=s.systems,
-            nav_bds_path=s.nav_bds,
-            nav_glo_path=s.nav_glo,
-            nav_gal_path=s.nav_gal,
-            name=self.label(cfg),
-            truth_max_gap_s=s.truth_max_gap_s,
-        )
+    loader = staticmethod(load_gnsslogger)
 
 
 class LibrsfSource(Source):
