@@ -311,6 +311,19 @@ def test_event_records_are_skipped_as_the_standard_says(tmp_path: Path) -> None:
     changed = [f"{'':28s}4  1", f"{'     2    C1    L1':60s}# / TYPES OF OBSERV"]
     src.write_text("\n".join(insert_before_epoch((tmp_path / "plain.11o").read_text().splitlines(), 2, changed, True)))
     assert "redefines its observation types" in one_line_error(read_rinex_obs, src, "G")
+    # RINEX 3: a header line repeating GPS's own types passes, one with other types is refused
+    header = src3.read_text().splitlines()
+    first = next(i for i, ln in enumerate(header) if ln.startswith("G") and "OBS TYPES" in ln)
+    gps_types = header[first : first + 2]  # Nagoya's 17 GPS types: a line and its continuation
+    same = [f">{'':30s}4  2", *gps_types]
+    other = [f">{'':30s}4  1", f"{'G    2 C1C L1C':60s}SYS / # / OBS TYPES"]
+    for record, refused in ((same, False), (other, True)):
+        edited = tmp_path / "types.obs"
+        edited.write_text("\n".join(insert_before_epoch(src3.read_text().splitlines(), 2, record)) + "\n")
+        if refused:
+            assert "redefines its G observation types" in one_line_error(read_rinex_obs, edited, "G")
+        else:
+            np.testing.assert_array_equal(read_rinex_obs(edited, "G").code, plain3.code)
 
 
 def test_cycle_slip_and_power_failure_records_set_loss_of_lock(tmp_path: Path) -> None:

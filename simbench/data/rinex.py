@@ -555,33 +555,29 @@ def _read_records(
     return rec
 
 
+_NO_NEW_COLUMNS = "a change of columns within one file is not supported"
+
+
 def _check_event(p: str, block: list[str], line: int, types: dict[str, list[str]]) -> None:
     """Refuse an event record that redefines a system's observation types: the columns would change mid-file.
 
     A header line repeating the file's own types (a splice of files of one receiver) passes.
     """
+    fix = "split the file at that line (e.g. with gfzrnx or teqc) and run each part"
     again: dict[str, list[str]] = {}
     last = ""
     for k, ln in enumerate(block, start=line + 1):
         label = ln[60:].strip()
+        if label == "# / TYPES OF OBSERV":  # RINEX 2 (its repetitions of the header's types were dropped)
+            problem = f"redefines its observation types in an event record (line {k}); {_NO_NEW_COLUMNS}"
+            raise _obs_error(p, problem, fix)
         if label == "SYS / # / OBS TYPES":
             last = ln[0] if ln[0] != " " else last
             again.setdefault(last, []).extend(ln[7:60].split())
-        if label == "# / TYPES OF OBSERV" or any(again[s] != types.get(s) for s in again if s != last):
-            raise _obs_error(
-                p,
-                f"redefines its observation types in an event record (line {k}); a change of columns "
-                "within one file is not supported",
-                "split the file at that line (e.g. with gfzrnx or teqc) and run each part",
-            )
     changed = [s for s in again if again[s] != types.get(s)]
     if changed:
-        raise _obs_error(
-            p,
-            f"redefines its {', '.join(changed)} observation types in the event record at line {line}; a change "
-            "of columns within one file is not supported",
-            "split the file at that line (e.g. with gfzrnx or teqc) and run each part",
-        )
+        where = f"the event record at line {line}"
+        raise _obs_error(p, f"redefines its {', '.join(changed)} observation types in {where}; {_NO_NEW_COLUMNS}", fix)
 
 
 def _epoch_time(p: str, ln: str, line: int) -> tuple[str, float]:

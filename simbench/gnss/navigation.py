@@ -569,7 +569,9 @@ def _rinex3_records(p: str, system: str, setting: str, fix: str) -> tuple[np.nda
             stop += 1
         try:
             f = head[date[0] : date[1]].split()
-            year = int(f[0]) + (2000 if rinex2_glonass and int(f[0]) < 80 else 1900 if rinex2_glonass else 0)
+            year = int(f[0])
+            if rinex2_glonass:  # two digits: 80-99 are 1980-1999
+                year += 1900 if year >= 80 else 2000
             stamps.append(
                 f"{year:04d}-{int(f[1]):02d}-{int(f[2]):02d}T{int(f[3]):02d}:{int(f[4]):02d}:{int(float(f[5])):02d}"
             )
