@@ -9,11 +9,11 @@ line (``scenario.obs=a.obs``) is the user's own and starts at the working direct
 
 from __future__ import annotations
 
-import hashlib
 import os
 from collections.abc import Mapping
 from pathlib import Path
 
+from simbench.contract import file_sha256
 from simbench.errors import SimbenchError
 
 __all__ = ["DATA_HOME_ENV", "REPO_ROOT", "data_home", "data_path", "require_file", "file_digest"]
@@ -96,9 +96,5 @@ def file_digest(path: str) -> str:
     st = os.stat(path)
     stamp = (os.path.abspath(path), st.st_size, st.st_mtime_ns)
     if stamp not in _DIGESTS:
-        digest = hashlib.sha256()
-        with open(path, "rb") as fh:
-            for block in iter(lambda: fh.read(1 << 20), b""):
-                digest.update(block)
-        _DIGESTS[stamp] = digest.hexdigest()[:16]
+        _DIGESTS[stamp] = file_sha256(Path(path))[:16]
     return _DIGESTS[stamp]
