@@ -141,3 +141,10 @@ def test_every_corpus_navigation_file_reads_or_is_refused_in_one_line(corpus: Pa
         else:
             msg = one_line_error(read, corpus / name)
             assert ("RINEX 4" in msg) == (name in RINEX4_NAV), msg
+
+
+def test_an_empty_navigation_file_is_one_line_for_every_reader(tmp_path: Path) -> None:
+    empty = tmp_path / "empty.rnx"
+    empty.write_text("")
+    for system, read in NAV_READERS.items():
+        assert str(empty) in one_line_error(read, empty), system

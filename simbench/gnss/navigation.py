@@ -545,10 +545,11 @@ def _rinex3_records(p: str, system: str, setting: str, fix: str) -> tuple[np.nda
         raise SimbenchError(field, "file does not exist", fix)
     lines = read_rinex_lines(p, field, fix)
     _refuse_rinex4(lines, field, fix)
-    version, kind = (lines[0][:9].strip(), lines[0][20:21]) if lines else ("", "")
+    top = lines[0] if lines else ""
+    version, kind = top[:9].strip(), top[20:21]
     rinex2_glonass = version.startswith("2") and kind == "G"
     if not (version.startswith("3") and kind == "N") and not rinex2_glonass:
-        what = f"RINEX {version} '{lines[0][20:40].strip()}'" if "RINEX VERSION / TYPE" in lines[0] else "not RINEX"
+        what = f"RINEX {version} '{top[20:40].strip()}'" if "RINEX VERSION / TYPE" in top else "not RINEX"
         raise SimbenchError(field, f"is {what}, not RINEX 3 (or RINEX 2 GLONASS) navigation data", fix)
     body = next((i + 1 for i, ln in enumerate(lines) if "END OF HEADER" in ln), None)
     if body is None:
