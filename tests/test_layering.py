@@ -36,6 +36,7 @@ LAYERS: tuple[tuple[tuple[str, ...], ...], ...] = (
     (
         (
             "simbench.errors",
+            "simbench.bounds",
             "simbench.typed",
             "simbench.contract",
             "simbench.source",
