@@ -19,7 +19,7 @@ from typing import Any
 
 from simbench.errors import SimbenchError
 
-__all__ = ["Bound", "RULES", "check_bounds"]
+__all__ = ["Bound", "RULES", "FINITE_ONLY", "check_bounds"]
 
 #: Seconds in a GPS week: ``start_sow_s`` lies in ``[0, WEEK_S)``.
 WEEK_S = 604_800.0
@@ -80,12 +80,17 @@ RULES: tuple[tuple[str, Bound], ...] = (
 )
 
 
-def bound_of(name: str) -> Bound:
-    """The first :data:`RULES` bound whose pattern matches the field name ``name``."""
-    return next(bound for pattern, bound in RULES if re.search(pattern, name))
+#: Only finiteness: for an estimator's parameters, whose sigmas may be huge on purpose (a receiver clock
+#: prior of 3e6 m) and whose own ``validate`` checks their ranges.
+FINITE_ONLY: tuple[tuple[str, Bound], ...] = (("", FINITE),)
 
 
-def check_bounds(config: Any, where: str) -> None:
+def bound_of(name: str, rules: tuple[tuple[str, Bound], ...] = RULES) -> Bound:
+    """The first bound of ``rules`` whose pattern matches the field name ``name``."""
+    return next(bound for pattern, bound in rules if re.search(pattern, name))
+
+
+def check_bounds(config: Any, where: str, rules: tuple[tuple[str, Bound], ...] = RULES) -> None:
     """Raise a one-line :class:`SimbenchError` for the first number of ``config`` outside its :data:`RULES` bound.
 
     Walks the dataclass tree: ints and floats (not bools), and tuples of them, which must also be
@@ -97,6 +102,8 @@ def check_bounds(config: Any, where: str) -> None:
         A typed config node (e.g. :class:`simbench.sim.config.ScenarioConfig`).
     where : str
         Its key in the composed config, prefixed to the field in the message (e.g. ``scenario``).
+    rules : tuple of (pattern, Bound)
+        :data:`RULES`, or :data:`FINITE_ONLY`.
 
     Raises
     ------
@@ -107,24 +114,26 @@ def check_bounds(config: Any, where: str) -> None:
         value = getattr(config, field.name)
         key = f"{where}.{field.name}"
         if dataclasses.is_dataclass(value) and not isinstance(value, type):
-            check_bounds(value, key)
+            check_bounds(value, key, rules)
         elif is_number(value):
-            check_value(key, field, (value,))
+            check_value(key, field, (value,), rules)
         elif isinstance(value, (tuple, list)) and value and all(is_number(v) for v in value):
-            check_value(key, field, tuple(value))
+            check_value(key, field, tuple(value), rules)
 
 
 def is_number(value: object) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
-def check_value(key: str, field: dataclasses.Field, values: tuple[float, ...]) -> None:
+def check_value(
+    key: str, field: dataclasses.Field, values: tuple[float, ...], rules: tuple[tuple[str, Bound], ...] = RULES
+) -> None:
     """Raise for the first of ``values`` outside the field's bound, or a ``(low, high)`` pair out of order.
 
     A field's own ``metadata={"bound": Bound(...)}`` wins over :data:`RULES` (for a plug-in's field whose
     name does not follow the unit convention).
     """
-    bound = field.metadata.get("bound") or bound_of(field.name)
+    bound = field.metadata.get("bound") or bound_of(field.name, rules)
     for value in values:
         if not bound.holds(value):
             got = value if len(values) == 1 else list(values)

@@ -137,6 +137,12 @@ CASES: list[tuple[list[str], str, str]] = [
     (["estimator=[ekf_ins]", "estimator.ekf_ins.accel_bias_sigma_mps2=1e6"], "estimator.ekf_ins", "IMU grade"),
     (["estimator=[rtklib_spp]", "estimator.rtklib_spp.elevation_mask_deg=90"], "estimator.rtklib_spp", "[0, 90)"),
     (["estimator.dcs.prior_scale=-1"], "estimator.dcs.prior_scale", "positive"),  # in the default estimator=all
+    # NaN and infinity in any estimator's parameters (estimators.base.validate_config)
+    (["estimator=[l2]", "estimator.l2.clock_sigma_m=nan"], "estimator.l2.clock_sigma_m", "finite"),
+    (["estimator=[ekf_ppp]", "estimator.ekf_ppp.code_sigma_m=inf"], "estimator.ekf_ppp.code_sigma_m", "finite"),
+    (["estimator=[ice]", "estimator.ice.alpha=nan"], "estimator.ice.alpha", "finite"),
+    (["estimator=[dcs]", "estimator.dcs.kernel_width=inf"], "estimator.dcs.kernel_width", "finite"),
+    (["estimator=[crt_lss]", "estimator.crt_lss.lambda_rho=inf"], "estimator.crt_lss.lambda_rho", "finite"),
     # typos, with and without '+'
     (["+scenario.duraton_s=10"], "scenario.duraton_s", "did you mean scenario.duration_s?"),
     (["scenario.duraton_s=10"], "scenario.duraton_s", ""),
