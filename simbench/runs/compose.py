@@ -68,6 +68,11 @@ def register_schemas() -> None:
         cs.store(group="estimator", name=f"{name}_schema", node={name: estimator_schema(name, cls.Config)})
     for name, plugin in estimators.plugins().items():
         cs.store(group="estimator", name=name, node=plugin_config_node(plugin))
+    for name in estimators.registered():
+        # a built-in module without conf/estimator/<name>.yaml runs on its Config defaults, as a plug-in
+        # does (before, 'Could not load estimator/<name>' broke the default run for everyone)
+        if name not in estimators.plugins() and not (CONF_DIR / "estimator" / f"{name}.yaml").is_file():
+            cs.store(group="estimator", name=name, node={"defaults": [f"{name}_schema", "_self_"], name: {}})
     cs.store(group="estimator", name=estimators.ALL, node={"defaults": list(estimators.registered())})
 
 
@@ -188,12 +193,12 @@ def estimator_yaml(name: str) -> Path | None:
 def available(group: str) -> list[str]:
     """Names of the options of a config group (``scenario``, ``receiver``, ...).
 
-    The files of ``conf/<group>/``; for ``estimator`` also the plug-in estimators
-    and ``all`` (every registered estimator); for ``scenario`` also every source by name.
+    The files of ``conf/<group>/``; for ``estimator`` every registered estimator (a built-in one
+    without its YAML and the plug-ins too) and ``all``; for ``scenario`` also every source by name.
     """
     names = {p.stem for p in (CONF_DIR / group).glob("*.yaml")}
     if group == "estimator":
-        names |= {*estimators.plugins(), estimators.ALL}
+        names |= {*estimators.registered(), estimators.ALL}
     if group == "scenario":
         names |= set(sources.registered())
     return sorted(names)
