@@ -635,7 +635,7 @@ def _study_times_section(page: _Page, run_dir: Path, summary: pd.DataFrame) -> N
         "scenario generation, process start and report are in the wall times only).",
         cls="note",
     )
-    page.table(times.drop(columns=["results_dir"]))
+    page.table(times.drop(columns=["results_dir"], errors="ignore"))
     page.table(time_budget(summary).head(20))
 
 

@@ -43,7 +43,7 @@ __all__ = [
 #: process [MB] (``peak_rss_mb``; a worker when the launcher has them) and exit code.
 STUDY_TIMES = "study_times.csv"
 #: Columns every reader of :data:`STUDY_TIMES` uses (``peak_rss_mb`` and ``exit_code`` came later).
-STUDY_TIMES_COLUMNS = ("study", "world", "wall_s", "results_dir")
+STUDY_TIMES_COLUMNS = ("study", "world", "wall_s")
 
 
 @dataclass
