@@ -627,7 +627,7 @@ def test_a_rebuilt_page_is_not_stale(world: World, tmp_path: Path) -> None:
     assert STALE not in page.read_text()
     # the page's second write fails: the stale mark (atomic) succeeds, the new page does not
     with pytest.MonkeyPatch.context() as m, injected(Fault(errno.ENOSPC, "index.html", 1), m):
-        with pytest.raises(Exception, match=r"index\.html: cannot be written \(ENOSPC\).*marked stale"):
+        with pytest.raises(Exception, match=r"index\.html: cannot be written \(No space left on device\).*marked stale"):
             finalize(run, None, figures=False)
     assert STALE in page.read_text() and (run / "report" / "README.md").read_text().startswith("> **Stale:**")
     finalize(run, None, figures=False)

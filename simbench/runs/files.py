@@ -57,7 +57,8 @@ def os_fault(
     where = exc.filename if exc.filename is not None else path
     if where is not None:  # a temporary file is named as the file it was to become (contract.temporary_name)
         where = re.sub(r"(^|/)\.([^/]+)\.[0-9a-f]{32}\.tmp$", r"\1\2", os.fspath(where))
-    reason = exc.strerror or (str(exc).splitlines() or [type(exc).__name__])[0]
+    # pyarrow's strerror is a paragraph naming the temporary file; the errno says it in a word
+    reason = os.strerror(exc.errno) if exc.errno else exc.strerror or (str(exc).splitlines() or [type(exc).__name__])[0]
     fix = FAULT_FIXES.get(exc.errno or 0, OTHER_FAULT_FIX)
     return SimbenchError(str(where or "(unknown path)"), f"{what} ({reason}){note}", fix)
 
