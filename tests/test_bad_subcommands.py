@@ -45,7 +45,7 @@ from simbench.cli.callbacks import FinalizeRun
 from simbench.cli.main import SUBCOMMANDS
 from simbench.contract import Scenario
 from simbench.data.export import export_scenario
-from simbench.errors import SimbenchWarning
+from simbench.errors import SimbenchError, SimbenchWarning
 from simbench.report.build import finalize
 from simbench.runs.compose import compose_config
 from simbench.runs.jobs import run_job
@@ -627,7 +627,8 @@ def test_a_rebuilt_page_is_not_stale(world: World, tmp_path: Path) -> None:
     assert STALE not in page.read_text()
     # the page's second write fails: the stale mark (atomic) succeeds, the new page does not
     with pytest.MonkeyPatch.context() as m, injected(Fault(errno.ENOSPC, "index.html", 1), m):
-        with pytest.raises(Exception, match=r"index\.html: cannot be written \(No space left on device\).*marked stale"):
+        full = r"index\.html: cannot be written \(No space left on device\).*marked stale"
+        with pytest.raises(SimbenchError, match=full):
             finalize(run, None, figures=False)
     assert STALE in page.read_text() and (run / "report" / "README.md").read_text().startswith("> **Stale:**")
     finalize(run, None, figures=False)

@@ -140,7 +140,7 @@ def read_csv_table(
     fix : str
         How to repair the file, for the error.
     numbers : sequence of str
-        Columns whose every non-blank cell must be a number.
+        Columns whose every non-blank cell must be a number; returned as floats (a blank is NaN).
     **read_csv
         Passed to :func:`pandas.read_csv`.
 
@@ -162,10 +162,12 @@ def read_csv_table(
     if missing:
         raise SimbenchError(str(path), f"has no column {', '.join(missing)} (damaged or not this file)", fix)
     for column in numbers:
-        cells = table[column].replace("", None).dropna()
-        bad = cells[pd.to_numeric(cells, errors="coerce").isna()]
+        cells = table[column].replace("", None)
+        values = pd.to_numeric(cells, errors="coerce")
+        bad = cells[values.isna() & cells.notna()]
         if len(bad):
             raise SimbenchError(str(path), f"column {column} holds '{bad.iloc[0]}', not a number", fix)
+        table[column] = values.astype(float)  # a blank cell is NaN, also where blanks are kept as text
     return table
 
 
