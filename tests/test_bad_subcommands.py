@@ -406,6 +406,10 @@ def _validate_cases() -> list[Case]:
         ),
         Case("out without a value", "validate", [*world, "--out"], "--out", compute="forbidden"),
         Case("mask not a number", "validate", [*world, "--mask", "abc"], "--mask", compute="forbidden"),
+        *(
+            Case(f"mask {m}", "validate", [*world, "--mask", m], "--mask", compute="forbidden")
+            for m in ("95", "-5", "nan")
+        ),
         Case("unknown flag", "validate", [*world, "--colour"], "--colour", compute="forbidden"),
     ]
     cases += [Case(f"write {f.label}", "validate", [*world, "--out", "{tmp}/v"], "{tmp}/v/", fault=f) for f in FAULTS]

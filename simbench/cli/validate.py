@@ -26,7 +26,7 @@ from tqdm import tqdm
 
 from simbench.analysis.validation import cn0_by_elevation, comparison_table, residual_sample
 from simbench.contract import write_bytes
-from simbench.errors import SimbenchError
+from simbench.errors import SimbenchError, require_elevation_mask
 from simbench.report.figures import validation_figure
 from simbench.runs.files import check_output_dir, staged_folder
 from simbench.runs.scenarios import scenario_from_overrides
@@ -95,6 +95,7 @@ def run(args: list[str]) -> pd.DataFrame:
         raise SimbenchError(
             "--mask", f"is not a number: {options['mask']}", "give the elevation mask in degrees"
         ) from None
+    require_elevation_mask("--mask", mask, "give the elevation mask in degrees, e.g. --mask 10")
     out = check_output_dir("--out", options["out"], "--out results/validation") if "out" in options else None
     samples = []
     for overrides in tqdm(worlds, desc="worlds", unit="world", disable=len(worlds) < 2):
