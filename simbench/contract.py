@@ -427,6 +427,10 @@ def write_parquet(df: pd.DataFrame, path: str | Path, metadata: dict[str, Any] |
     try:
         pq.write_table(table, tmp, write_page_checksum=True)
         os.replace(tmp, path)
+    except OSError as exc:
+        if exc.filename is None:  # pyarrow's errors (a full disk) name no file: name the one being written
+            exc.filename = str(path)
+        raise
     finally:
         tmp.unlink(missing_ok=True)
     return path

@@ -14,8 +14,10 @@ import sys
 
 from simbench.data.export import ExportFormat, export_scenario
 from simbench.errors import SimbenchError
+from simbench.runs.checks import check_seed
 from simbench.runs.compose import compose_config
-from simbench.runs.scenarios import build_scenario, scenario_settings
+from simbench.runs.files import check_output_dir, staged_folder
+from simbench.runs.scenarios import build_scenario, check_scenario, scenario_settings
 
 _USAGE = "python -m simbench export scenario=urban receiver=low seed=0 format=rinex|librsf|gnsslogger out=DIR"
 
@@ -38,10 +40,15 @@ def main(argv: list[str]) -> int:
             )
         cfg = compose_config(overrides)
         sim = scenario_settings(cfg)
+        check_seed(sim.seed)
+        inputs = [p for paths in check_scenario(sim).input_files(sim).values() for p in paths]
+        out = check_output_dir("out", own["out"], "out=results/export", inputs)  # before the scenario is built
         scenario = build_scenario(sim)
         # a RINEX log without scenario.name is named after its observation file (in meta)
         stem = f"{scenario.meta.get('name') or sim.scenario.name}_{sim.receiver.name}_{sim.seed}"
-        files = export_scenario(scenario, fmt, own["out"], stem, receiver=sim.receiver.name)
+        with staged_folder(out) as staging:  # every file or none: a full disk leaves no half export
+            staged = export_scenario(scenario, fmt, staging, stem, receiver=sim.receiver.name)
+        files = [out / f.name for f in staged]
     except SimbenchError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
+from simbench.cli.terminal import OneLineParser
 from simbench.errors import SimbenchError
 from simbench.report.build import finalize
 from simbench.runs.checks import check_report_formats
@@ -13,8 +13,9 @@ from simbench.runs.store import run_folders
 
 
 def main(argv: list[str]) -> int:
-    """Rebuild the report of the run folder ``argv`` names; the exit code (2 for a folder without jobs)."""
-    parser = argparse.ArgumentParser(prog="simbench report", description=__doc__)
+    """Rebuild the report of the run folder ``argv`` names; the exit code (2 with one line: a folder without
+    jobs, a damaged study_times.csv, a folder that cannot be written, a full disk)."""
+    parser = OneLineParser(prog="simbench report", description=__doc__)
     parser.add_argument("run_dir", type=Path, help="a results directory written by python -m simbench")
     parser.add_argument(
         "--formats",
@@ -25,16 +26,14 @@ def main(argv: list[str]) -> int:
     args = parser.parse_args(argv)
     try:
         check_report_formats(args.formats)
-    except SimbenchError as exc:
+        # a study collection (+sweep=thesis) keeps each study's jobs/ in the folders its study_times.csv names
+        if not any((folder / "jobs").is_dir() for folder in run_folders(args.run_dir)):
+            raise SimbenchError(
+                "run_dir", f"{args.run_dir} holds no jobs/ folder", "give a directory written by python -m simbench"
+            )
+        report = finalize(args.run_dir, None, formats=args.formats)
+    except SimbenchError as exc:  # also a damaged study_times.csv, a read-only folder or a full disk
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    # a study collection (+sweep=thesis) keeps each study's jobs/ in the folders its study_times.csv names
-    if not any((folder / "jobs").is_dir() for folder in run_folders(args.run_dir)):
-        print(
-            f"error: run_dir: {args.run_dir} holds no jobs/ folder -- give a directory written by python -m simbench",
-            file=sys.stderr,
-        )
-        return 2
-    report = finalize(args.run_dir, None, formats=args.formats)
     print(f"report: {report.resolve() / 'index.html'}")
     return 0

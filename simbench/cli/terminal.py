@@ -3,11 +3,12 @@ simbench's warnings as one line each."""
 
 from __future__ import annotations
 
+import argparse
 import difflib
 import sys
 import warnings
 from collections.abc import Iterable
-from typing import TextIO
+from typing import NoReturn, TextIO
 
 import numpy as np
 import pandas as pd
@@ -111,3 +112,12 @@ def one_line_warnings() -> None:
             default(message, category, filename, lineno, file, line)
 
     warnings.showwarning = show
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """A subcommand's argument parser whose refusal is one line naming the argument (exit code 2), as
+    every other refusal: argparse's own prints the whole usage first."""
+
+    def error(self, message: str) -> NoReturn:
+        print(f"error: {message} -- see {self.prog} --help", file=sys.stderr)
+        sys.exit(2)

@@ -50,7 +50,7 @@ from simbench.data.solution_times import match_receiver_epochs
 from simbench.errors import SimbenchError
 from simbench.runs.provenance import provenance
 from simbench.runs.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS, scenario_source, score_solution
-from simbench.runs.store import cache_problem, result_stem, write_result
+from simbench.runs.store import cache_problem, read_job, result_stem, write_result
 
 __all__ = ["read_solution", "score_solution_file"]
 
@@ -109,10 +109,12 @@ def _find_cache(run_dir: Path, scenario_key: str) -> Path:
 def _row_key(sweep_dir: Path, scenario_key: str, scenario: Scenario) -> dict[str, object]:
     """The identifying columns of a result on this scenario: those of a row already in the store
     (same sweep tag and receiver as the estimators it is compared with), else from the scenario."""
-    rows = sorted((sweep_dir / "jobs" / scenario_key).glob("*.summary.parquet"))
-    if rows:
-        first = pd.read_parquet(rows[0]).iloc[0]
-        return {k: first[k] for k in ("sweep", "scenario", "source", "receiver", "seed")}
+    for path in sorted((sweep_dir / "jobs" / scenario_key).glob("*.summary.parquet")):
+        # through the store's checks: a damaged job is named in one warning and the next one asked
+        rows = read_job(path.with_name(path.name.removesuffix(".summary.parquet")), "not used for the row's columns")
+        if rows is not None and len(rows):
+            first = rows.iloc[0]
+            return {k: first[k] for k in ("sweep", "scenario", "source", "receiver", "seed")}
     receiver = (scenario.meta.get("config") or {}).get("receiver") or {}
     return {
         "sweep": "",
