@@ -14,6 +14,7 @@ import os
 import sys
 from collections.abc import Callable, Iterable
 from pathlib import Path
+from typing import Any, cast
 
 import hydra
 import pandas as pd
@@ -137,7 +138,7 @@ def main() -> None:
         first = check_jobs(args, (shaping, cfg) if shaping is not None and cfg is not None else None)
         if cfg is not None and multirun:
             _Progress.jobs = planned_jobs(args, cfg)
-        if first is not None and "${now:" in str(OmegaConf.to_container(first, resolve=False).get("results_dir")):
+        if first is not None and "${now:" in str(unresolved(first, "results_dir")):
             # the default folder is named by the second it starts in: two runs of one second get one each
             reserved = unique_run_dir(Path(first.results_dir))
             sys.argv.append(f"results_dir={reserved}")
@@ -149,6 +150,11 @@ def main() -> None:
     finally:
         if reserved is not None and reserved.is_dir() and not any(reserved.iterdir()):
             reserved.rmdir()  # nothing ran (Hydra refused the command line): no empty folder left behind
+
+
+def unresolved(cfg: DictConfig, key: str) -> Any:
+    """The value of a root key as written, its interpolations (``${now:...}``) unresolved."""
+    return cast(dict[str, Any], OmegaConf.to_container(OmegaConf.masked_copy(cfg, [key]), resolve=False))[key]
 
 
 def check_subcommand(args: list[str]) -> None:
