@@ -404,3 +404,10 @@ def test_score_warns_about_a_utc_pos_file(tmp_path: Path, urban: Scenario) -> No
     row, messages = _simbench_warnings(lambda: score_solution_file(out, key, "utc", tmp_path / "utc.pos"))
     assert len(messages) == 1 and f"--solution '{tmp_path / 'utc.pos'}'" in messages[0] and "+18 s" in messages[0]
     assert isinstance(row, pd.DataFrame) and row["horizontal_median"].iloc[0] > 10.0  # scored as written
+
+
+def test_a_notebook_run_refused_leaves_no_folder(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """simbench.run claims its default folder as the command line does, and gives it back when a config is refused."""
+    monkeypatch.chdir(tmp_path)
+    msg = one_line_error(simbench.run, estimators=["l2"], overrides={"scenario.duration_s": -5}, progress=False)
+    assert msg.startswith("scenario.duration_s:") and list((tmp_path / "results").iterdir()) == []
