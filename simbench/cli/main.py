@@ -10,11 +10,9 @@ builds ``claims.csv`` and ``report/``.
 from __future__ import annotations
 
 import inspect
-import os
 import sys
 from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import Any, cast
 
 import hydra
 import pandas as pd
@@ -24,12 +22,12 @@ from hydra.core.override_parser.types import Glob
 from hydra.errors import HydraException
 from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf, open_dict
-from omegaconf.errors import OmegaConfBaseException
 from tabulate import tabulate
 from tqdm.auto import tqdm
 
 import estimators
 from simbench.cli import export, report, score, tables, validate, zero_baseline
+from simbench.cli.command_line import check_no_sweep, check_subcommand, run_hydra, unresolved
 from simbench.cli.studies import run_studies
 from simbench.cli.terminal import compact_summary, did_you_mean, one_line_warnings
 from simbench.errors import SimbenchError
@@ -112,7 +110,7 @@ def main() -> None:
         sys.exit(SUBCOMMANDS[args[0]](args[1:]))
     reserved: Path | None = None
     try:
-        check_subcommand(args)
+        check_subcommand(args, SUBCOMMANDS)
         register_schemas()  # a broken plug-in estimator stops here, in one line naming its package
         if "--estimators" in args:
             print(tabulate(estimator_table(), headers="keys", tablefmt="plain", showindex=False))
@@ -146,93 +144,10 @@ def main() -> None:
         print(f"error: {exc}", file=sys.stderr)
         sys.exit(2)
     try:
-        run_hydra()
+        run_hydra(_app)
     finally:
         if reserved is not None and reserved.is_dir() and not any(reserved.iterdir()):
             reserved.rmdir()  # nothing ran (Hydra refused the command line): no empty folder left behind
-
-
-def unresolved(cfg: DictConfig, key: str) -> Any:
-    """The value of a root key as written, its interpolations (``${now:...}``) unresolved."""
-    return cast(dict[str, Any], OmegaConf.to_container(OmegaConf.masked_copy(cfg, [key]), resolve=False))[key]
-
-
-def check_subcommand(args: list[str]) -> None:
-    """Refuse a first argument that is neither a subcommand, a flag nor an override (``reprot``, a path).
-
-    Hydra would only say ``Error parsing override 'reprot' missing EQUAL``.
-
-    Raises
-    ------
-    SimbenchError
-        Naming the word, the closest subcommand and the known ones.
-    """
-    if not args or args[0].startswith(("-", "~", "+")) or "=" in args[0]:
-        return
-    word = args[0]
-    raise SimbenchError(
-        "command",
-        f"unknown subcommand '{word}'{did_you_mean(word, SUBCOMMANDS)}",
-        f"the subcommands are {', '.join(SUBCOMMANDS)}; a run takes key=value overrides (python -m simbench --help)",
-    )
-
-
-def check_no_sweep(args: list[str]) -> None:
-    """Refuse a sweep (``seed=0,1``, ``range(...)``) on the command line of a single run, without ``-m``.
-
-    Hydra would stop with a page about an ambiguous value after the checks passed.
-
-    Raises
-    ------
-    SimbenchError
-        Naming the swept key, with the ``-m`` command and the list and string spellings.
-    """
-    given = [a for a in args if not a.startswith("-")]
-    try:
-        parsed = OverridesParser.create().parse_overrides(given)
-    except HydraException:
-        return  # Hydra's parser says what is wrong (run_hydra: one line)
-    for arg, override in zip(given, parsed):
-        if override.is_sweep_override() and not override.key_or_group.startswith("hydra."):
-            key = override.get_key_element()
-            raise SimbenchError(
-                key,
-                f"'{arg}' is a sweep, and sweeps need -m",
-                f"run python -m simbench -m {' '.join(args)}, or write a list as {key}=[a,b]",
-            )
-
-
-def run_hydra() -> None:
-    """Hand the command line to Hydra (:func:`_app`); an error Hydra itself raises is one line and exit 2.
-
-    Hydra prints its own errors over several lines (a parse error, an unknown config name, a
-    bad ``hydra.*`` value) and exits 1, the code of failed rows. With ``HYDRA_FULL_ERROR`` set
-    by the user its full report is kept.
-    """
-    if os.environ.get("HYDRA_FULL_ERROR"):
-        _app()
-        return
-    os.environ["HYDRA_FULL_ERROR"] = "1"  # Hydra raises instead of printing and exiting 1
-    try:
-        _app()
-    except (HydraException, OmegaConfBaseException) as exc:
-        print(f"error: {hydra_error(exc)}", file=sys.stderr)
-        sys.exit(2)
-    finally:
-        del os.environ["HYDRA_FULL_ERROR"]
-
-
-def hydra_error(exc: BaseException) -> SimbenchError:
-    """An exception of Hydra or OmegaConf as one line naming the command line and the override grammar."""
-    lines = [" ".join(ln.split()) for ln in f"{exc}\n{exc.__cause__ or ''}".splitlines()]
-    lines = [ln for ln in lines if ln and not ln.startswith(("See https", "Set the environment"))]
-    problem = ": ".join(lines[:2]) + (" (" + ", ".join(lines[2:12]) + ")" if lines[2:] else "")
-    override = getattr(exc, "override", None)  # a parse error names the override apart from its message
-    return SimbenchError(
-        f"override '{override}'" if override else "command line",
-        problem or type(exc).__name__,
-        "see python -m simbench --help; overrides are key=value (https://hydra.cc/docs/1.2/advanced/override_grammar/basic)",
-    )
 
 
 def help_text() -> str:
