@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import os
 import sys
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Collection
 from typing import Any, cast
 
 from hydra.core.override_parser.overrides_parser import OverridesParser
@@ -29,7 +29,7 @@ def unresolved(cfg: DictConfig, key: str) -> Any:
     return cast(dict[str, Any], OmegaConf.to_container(OmegaConf.masked_copy(cfg, [key]), resolve=False))[key]
 
 
-def check_subcommand(args: list[str], subcommands: Iterable[str]) -> None:
+def check_subcommand(args: list[str], subcommands: Collection[str]) -> None:
     """Refuse a first argument that is neither one of ``subcommands``, a flag nor an override (``reprot``, a path).
 
     Hydra would only say ``Error parsing override 'reprot' missing EQUAL``.

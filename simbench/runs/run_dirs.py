@@ -80,7 +80,7 @@ def keep_earlier_configs(run_dir: Path) -> int | None:
         path.rename(path.with_name(f"multirun.{n}.yaml" if path.name == "multirun.yaml" else f".hydra.{n}"))
     warn(
         "results_dir",
-        f"'{run_dir}' holds an earlier run's Hydra config ({len(found)} file(s))",
+        f"'{run_dir}' holds an earlier run's Hydra config",
         f"kept as .hydra.{n}" + (f" and multirun.{n}.yaml" if (run_dir / f"multirun.{n}.yaml").exists() else ""),
     )
     return n
