@@ -389,6 +389,14 @@ def test_static_solution_fits_every_shift_alike(urban: Scenario) -> None:
     assert got == 0.0 and messages == []
 
 
+def test_a_truth_with_gaps_is_paired_by_epoch_index(urban: Scenario) -> None:
+    """Epochs without truth (a reference outage; a real log's grid has gaps too): n_epochs counts truth rows, not
+    epoch indices (before: IndexError)."""
+    sc = dataclasses.replace(urban, truth=urban.truth[~urban.truth["epoch"].between(10, 19)].reset_index(drop=True))
+    got, messages = _simbench_warnings(lambda: check_time_system(_solution(sc, -18.0), sc, 0.5, "sol.pos"))
+    assert got == 18.0 and len(messages) == 1
+
+
 def test_score_warns_about_a_utc_pos_file(tmp_path: Path, urban: Scenario) -> None:
     """End to end: an RTKLIB .pos whose header says GPST but whose times are UTC (18 s early)."""
     out = tmp_path / "run"

@@ -116,10 +116,13 @@ def check_time_system(pos: pd.DataFrame, scenario: Scenario, max_offset_s: float
     float
         The best whole-second shift [s] (0 when no shift fits clearly better); the solution is scored as written.
     """
-    truth = np.full((scenario.n_epochs, 3), np.nan)
-    rows = scenario.truth["epoch"].to_numpy()
-    truth[rows] = scenario.truth[["x", "y", "z"]].to_numpy()
+    # both by epoch index: a log's grid has gaps, and epochs without a reference have no truth row
+    epochs = scenario.truth["epoch"].to_numpy()
     t_epoch = receiver_epoch_times(scenario.receiver_view())
+    n = max(t_epoch.size, int(epochs.max()) + 1 if epochs.size else 0)
+    t_epoch = np.pad(t_epoch, (0, n - t_epoch.size), constant_values=np.nan)
+    truth = np.full((n, 3), np.nan)
+    truth[epochs] = scenario.truth[["x", "y", "z"]].to_numpy()
     best, mean = best_time_offset(
         pos["t_gps"].to_numpy(), pos[["x", "y", "z"]].to_numpy(), t_epoch, truth, max_offset_s
     )
