@@ -13,6 +13,7 @@ from omegaconf import DictConfig, OmegaConf
 from simbench.cli.terminal import compact_summary
 from simbench.errors import SimbenchError
 from simbench.report.build import finalize
+from simbench.runs.run_dirs import keep_earlier_configs
 
 #: Exit code of a run or sweep with a ``failed`` row (0: every row ``ok``, ``skipped`` or ``diverged``;
 #: 2: a config refused before any job, :func:`simbench.cli.main.main`).
@@ -22,10 +23,19 @@ EXIT_FAILED_ROWS = 1
 class FinalizeRun(Callback):
     """Aggregate job files, evaluate claims and build the report after a run or multirun.
 
+    Before, an earlier run's Hydra config in the same folder is kept under a numbered name
+    (:func:`~simbench.runs.run_dirs.keep_earlier_configs`).
+
     Every job has finished by then; when a row of the aggregated ``summary.parquet``
     failed (an exception, not a divergence), it prints how many on one line and ends
     the process with :data:`EXIT_FAILED_ROWS`, so a script or CI sees it.
     """
+
+    def on_run_start(self, config: DictConfig, **kwargs: Any) -> None:
+        keep_earlier_configs(Path(config.hydra.run.dir))  # before Hydra writes this run's .hydra
+
+    def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
+        keep_earlier_configs(Path(config.hydra.sweep.dir))
 
     def on_run_end(self, config: DictConfig, **kwargs: Any) -> None:
         self._finalize(Path(config.results_dir), config, sweep=False)

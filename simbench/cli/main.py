@@ -18,6 +18,7 @@ import hydra
 import pandas as pd
 from hydra.core.hydra_config import HydraConfig
 from hydra.core.override_parser.overrides_parser import OverridesParser
+from hydra.core.override_parser.types import Glob
 from hydra.errors import HydraException
 from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf, open_dict
@@ -26,6 +27,7 @@ from tqdm.auto import tqdm
 
 import estimators
 from simbench.cli import export, report, score, tables, validate, zero_baseline
+from simbench.cli.command_line import check_no_sweep, check_subcommand, run_hydra, unresolved
 from simbench.cli.studies import run_studies
 from simbench.cli.terminal import compact_summary, did_you_mean, one_line_warnings
 from simbench.errors import SimbenchError
@@ -40,6 +42,7 @@ from simbench.runs.compose import (
     register_schemas,
 )
 from simbench.runs.jobs import run_job
+from simbench.runs.run_dirs import unique_run_dir
 from simbench.runs.studies import StudiesConfig
 
 #: ``python -m simbench NAME ...``: the commands beside Hydra runs and sweeps, each ``main(argv) -> exit code``.
@@ -105,7 +108,9 @@ def main() -> None:
     args = sys.argv[1:]
     if args and args[0] in SUBCOMMANDS:
         sys.exit(SUBCOMMANDS[args[0]](args[1:]))
+    reserved: Path | None = None
     try:
+        check_subcommand(args, SUBCOMMANDS)
         register_schemas()  # a broken plug-in estimator stops here, in one line naming its package
         if "--estimators" in args:
             print(tabulate(estimator_table(), headers="keys", tablefmt="plain", showindex=False))
@@ -123,15 +128,26 @@ def main() -> None:
             check_report_formats(formats)  # before the first study, not after the last
             formats = list(formats or ["png"])
             sys.exit(run_studies(StudiesConfig.from_config(cfg), Path(cfg.results_dir), args, formats))
-        check_jobs(args, (shaping, cfg) if shaping is not None and cfg is not None else None)
-        if cfg is not None and (
-            any(a in RUN_FLAGS for a in args) or OmegaConf.select(cfg, "hydra.mode") == RunMode.MULTIRUN
-        ):
+        multirun = any(a in RUN_FLAGS for a in args) or (
+            cfg is not None and OmegaConf.select(cfg, "hydra.mode") == RunMode.MULTIRUN
+        )
+        if cfg is not None and not multirun:
+            check_no_sweep(args)
+        first = check_jobs(args, (shaping, cfg) if shaping is not None and cfg is not None else None)
+        if cfg is not None and multirun:
             _Progress.jobs = planned_jobs(args, cfg)
+        if first is not None and "${now:" in str(unresolved(first, "results_dir")):
+            # the default folder is named by the second it starts in: two runs of one second get one each
+            reserved = unique_run_dir(Path(first.results_dir))
+            sys.argv.append(f"results_dir={reserved}")
     except SimbenchError as exc:
         print(f"error: {exc}", file=sys.stderr)
         sys.exit(2)
-    _app()
+    try:
+        run_hydra(_app)
+    finally:
+        if reserved is not None and reserved.is_dir() and not any(reserved.iterdir()):
+            reserved.rmdir()  # nothing ran (Hydra refused the command line): no empty folder left behind
 
 
 def help_text() -> str:
@@ -217,7 +233,7 @@ def config_overrides(args: list[str]) -> list[str] | None:
     return [a for a, o in zip(args, parsed) if not o.is_sweep_override() and not o.key_or_group.startswith("hydra.")]
 
 
-def check_jobs(args: list[str], composed: tuple[list[str], DictConfig] | None = None) -> None:
+def check_jobs(args: list[str], composed: tuple[list[str], DictConfig] | None = None) -> DictConfig | None:
     """Compose and check (:func:`simbench.runs.checks.check_run`) every job config of a run or sweep.
 
     The override lists are :func:`job_overrides`'s, with the sweeper params of a sweep file
@@ -232,6 +248,11 @@ def check_jobs(args: list[str], composed: tuple[list[str], DictConfig] | None = 
         Overrides and the config the caller composed from them ``with_hydra``: reused when they
         are the first job's.
 
+    Returns
+    -------
+    DictConfig or None
+        The first job's config (``with_hydra``); None when Hydra handles the command line itself.
+
     Raises
     ------
     SimbenchError
@@ -239,7 +260,7 @@ def check_jobs(args: list[str], composed: tuple[list[str], DictConfig] | None = 
     """
     jobs = job_overrides(args)
     if not jobs:
-        return
+        return None
     first = composed[1] if composed is not None and composed[0] == jobs[0] else compose_config(jobs[0], with_hydra=True)
     given = {item.partition("=")[0].lstrip("+~") for item in jobs[0]}
     params = OmegaConf.select(first, "hydra.sweeper.params", default=None) or {}
@@ -251,6 +272,7 @@ def check_jobs(args: list[str], composed: tuple[list[str], DictConfig] | None = 
         jobs = jobs[1:]
     for overrides in jobs:
         check_run(compose_config(overrides))
+    return first
 
 
 #: The flags of a run or sweep whose configs :func:`job_overrides` can check; with any other
@@ -270,6 +292,12 @@ def job_overrides(args: list[str]) -> list[list[str]] | None:
 
     None when there is another flag (``--help``) or an argument Hydra's parser rejects:
     Hydra then handles the command line itself.
+
+    Raises
+    ------
+    SimbenchError
+        For a sweep of no value (``seed=range(5,0)``, a ``glob(...)`` matching no option of its
+        group), which Hydra would run as 0 jobs and exit 0.
     """
     if any(a.startswith("-") and a not in RUN_FLAGS for a in args):
         return None
@@ -286,14 +314,23 @@ def job_overrides(args: list[str]) -> list[list[str]] | None:
         if not override.is_sweep_override():
             fixed.append(arg)
             continue
-        try:
-            values = list(override.sweep_string_iterator())
-        except HydraException:  # glob(): its options are known only to Hydra's config loader
+        key = override.get_key_element()
+        value = override.value()
+        if isinstance(value, Glob):  # its options are a group's files (Hydra's config loader expands it)
+            group = key.lstrip("+~")
+            if group in config_groups() and not value.filter(available(group)):
+                raise SimbenchError(
+                    key, f"'{arg}' matches no {group} option: 0 jobs", f"choose from {', '.join(available(group))}"
+                )
             continue
+        values = list(override.sweep_string_iterator())
+        if not values:
+            raise SimbenchError(
+                key, f"'{arg}' sweeps no value: 0 jobs", "give a sweep of at least one value, e.g. seed=range(0,5)"
+            )
         if override.key_or_group == "seed":  # one composition will do
             values = values[:1]
-        if values:
-            swept.append((override.get_key_element(), values))
+        swept.append((key, values))
     first = [f"{key}={values[0]}" for key, values in swept]
     jobs = [[*fixed, *first]]
     for i, (key, values) in enumerate(swept):

@@ -9,7 +9,7 @@ from simbench.cli.terminal import OneLineParser
 from simbench.errors import SimbenchError
 from simbench.report.build import finalize
 from simbench.runs.checks import check_report_formats
-from simbench.runs.store import run_folders
+from simbench.runs.store import job_stems, run_folders
 
 
 def main(argv: list[str]) -> int:
@@ -30,6 +30,12 @@ def main(argv: list[str]) -> int:
         if not any((folder / "jobs").is_dir() for folder in run_folders(args.run_dir)):
             raise SimbenchError(
                 "run_dir", f"{args.run_dir} holds no jobs/ folder", "give a directory written by python -m simbench"
+            )
+        if not job_stems(args.run_dir):  # an empty page would look like a run whose estimators gave nothing
+            raise SimbenchError(
+                "run_dir",
+                f"{args.run_dir} has a jobs/ folder but no finished job in it",
+                "run python -m simbench into it first, or give the folder of a finished run",
             )
         report = finalize(args.run_dir, None, formats=args.formats)
     except SimbenchError as exc:  # also a damaged study_times.csv, a read-only folder or a full disk
