@@ -6,6 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from simbench.cli.text import plain_text
 from simbench.errors import SimbenchError
 from simbench.report.build import finalize
 from simbench.runs.checks import check_report_formats
@@ -14,7 +15,7 @@ from simbench.runs.store import run_folders
 
 def main(argv: list[str]) -> int:
     """Rebuild the report of the run folder ``argv`` names; the exit code (2 for a folder without jobs)."""
-    parser = argparse.ArgumentParser(prog="simbench report", description=__doc__)
+    parser = argparse.ArgumentParser(prog="simbench report", description=plain_text(__doc__))
     parser.add_argument("run_dir", type=Path, help="a results directory written by python -m simbench")
     parser.add_argument(
         "--formats",

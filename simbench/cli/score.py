@@ -15,6 +15,7 @@ from pathlib import Path
 import pandas as pd
 
 from simbench.cli.terminal import compact_summary
+from simbench.cli.text import plain_text
 from simbench.contract import read_parquet_metadata
 from simbench.errors import SimbenchError
 from simbench.report.build import finalize
@@ -62,7 +63,7 @@ def scenario_key_of(run_dir: Path, selectors: list[str]) -> str:
 def main(argv: list[str] | None = None) -> int:
     """Command line: score the file, then rebuild the run's aggregate, claims and report."""
     parser = argparse.ArgumentParser(
-        prog="simbench score", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+        prog="simbench score", description=plain_text(__doc__), formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("run_dir", type=Path, help="results_dir of the run (or sweep) to add the solution to")
     parser.add_argument("selectors", nargs="*", help="key=value on summary.parquet, e.g. scenario=urban seed=0")

@@ -10,13 +10,14 @@ from pathlib import Path
 import pandas as pd
 from tqdm.auto import tqdm
 
+from simbench.cli.text import plain_text
 from simbench.errors import SimbenchError
 from simbench.runs.zero_baseline import TABLE_NAME, zero_baseline
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """``python -m simbench zero-baseline SCENARIO... [KEY=VALUE...] [--seed N] [--out DIR]``."""
-    parser = argparse.ArgumentParser(prog="python -m simbench zero-baseline", description=__doc__)
+    parser = argparse.ArgumentParser(prog="python -m simbench zero-baseline", description=plain_text(__doc__))
     parser.add_argument(
         "scenarios",
         nargs="+",

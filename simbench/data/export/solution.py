@@ -4,8 +4,8 @@ RTKLIB ``.pos`` (:func:`rtklib_pos_text`), as ``rnx2rtkp`` writes it with ``out-
 and decimal degrees, and as :func:`simbench.data.rtklib_pos.parse_rtklib_pos` and RTKLIB's own
 reader (``readsol``) read it back::
 
-    %  GPST                  latitude(deg)  longitude(deg)   height(m)   Q  ns   sdn(m)   sde(m)   sdu(m)  sdne(m)  sdeu(m)  sdun(m)
-    2053   95400.000000   22.301443725  114.179003671    3.4231   5  14   1.0232   0.8911   2.3110   0.1021  -0.2210   0.3010
+    %  GPST                  latitude(deg)  longitude(deg)   height(m)   Q  ns   sdn(m)   sde(m)   sdu(m) ...
+    2053   95400.000000   22.301443725  114.179003671    3.4231   5  14   1.0232   0.8911   2.3110 ...
 
 =============  ================================================================================
 GPST           GPS week and GPS seconds of week [s] (6 decimals)
