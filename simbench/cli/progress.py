@@ -12,7 +12,9 @@ step's own time move while a scenario loads or one slow estimator runs. A sweep 
 
 from __future__ import annotations
 
+import io
 import json
+import logging
 import shutil
 import sys
 import threading
@@ -21,6 +23,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TextIO, cast
 
 from tqdm import tqdm
 
@@ -239,11 +242,43 @@ def job_progress(on: bool, estimators: int, results_dir: str, job: str | None) -
         one_line_warnings()  # what comes after the job (the report) prints as usual
 
 
+class AboveBar(io.TextIOBase):
+    """A text stream whose every complete line is written above a tqdm bar: the bar is cleared, the
+    line written to ``stream`` and the bar drawn again (tqdm.write does so only for sys.stdout itself)."""
+
+    def __init__(self, stream: TextIO, bar: tqdm) -> None:
+        self.stream, self.bar, self.pending = stream, bar, ""
+
+    def write(self, text: str) -> int:
+        lines, newline, self.pending = (self.pending + text).rpartition("\n")
+        if newline:
+            with self.bar.get_lock():
+                self.bar.clear(nolock=True)
+                self.stream.write(lines + newline)
+                self.stream.flush()
+                self.bar.refresh(nolock=True)
+        return len(text)
+
+    def flush(self) -> None:
+        if self.pending:
+            self.write("\n")
+        self.stream.flush()
+
+    def isatty(self) -> bool:
+        return self.stream.isatty()
+
+    def fileno(self) -> int:
+        return self.stream.fileno()
+
+
 class SweepBar:
     """The bar of the sweep this process runs; a module-level holder, not an attribute of the Hydra
     callback, since the joblib launcher pickles the callbacks for its workers and a thread does not pickle."""
 
     current: LiveBar | None = None
+    #: This process's standard output while the bar runs; meanwhile a line printed or logged to it (Hydra's
+    #: "Launching 2 jobs", "#1 : seed=1") goes through tqdm.write, above the bar instead of after it
+    stdout: TextIO | None = None
 
 
 def start_sweep_bar(sweep_dir: str | Path) -> None:
@@ -252,6 +287,9 @@ def start_sweep_bar(sweep_dir: str | Path) -> None:
     shutil.rmtree(directory, ignore_errors=True)  # a killed sweep's files
     directory.mkdir(parents=True, exist_ok=True)
     SweepBar.current = LiveBar(sweep_files(directory), Planned.jobs, "job")
+    SweepBar.stdout, sys.stdout = sys.stdout, cast(TextIO, AboveBar(sys.stdout, SweepBar.current.bar))
+    # Hydra's log handlers hold the stream they were made with; a job's, made later, find the new one
+    _swap_console_streams(SweepBar.stdout, sys.stdout)
 
 
 def end_sweep_bar(sweep_dir: str | Path) -> None:
@@ -259,4 +297,15 @@ def end_sweep_bar(sweep_dir: str | Path) -> None:
     if SweepBar.current is not None:
         SweepBar.current.close()
         SweepBar.current = None
+    if SweepBar.stdout is not None:
+        sys.stdout.flush()
+        _swap_console_streams(sys.stdout, SweepBar.stdout)
+        sys.stdout, SweepBar.stdout = SweepBar.stdout, None
     shutil.rmtree(status_dir(sweep_dir), ignore_errors=True)
+
+
+def _swap_console_streams(old: TextIO, new: TextIO) -> None:
+    """Point the root logger's console handlers that write to ``old`` at ``new``."""
+    for handler in logging.root.handlers:
+        if isinstance(handler, logging.StreamHandler) and handler.stream is old:
+            handler.setStream(new)
