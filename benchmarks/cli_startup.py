@@ -7,7 +7,10 @@ Each command runs in a fresh interpreter, as a user types it; ``python -c pass``
 entry points' before any estimator loads; a bad value (``scenario.duration_s=-5``) needs the
 composed, typed config, so every estimator's ``Config`` is imported first (no target; reported).
 
-    python benchmarks/cli_startup.py [--repeat 3]
+    python benchmarks/cli_startup.py [--repeat 3] [--repo DIR]
+
+``--repo`` times another checkout (e.g. the main branch's, for a before/after): the commands run in
+its folder, so ``python -m simbench`` is its code.
 """
 
 from __future__ import annotations
@@ -30,12 +33,12 @@ CASES: list[tuple[str, list[str], float | None, int]] = [
 ]
 
 
-def best_time(args: list[str], code: int, repeat: int) -> float:
-    """Best wall time of ``python <args>`` over ``repeat`` runs [s]; checks the exit code."""
+def best_time(args: list[str], code: int, repeat: int, repo: Path) -> float:
+    """Best wall time of ``python <args>`` in ``repo`` over ``repeat`` runs [s]; checks the exit code."""
     best = float("inf")
     for _ in range(repeat):
         tic = time.perf_counter()
-        proc = subprocess.run([sys.executable, *args], cwd=ROOT, capture_output=True, text=True)
+        proc = subprocess.run([sys.executable, *args], cwd=repo, capture_output=True, text=True)
         best = min(best, time.perf_counter() - tic)
         if proc.returncode != code:
             raise SystemExit(f"{args}: exit {proc.returncode}, expected {code}: {proc.stderr[-500:]}")
@@ -45,10 +48,11 @@ def best_time(args: list[str], code: int, repeat: int) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--repo", type=Path, default=ROOT, help="the checkout to time (default: this one)")
     args = parser.parse_args()
     floor = None
     for label, argv, target, code in CASES:
-        seconds = best_time(argv, code, args.repeat)
+        seconds = best_time(argv, code, args.repeat, args.repo)
         floor = seconds if floor is None else floor
         verdict = "" if target is None else f"  target <= {target:.1f} s: {'met' if seconds <= target else 'MISSED'}"
         print(f"{label:40s} {seconds:6.2f} s  {seconds / floor:5.1f}x python's start{verdict}")
