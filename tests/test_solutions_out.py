@@ -100,13 +100,27 @@ def test_tum_files_are_the_local_frame_of_the_epoch_table(run_dir: Path) -> None
     assert np.allclose(truth[:, 0], tum[:, 0])  # the same GPS time stamps
 
 
-def test_a_result_gone_from_the_run_loses_its_files(run_dir: Path) -> None:
+def test_a_finalize_rewrites_what_changed_and_removes_what_is_gone(run_dir: Path) -> None:
     summary = pd.read_parquet(run_dir / "summary.parquet")
     epochs = pd.read_parquet(run_dir / "epochs.parquet")
-    written = write_solutions(run_dir, summary[summary["estimator"] != "l2"], epochs)
-    assert not (_folder(run_dir) / "l2.pos").exists() and (_folder(run_dir) / "ekf_ppp.pos") in written
+    files = {name: _folder(run_dir) / f"{name}.pos" for name in ESTIMATORS}
+
+    def inodes() -> dict[str, int]:  # a file written again is a new file renamed over the old one
+        return {name: path.stat().st_ino for name, path in files.items()}
+
+    first = inodes()
+    kept = write_solutions(run_dir, summary, epochs)
+    assert inodes() == first and len(kept) == 6  # nothing changed: nothing written
+    moved = epochs.assign(x=epochs["x"].where(epochs["estimator"] != "l2", epochs["x"] + 1.0))
+    write_solutions(run_dir, summary, moved)
+    assert inodes()["ekf_ppp"] == first["ekf_ppp"] and inodes()["l2"] != first["l2"]
+    assert parse_rtklib_pos(files["l2"].read_text())["x"].iloc[0] == pytest.approx(
+        moved.query("estimator == 'l2'").sort_values("epoch")["x"].iloc[0], abs=MM
+    )
+    write_solutions(run_dir, summary[summary["estimator"] != "l2"], epochs)
+    assert not files["l2"].exists() and files["ekf_ppp"].is_file()
     write_solutions(run_dir, summary, epochs)  # the module's other tests read it as the run wrote it
-    assert (_folder(run_dir) / "l2.pos").is_file()
+    assert files["l2"].is_file()
 
 
 def test_pos_text_round_trips_through_the_reader_to_a_tenth_of_a_millimetre() -> None:
