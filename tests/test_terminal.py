@@ -1,8 +1,11 @@
 """What the terminal shows: one progress bar for a whole sweep under any launcher, steps and warnings
-above it, skipped estimators as skipped, and help text without Sphinx markup."""
+above it, skipped estimators as skipped, help text without Sphinx markup, and the names the fast
+paths (--help, a misspelt name) read without importing an estimator."""
 
 from __future__ import annotations
 
+import dataclasses
+import importlib.util
 import re
 import subprocess
 import sys
@@ -12,10 +15,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
+import estimators
 import simbench.cli.main as cli
 from simbench.cli.progress import JobStatus, LiveBar, single_run, status_dir, sweep_files
 from simbench.cli.terminal import compact_summary
 from simbench.cli.text import plain_text
+from simbench.runs.compose import register_schemas
+from simbench.runs.groups import BUILT_IN_NAMES, available, recorded_built_in_estimators
 
 ROOT = Path(__file__).resolve().parent.parent
 #: What reStructuredText leaves in a terminal: inline literals and cross-reference roles.
@@ -126,3 +132,25 @@ def test_main_help_has_no_sphinx_markup(capsys, monkeypatch) -> None:
 def test_plain_text_keeps_the_words_of_markup() -> None:
     doc = "``simbench score RUN``: a row (:mod:`simbench.runs.foreign`, :func:`~simbench.runs.x.score`)::\n"
     assert plain_text(doc) == "simbench score RUN: a row (simbench.runs.foreign, score):\n"
+
+
+def test_the_name_checks_read_the_built_in_names_recorded_at_registration(monkeypatch) -> None:
+    register_schemas.cache_clear()
+    register_schemas()
+    assert recorded_built_in_estimators() == sorted(estimators.built_in())
+    assert set(estimators.built_in()) <= set(available("estimator"))  # without importing, in a new process
+    record = Path(importlib.util.find_spec("estimators").origin).parent / "__pycache__" / BUILT_IN_NAMES
+    record.write_text(record.read_text().replace('"stamp": [[', '"stamp": [["edited.py", 1, 1], ['))
+    assert recorded_built_in_estimators() is None  # an estimator file changed: the record tells nothing
+    # a name it lacks is then checked against the imported estimators, which records them again
+    assert "l2" in cli.all_estimator_options() and recorded_built_in_estimators() == sorted(estimators.built_in())
+    # a class without a module file of the package (a test's) is registered in that process, not recorded
+    config = dataclasses.make_dataclass("BrandNewConfig", [("k", float, 1.0)])
+    fake = type("Fake", (estimators.Estimator,), {"name": "brand_new", "Config": config})
+    fake.__module__ = "estimators.brand_new"
+    built_in = estimators.built_in()
+    monkeypatch.setattr(estimators, "built_in", lambda: {**built_in, "brand_new": fake})
+    register_schemas.cache_clear()
+    register_schemas()
+    assert "brand_new" not in (recorded_built_in_estimators() or [])
+    register_schemas.cache_clear()

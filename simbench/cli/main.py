@@ -26,7 +26,7 @@ from omegaconf import DictConfig, OmegaConf, open_dict
 from simbench.cli.text import did_you_mean, one_line_warnings
 from simbench.entry_points import ALL_ESTIMATORS
 from simbench.errors import SimbenchError
-from simbench.runs.groups import CONF_DIR, available, check_group_choices, config_groups, group_choices
+from simbench.runs.groups import CONF_DIR, available, config_groups, group_choices, recorded_built_in_estimators
 
 if TYPE_CHECKING:
     import pandas
@@ -94,7 +94,6 @@ def main() -> None:
     try:
         # group options are checked for sweeps and flags too: Hydra would only say "Could not load"
         suggest_names(a for a in args if not a.startswith("-"))
-        check_group_choices(a for a in args if not a.startswith("-"))
         from tabulate import tabulate  # lazy: --help and a misspelt name need none of these
 
         from simbench.cli.progress import Planned  # lazy
@@ -155,6 +154,8 @@ def suggest_names(overrides: Iterable[str]) -> None:
         if sep and group in groups:
             known = available(group)
             for name in group_choices(value) or []:
+                if name not in known and group == "estimator":
+                    known = all_estimator_options()
                 if name not in known:
                     raise SimbenchError(
                         group,
@@ -165,11 +166,25 @@ def suggest_names(overrides: Iterable[str]) -> None:
         if sep and len(parts) > 2 and parts[0] == "estimator":
             known = [name for name in available("estimator") if name != ALL_ESTIMATORS]
             if parts[1] not in known:
+                known = [name for name in all_estimator_options() if name != ALL_ESTIMATORS]
+            if parts[1] not in known:
                 raise SimbenchError(
                     f"estimator.{parts[1]}",
                     f"unknown estimator '{parts[1]}'{did_you_mean(parts[1], known)}",
                     f"choose from {', '.join(known)} (python -m simbench --estimators lists them)",
                 )
+
+
+def all_estimator_options() -> list[str]:
+    """The ``estimator`` options, certainly: when the built-in names recorded at the last registration are
+    stale (an estimator file changed since), every estimator is imported and registered (seconds) to tell."""
+    if recorded_built_in_estimators() is not None:
+        return available("estimator")
+    import estimators  # lazy: only to refuse a name the recorded ones lack
+    from simbench.runs.compose import record_estimator_names  # lazy
+
+    record_estimator_names()  # for the next command line
+    return available("estimator", estimators.registered())
 
 
 def planned_jobs(args: list[str], cfg: DictConfig) -> int | None:

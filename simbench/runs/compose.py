@@ -22,7 +22,8 @@ from estimators.ppp_config import GnssModelConfig
 from simbench import source as sources
 from simbench.errors import SimbenchError
 from simbench.paths import data_path
-from simbench.runs.groups import CONF_DIR, available, check_group_choices, config_groups
+from simbench.runs.groups import CONF_DIR, available, check_group_choices, config_groups, record_built_in_estimators
+from simbench.runs.provenance import module_file
 from simbench.sim.config import ImuConfig, ReceiverConfig, ScenarioConfig
 from simbench.typed import to_typed
 
@@ -71,6 +72,13 @@ def register_schemas() -> None:
         if name not in estimators.plugins() and not (CONF_DIR / "estimator" / f"{name}.yaml").is_file():
             cs.store(group="estimator", name=name, node={"defaults": [f"{name}_schema", "_self_"], name: {}})
     cs.store(group="estimator", name=estimators.ALL, node={"defaults": list(estimators.registered())})
+    record_estimator_names()
+
+
+def record_estimator_names() -> None:
+    """Record the built-in estimators' names, which ``--help`` and a name check read without importing an
+    estimator (:func:`simbench.runs.groups.recorded_built_in_estimators`); a built-in is a module file."""
+    record_built_in_estimators(n for n, cls in estimators.built_in().items() if module_file(cls.__module__))
 
 
 def estimator_schema(name: str, config: type) -> DictConfig:
@@ -210,7 +218,7 @@ def compose_config(overrides: list[str] | None = None, *, with_hydra: bool = Fal
         )
     overrides = list(overrides or [])
     register_schemas()
-    check_group_choices(overrides)
+    check_group_choices(overrides, estimators.registered())
     if GlobalHydra.instance().is_initialized():
         GlobalHydra.instance().clear()
     try:

@@ -7,6 +7,8 @@ without importing an estimator, a source or pandas, so they answer in well under
 
 from __future__ import annotations
 
+import importlib.util
+import json
 import re
 from collections.abc import Iterable
 from pathlib import Path
@@ -22,16 +24,60 @@ from simbench.errors import SimbenchError
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
 
 
-def available(group: str) -> list[str]:
+#: Where :func:`record_built_in_estimators` keeps the built-in estimators' names: beside the bytecode of the
+#: ``estimators`` package, with the size and time of each of its module files, so an edit makes it stale.
+BUILT_IN_NAMES = "simbench-estimator-names.json"
+
+
+def _estimators_folder() -> Path | None:
+    spec = importlib.util.find_spec("estimators")  # located, not imported
+    return Path(spec.origin).parent if spec is not None and spec.origin else None
+
+
+def _estimators_stamp(folder: Path) -> list[list[object]]:
+    return [[p.name, p.stat().st_size, p.stat().st_mtime_ns] for p in sorted(folder.glob("*.py"))]
+
+
+def recorded_built_in_estimators() -> list[str] | None:
+    """The built-in estimators' names as :mod:`simbench.runs.compose` last registered them; None when the
+    package's files changed since (or it never did): then only importing every estimator tells."""
+    folder = _estimators_folder()
+    if folder is None:
+        return None
+    try:
+        record = json.loads((folder / "__pycache__" / BUILT_IN_NAMES).read_text())
+        current = record["stamp"] == _estimators_stamp(folder)
+        return [str(name) for name in record["names"]] if current else None
+    except (OSError, ValueError, KeyError, TypeError):  # none yet, or half written by another process
+        return None
+
+
+def record_built_in_estimators(names: Iterable[str]) -> None:
+    """Keep the built-in estimators' names for :func:`available` (nothing when the folder is read-only)."""
+    folder = _estimators_folder()
+    if folder is None:
+        return
+    record = {"stamp": _estimators_stamp(folder), "names": sorted(names)}
+    try:  # plainly: a half-written record reads as none (simbench.contract's atomic write imports pandas)
+        (folder / "__pycache__").mkdir(exist_ok=True)
+        (folder / "__pycache__" / BUILT_IN_NAMES).write_text(json.dumps(record))
+    except OSError:
+        pass
+
+
+def available(group: str, registered: Iterable[str] = ()) -> list[str]:
     """Names of the options of a config group (``scenario``, ``receiver``, ...).
 
-    The files of ``conf/<group>/``; for ``estimator`` also the plug-in estimators
-    and ``all`` (every registered estimator); for ``scenario`` also every source by name.
-    Plug-ins are named by their entry points, not loaded (:func:`simbench.entry_points.entry_point_names`).
+    The files of ``conf/<group>/``; for ``estimator`` also the plug-in estimators, the built-in ones
+    (a module without its YAML too) and ``all``; for ``scenario`` also every source by name.
+    Plug-ins are named by their entry points, not loaded (:func:`simbench.entry_points.entry_point_names`),
+    built-ins by the names recorded when they were last registered (:func:`recorded_built_in_estimators`);
+    ``registered`` adds the estimators a caller that imported them has (``estimators.registered()``).
     """
     names = {p.stem for p in (CONF_DIR / group).glob("*.yaml")}
     if group == "estimator":
-        names |= {*entry_point_names(ESTIMATOR_GROUP), ALL_ESTIMATORS}
+        recorded = recorded_built_in_estimators() or []
+        names |= {*entry_point_names(ESTIMATOR_GROUP), *recorded, *registered, ALL_ESTIMATORS}
     if group == "scenario":
         names |= set(entry_point_names(SOURCE_GROUP))
     return sorted(names)
@@ -58,8 +104,10 @@ def group_choices(value: str) -> list[str] | None:
     return [name for name in names if name]
 
 
-def check_group_choices(overrides: Iterable[str]) -> None:
+def check_group_choices(overrides: Iterable[str], registered: Iterable[str] = ()) -> None:
     """Reject an unknown option of a config group (``estimator=[nosuch]``) in one line.
+
+    ``registered``: the estimators a caller that imported them has (:func:`available`).
 
     Raises
     ------
@@ -72,7 +120,7 @@ def check_group_choices(overrides: Iterable[str]) -> None:
         group = key.lstrip("+~")
         if not sep or group not in groups:
             continue
-        known = available(group)
+        known = available(group, registered)
         for name in group_choices(value) or []:
             if name not in known:
                 raise SimbenchError(group, f"unknown {group} '{name}'", f"choose from {', '.join(known)}")
