@@ -29,7 +29,7 @@ from typing import Any, ClassVar, Protocol, TypeVar
 
 from simbench.bounds import check_bounds
 from simbench.contract import Scenario
-from simbench.entry_points import load_plugin
+from simbench.entry_points import SOURCE_GROUP, load_plugin
 from simbench.errors import SimbenchError
 from simbench.typed import check_choices
 
@@ -48,7 +48,7 @@ __all__ = [
 ]
 
 #: Entry-point group in which packages (simbench itself too) name their source classes.
-ENTRY_POINT_GROUP = "simbench.sources"
+ENTRY_POINT_GROUP = SOURCE_GROUP
 #: The default source, the simulator: a result row or scenario that names no source was simulated.
 SIMULATED = "simulated"
 

@@ -18,7 +18,6 @@ import pandas as pd
 import pytest
 from conftest import one_line_error
 
-import simbench.cli.main
 from simbench.cli.main import check_jobs, job_overrides, main
 from simbench.runs.checks import check_run
 from simbench.runs.compose import compose_config
@@ -219,7 +218,8 @@ def test_job_overrides_cover_every_swept_value() -> None:
 
 def test_a_sweep_files_params_are_checked_too(monkeypatch) -> None:
     checked: list[float] = []
-    monkeypatch.setattr(simbench.cli.main, "check_run", lambda cfg: checked.append(cfg.prior_scale))
+    # check_jobs imports it when it runs (simbench.cli.main imports no config check, for --help's start-up)
+    monkeypatch.setattr("simbench.runs.checks.check_run", lambda cfg: checked.append(cfg.prior_scale))
     check_jobs(["+sweep=ch5_sensitivity", *TINY])
     assert sorted(checked) == [0.1, 0.3, 1, 3, 10, 100]
 

@@ -1,4 +1,5 @@
-"""Hydra callbacks: build the run's aggregate, claims and report when jobs end, and set the exit code."""
+"""Hydra callbacks: the sweep's progress bar; build the run's aggregate, claims and report when jobs end, and
+set the exit code."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ import pandas as pd
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
+from simbench.cli.progress import end_sweep_bar, start_sweep_bar
 from simbench.cli.terminal import compact_summary
 from simbench.errors import SimbenchError
 from simbench.report.build import finalize
@@ -36,11 +38,14 @@ class FinalizeRun(Callback):
 
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
         keep_earlier_configs(Path(config.hydra.sweep.dir))
+        if config.get("progress"):  # the sweep's one progress bar, from the first job to the last
+            start_sweep_bar(config.hydra.sweep.dir)
 
     def on_run_end(self, config: DictConfig, **kwargs: Any) -> None:
         self._finalize(Path(config.results_dir), config, sweep=False)
 
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
+        end_sweep_bar(config.hydra.sweep.dir)  # at N/N before the summary prints
         self._finalize(Path(config.hydra.sweep.dir), config, sweep=True)
 
     @staticmethod

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import sys
 
+from simbench.cli.text import plain_text
 from simbench.data.export import ExportFormat, export_scenario
 from simbench.errors import SimbenchError
 from simbench.runs.checks import check_seed
@@ -26,7 +27,7 @@ def main(argv: list[str]) -> int:
     """Run the export; return the process exit code (2 with a one-line error on bad input)."""
     args = list(argv)
     if any(a in ("-h", "--help") for a in args):
-        print(__doc__.strip().splitlines()[0] + f"\nusage: {_USAGE}")
+        print(plain_text(__doc__).strip().splitlines()[0] + f"\nusage: {_USAGE}")
         return 0
     own = {a.partition("=")[0]: a.partition("=")[2] for a in args if a.startswith(("format=", "out="))}
     overrides = [a for a in args if not a.startswith(("format=", "out="))]

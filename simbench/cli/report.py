@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from simbench.cli.terminal import OneLineParser
+from simbench.cli.text import OneLineParser, plain_text
 from simbench.errors import SimbenchError
 from simbench.report.build import finalize
 from simbench.runs.checks import check_report_formats
@@ -15,7 +15,7 @@ from simbench.runs.store import job_stems, run_folders
 def main(argv: list[str]) -> int:
     """Rebuild the report of the run folder ``argv`` names; the exit code (2 with one line: a folder without
     jobs, a damaged study_times.csv, a folder that cannot be written, a full disk)."""
-    parser = OneLineParser(prog="simbench report", description=__doc__)
+    parser = OneLineParser(prog="simbench report", description=plain_text(__doc__))
     parser.add_argument("run_dir", type=Path, help="a results directory written by python -m simbench")
     parser.add_argument(
         "--formats",

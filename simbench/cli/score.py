@@ -13,7 +13,8 @@ import sys
 from pathlib import Path
 
 from simbench.cli.callbacks import EXIT_FAILED_ROWS
-from simbench.cli.terminal import OneLineParser, compact_summary
+from simbench.cli.terminal import compact_summary
+from simbench.cli.text import OneLineParser, plain_text
 from simbench.errors import SimbenchError
 from simbench.report.build import finalize
 from simbench.report.stale import check_report_dir
@@ -70,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
     folder that cannot be written or a fault of the machine (a full disk).
     """
     parser = OneLineParser(
-        prog="simbench score", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+        prog="simbench score", description=plain_text(__doc__), formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("run_dir", type=Path, help="results_dir of the run (or sweep) to add the solution to")
     parser.add_argument("selectors", nargs="*", help="key=value on summary.parquet, e.g. scenario=urban seed=0")

@@ -29,7 +29,7 @@ import pandas as pd
 from simbench.analysis.claims import claims_by_world
 from simbench.analysis.published import DRIVE_MEDIANS_BY_SWEEP, PUBLISHED_FAMILY
 from simbench.analysis.tables import drive_comparison
-from simbench.cli.terminal import OneLineParser
+from simbench.cli.text import OneLineParser, plain_text
 from simbench.errors import SimbenchError
 from simbench.runs.files import read_csv_table
 from simbench.runs.store import load_table
@@ -159,7 +159,9 @@ SECTIONS = {"claims": claims_section, "drives": drives_section, "times": times_s
 def main(argv: list[str]) -> int:
     """Print the tables of the run folder ``argv`` names; the exit code (2 when it holds none of their files)."""
     parser = OneLineParser(
-        prog="python -m simbench tables", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+        prog="python -m simbench tables",
+        description=plain_text(__doc__),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("run_dir", type=Path, help="a results directory written by python -m simbench")
     parser.add_argument("--only", choices=TABLES, help="print one table")

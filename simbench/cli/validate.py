@@ -25,6 +25,7 @@ import pandas as pd
 from tqdm import tqdm
 
 from simbench.analysis.validation import cn0_by_elevation, comparison_table, residual_sample
+from simbench.cli.text import plain_text
 from simbench.contract import write_bytes
 from simbench.errors import SimbenchError, require_elevation_mask
 from simbench.report.figures import validation_figure
@@ -120,7 +121,7 @@ def run(args: list[str]) -> pd.DataFrame:
 def main(argv: list[str]) -> int:
     """Run :func:`run` on ``argv``; the exit code (2 with a one-line error on bad input)."""
     if argv and argv[0] in ("-h", "--help"):
-        print(__doc__)
+        print(plain_text(__doc__))
         return 0
     try:
         run(argv)

@@ -9,7 +9,7 @@ from pathlib import Path
 import pandas as pd
 from tqdm.auto import tqdm
 
-from simbench.cli.terminal import OneLineParser
+from simbench.cli.text import OneLineParser, plain_text
 from simbench.contract import write_bytes
 from simbench.errors import SimbenchError
 from simbench.runs.checks import check_seed
@@ -19,7 +19,7 @@ from simbench.runs.zero_baseline import TABLE_NAME, check_zero_baseline, zero_ba
 
 def main(argv: Sequence[str] | None = None) -> int:
     """``python -m simbench zero-baseline SCENARIO... [KEY=VALUE...] [--seed N] [--out DIR]``."""
-    parser = OneLineParser(prog="python -m simbench zero-baseline", description=__doc__)
+    parser = OneLineParser(prog="python -m simbench zero-baseline", description=plain_text(__doc__))
     parser.add_argument(
         "scenarios",
         nargs="+",

@@ -70,6 +70,7 @@ from simbench.runs.checks import check_report_formats
 from simbench.runs.files import os_fault, read_csv_table
 from simbench.runs.provenance import provenance
 from simbench.runs.runner import SUMMARY_COLUMNS
+from simbench.runs.solutions import write_solutions
 from simbench.runs.store import aggregate, cached_scenarios, diagnostics, intact_jobs, job_stems
 from simbench.runs.studies import read_study_times, time_budget
 from simbench.runs.zero_baseline import COLUMNS as ZERO_BASELINE_COLUMNS
@@ -167,6 +168,7 @@ def _finalize(
         summary = summary.reindex(columns=list(dict.fromkeys([*SUMMARY_COLUMNS, *summary.columns])))
         diag = diagnostics(run_dir, jobs)
         epochs = _ok_epochs(epochs, summary)  # figures and claims use the results the tables use
+        write_solutions(run_dir, summary, epochs)  # .pos and TUM for rtkplot, evo and simbench score
         # the report selects and groups the epoch rows many times: its labels as categories are an integer
         # take each, not an Arrow string take (about 8 s of a 5-world thesis report)
         text = epochs.select_dtypes(include=["string", "object"]).columns
