@@ -20,6 +20,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import functools
+import importlib
 import io
 import shutil
 import tempfile
@@ -55,6 +56,11 @@ ARGS = ["estimator=[l2]", "scenario.duration_s=30", "progress=false"]
 SECONDS_PER_WEEK = 604800
 #: The marker of a stale page (simbench.report.stale.STALE_ID), spelled out: the test must not follow it.
 STALE = "simbench-stale"
+
+
+def subcommand(name: str) -> Callable[[list[str]], int]:
+    """The ``main`` of subcommand ``name`` (its module is imported when it runs)."""
+    return importlib.import_module(f"simbench.cli.{SUBCOMMANDS[name]}").main
 
 
 @dataclass(frozen=True)
@@ -538,7 +544,7 @@ def run_case(case: Case, world: World, tmp: Path, monkeypatch: pytest.MonkeyPatc
         warnings.simplefilter("always")
         try:
             with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), injected(case.fault, monkeypatch):
-                code = finalize_run(run) if case.command == "finalize-run" else SUBCOMMANDS[case.command](argv)
+                code = finalize_run(run) if case.command == "finalize-run" else subcommand(case.command)(argv)
         except SystemExit as exc:
             code = exc.code if isinstance(exc.code, int) else 2
         except (Exception, KeyboardInterrupt) as exc:
