@@ -971,7 +971,6 @@ COLUMN_NAMES = {
     "error_3d_max": "3-D max [m]",
     "median_ref": "median [m]",
     "published_as": "published as",
-    "claim_id": "claim",
     "wall_s": "wall time [s]",
 }
 

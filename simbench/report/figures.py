@@ -44,7 +44,7 @@ from simbench.analysis.metrics import reference_ecdf
 from simbench.analysis.validation import ValidationSample, cn0_by_elevation
 from simbench.contract import write_bytes
 from simbench.errors import SimbenchError
-from simbench.report.style import LABELS_MARK, PRESETS, by_family, curve_styles, preset, sig3
+from simbench.report.style import LABELS_MARK, PRESETS, TRUETYPE, by_family, curve_styles, preset, sig3
 from simbench.runs.checks import ReportFormat as Format
 
 METRIC_LABELS = {"horizontal": "horizontal error [m]", "error_3d": "3-D error [m]"}
@@ -441,7 +441,8 @@ def save_figure(fig: plt.Figure, path: str | Path, title: str, formats: Sequence
         else:
             # what is drawn past the canvas is measured by matplotlib (one more drawing)
             area = box if on_canvas else "tight"
-            fig.savefig(buffer, format=fmt, dpi=PNG_DPI, bbox_inches=area, pad_inches=PAD_INCHES)
+            with matplotlib.rc_context(TRUETYPE):  # whatever the preset: a vector file never embeds Type 3
+                fig.savefig(buffer, format=fmt, dpi=PNG_DPI, bbox_inches=area, pad_inches=PAD_INCHES)
         target = path.with_suffix(f".{fmt}")
         write_bytes(target, buffer.getvalue())  # atomic: two reports of one run never mix their figures
         files.append(target)

@@ -10,6 +10,7 @@ accuracy floor) is ranked apart, under a rule after the others.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -194,3 +195,14 @@ def terminal_text(boards: Sequence[tuple[str, pd.DataFrame]], width: int = 110) 
         )
         out += [title, *(line.rstrip()[:width] for line in text.splitlines()), ""]
     return "\n".join(out).rstrip()
+
+
+def terminal_summary(report: Path) -> str:
+    """The leaderboards a report wrote (``leaderboard.csv`` in ``report``) for the terminal, one per
+    (sweep, scenario, receiver) group: the page's numbers, without CIs; ``''`` without the file."""
+    path = report / "leaderboard.csv"
+    if not path.is_file():
+        return ""
+    table = pd.read_csv(path, dtype=str, keep_default_na=False)
+    boards = [(str(title), rows.drop(columns=["group"])) for title, rows in table.groupby("group", sort=False)]
+    return terminal_text(boards)

@@ -117,6 +117,10 @@ LABELS_MARK = "†"
 UNDEFINED = "—"
 
 
+#: TrueType fonts in PDF and PS, text as text in SVG: publishers reject Type 3 fonts (matplotlib's default).
+TRUETYPE: dict[str, Any] = {"pdf.fonttype": 42, "ps.fonttype": 42, "svg.fonttype": "none"}
+
+
 @dataclass(frozen=True)
 class Preset:
     """A figure size (``report.style``): the width a figure is drawn for and its fonts.
@@ -144,9 +148,7 @@ class Preset:
             "xtick.labelsize": small,
             "ytick.labelsize": small,
             "legend.fontsize": small,
-            "pdf.fonttype": 42,
-            "ps.fonttype": 42,
-            "svg.fonttype": "none",
+            **TRUETYPE,
         }
 
 
@@ -248,6 +250,12 @@ def curve_styles(names: Mapping[str, str]) -> dict[str, dict[str, Any]]:
                 "markersize": 3.5,
             }
     return out
+
+
+def line_only(style: Mapping[str, Any]) -> dict[str, Any]:
+    """``style`` without its marker: for a line against time, whose zigzag would carry a marker every few
+    millimetres (markers are spaced along the drawn path); colour and line style still tell it apart."""
+    return {k: v for k, v in style.items() if k not in ("marker", "markevery", "markersize")}
 
 
 def by_family(names: Mapping[str, str]) -> dict[str, list[str]]:

@@ -32,7 +32,7 @@ from simbench.report.figures import (
     save_figure,
     style_record,
 )
-from simbench.report.style import REFERENCE_COLOR
+from simbench.report.style import REFERENCE_COLOR, line_only
 
 #: Degrees of freedom of the position NEES (east, north, up).
 NEES_DOF = 3
@@ -154,7 +154,7 @@ def altitude_figure(
     ax.plot(reference["t"], reference["up"], color=REFERENCE_COLOR, lw=1.4, label="reference")
     for name in names:
         rows = _on_reference(epochs[epochs["estimator"] == name], reference, ["up"])
-        ax.plot(rows["t"], rows["up"], lw=0.8, label=name, **styles[name])
+        ax.plot(rows["t"], rows["up"], lw=0.8, label=name, **line_only(styles[name]))
     ax.set_xlabel("GPS time since the first epoch [s]")
     ax.set_ylabel("up (local, from the first reference point) [m]")
     ax.grid(True, alpha=0.3)
@@ -192,9 +192,9 @@ def enu_error_figure(
     fig, axes = plt.subplots(3, 1, figsize=figsize(7.5, 5.4), dpi=PNG_DPI, sharex=True)
     beyond = 0
     for ax, column, label in zip(axes, ("e", "n", "u"), ("east", "north", "up")):
-        for name in names:
+        for name in reversed(names):  # the leaderboard's first drawn last, on top
             rows = _on_reference(epochs[epochs["estimator"] == name], reference, [column])
-            ax.plot(rows["t"], rows[column], lw=0.8, label=name, **styles[name])
+            ax.plot(rows["t"], rows[column], lw=0.8, label=name, **line_only(styles[name]))
         values = np.abs(epochs[column].to_numpy(float))
         values = values[np.isfinite(values)]
         if values.size:
@@ -205,7 +205,15 @@ def enu_error_figure(
         ax.set_ylabel(f"{label} error [m]")
         ax.grid(True, alpha=0.3)
     axes[-1].set_xlabel("GPS time since the first epoch [s]")
-    axes[0].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False, ncols=1 if len(names) <= 20 else 2)
+    handles, labels = axes[0].get_legend_handles_labels()
+    axes[0].legend(
+        handles[::-1],
+        labels[::-1],
+        loc="upper left",
+        bbox_to_anchor=(1.01, 1.0),
+        frameon=False,
+        ncols=1 + len(names) // 21,
+    )
     clipped = f"; {beyond} epoch errors beyond the scale, cut off" if beyond else ""
     return save_figure(fig, path, f"{title} (gaps: epochs not solved{clipped})", formats)
 
@@ -326,7 +334,8 @@ def consistency_figure(
         values = rows["nees"].to_numpy(float)
         finite = values[np.isfinite(values)]
         inside = float(np.mean((finite >= low) & (finite <= high))) if finite.size else np.nan
-        ax.plot(rows["t"], values, lw=0.8, label=f"{name} ({inside:.0%} inside)".replace("%", " %"), **styles[name])
+        label = f"{name} ({inside:.0%} inside)".replace("%", " %")
+        ax.plot(rows["t"], values, lw=0.8, label=label, **line_only(styles[name]))
     ax.axhspan(low, high, color="tab:green", alpha=0.12, lw=0)
     for bound in (low, high):
         ax.axhline(bound, color="tab:green", lw=0.8, ls="--")
