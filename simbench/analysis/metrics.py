@@ -234,8 +234,9 @@ def block_bootstrap(
     errors : numpy.ndarray
         (n,) errors at the reference epochs in time order [m]; ``inf`` for an unsolved epoch.
     statistics : dict
-        Name to a function of a (resamples, n) array giving (resamples,) values (e.g. a
-        percentile over reference epochs, an RMSE over the finite values).
+        Name to a function of a (resamples, n) array, each row a resample sorted ascending (sorted
+        once for every statistic), giving (resamples,) values: e.g. :func:`reference_percentiles`,
+        :func:`row_rmse`.
     resamples : int
     confidence : float
     seed : int
@@ -254,7 +255,7 @@ def block_bootstrap(
     rng = np.random.default_rng(seed)
     starts = rng.integers(0, n, size=(resamples, -(-n // block)))
     index = ((starts[:, :, None] + np.arange(block)) % n).reshape(resamples, -1)[:, :n]
-    sample = e[index]
+    sample = np.sort(e[index], axis=1)  # once: a percentile of a sorted row is an index
     tail = 50.0 * (1.0 - confidence)
     out = {}
     for name, statistic in statistics.items():
@@ -267,10 +268,11 @@ def block_bootstrap(
 
 
 def reference_percentiles(sample: np.ndarray, q: float) -> np.ndarray:
-    """:func:`reference_percentile` of each row of ``sample`` (unsolved epochs ``inf``) [m]."""
+    """:func:`reference_percentile` of each row of ``sample``, rows sorted ascending (unsolved epochs
+    ``inf``, last) [m]."""
     n = sample.shape[1]
     rank = max(int(np.ceil(q / 100.0 * n - 1e-9)), 1)
-    return np.partition(sample, rank - 1, axis=1)[:, rank - 1]
+    return sample[:, rank - 1]
 
 
 def row_rmse(sample: np.ndarray) -> np.ndarray:

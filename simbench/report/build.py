@@ -36,6 +36,7 @@ from typing import Any, cast
 
 import numpy as np
 import pandas as pd
+from PIL import Image
 
 from simbench.analysis.claims import CLAIMS, NOT_MEASURED, NOT_RUN, claims_by_world, claims_table
 from simbench.analysis.tables import (
@@ -60,6 +61,7 @@ from simbench.errors import SimbenchError
 from simbench.gnss.navigation import UNREAD_SYSTEM_NAMES
 from simbench.report.figures import (
     LABELS_MARK,
+    PNG_DPI,
     FigureFile,
     Format,
     mixture_evolution_figure,
@@ -521,6 +523,8 @@ DETAIL_COLUMNS = (
     "time_per_obs_s",
     "update_median_s",
 )
+#: CSS pixels per inch: a figure is shown at the size it was drawn for.
+CSS_DPI = 96
 #: Files the leaderboard is exported to, beside index.html (:mod:`simbench.report.leaderboard`).
 LEADERBOARD_FILES = ("leaderboard.csv", "leaderboard.tex")
 
@@ -855,8 +859,12 @@ class _Page:
         png = figure.path.name
         links = " ".join(f"<a href='{f.name}'>{f.suffix[1:].upper()}</a>" for f in figure.files[1:])
         caption = html.escape(figure.title) + (f" ({links})" if links else "")
+        # shown at its size in inches (CSS pixels are 1/96 in), not stretched to the page: a 300 dpi PNG
+        # has three times the pixels it needs on a screen
+        with Image.open(figure.path) as image:
+            width = round(image.size[0] * CSS_DPI / PNG_DPI)
         self.html.append(
-            f"<figure><img src='{png}' alt='{html.escape(figure.path.stem)}'>"
+            f"<figure><img src='{png}' width='{width}' alt='{html.escape(figure.path.stem)}'>"
             f"<figcaption>{caption}</figcaption></figure>"
         )
         self.md += [f"![{figure.title}]({png})", ""]

@@ -22,6 +22,7 @@ shows can be checked without pixels.
 from __future__ import annotations
 
 import io
+import logging
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -46,6 +47,10 @@ from simbench.contract import write_bytes
 from simbench.errors import SimbenchError
 from simbench.report.style import LABELS_MARK, PRESETS, TRUETYPE, by_family, curve_styles, preset, sig3
 from simbench.runs.checks import ReportFormat as Format
+
+# TrueType embedding subsets each font with fontTools, which logs every table it prunes at INFO: under
+# Hydra's INFO root logger, about 70 lines per PDF on the terminal
+logging.getLogger("fontTools").setLevel(logging.WARNING)
 
 METRIC_LABELS = {"horizontal": "horizontal error [m]", "error_3d": "3-D error [m]"}
 #: More curves than this and the trajectory becomes small multiples, one panel per family.
@@ -291,6 +296,9 @@ def family_ecdf_figure(
         ax.set_title(panel, y=PANEL_TITLE_Y)
         ax.legend(loc="lower right", frameon=True, fontsize="small")
         ax.label_outer()
+    for ax in axes[-3:]:  # the last row, and a panel over an empty place, keep their error axis labelled
+        ax.tick_params(labelbottom=True)
+        ax.set_xlabel(METRIC_LABELS.get(metric, metric))
     return save_figure(fig, path, f"{title} ({REFERENCE_NOTE}; grey: the other families)", formats)
 
 
@@ -326,7 +334,8 @@ def log_ticks(axis: Any) -> None:
     ticks labelled only where the axis spans few decades (its ``minor_thresholds``), so labels never run
     together; minor ticks unlabelled otherwise."""
     axis.set_major_locator(LogLocator(base=10.0))
-    axis.set_minor_locator(LogLocator(base=10.0, subs="auto"))
+    # minor ticks at 2 and 5 x 10^k only: each tick is drawn (most of a small figure's time) and 2, 5 guide the eye
+    axis.set_minor_locator(LogLocator(base=10.0, subs=(2.0, 5.0)))
     axis.set_major_formatter(LogFormatterSciNotation(base=10.0))
     axis.set_minor_formatter(LogFormatterSciNotation(base=10.0, labelOnlyBase=False, minor_thresholds=(1, 0.4)))
 
@@ -476,16 +485,18 @@ def box_figure(
     n_reference: Mapping[str, int],
     metric: str = "horizontal",
     formats: Sequence[Format] = ("png",),
+    order: Sequence[str] = (),
 ) -> FigureFile:
     """Box plot of the solved epochs' errors per estimator (dissertation Fig. 5.3.2), log scale.
 
     Each label gives the estimator's availability (solved / ``n_reference`` epochs,
-    as in :func:`ecdf_figure`): the boxes describe only the epochs it solved.
+    as in :func:`ecdf_figure`): the boxes describe only the epochs it solved. Boxes in ``order``
+    (the leaderboard's), names not in it after them by their median.
     """
     counts = _references(epochs, n_reference)
-    order = sorted(
-        epochs["estimator"].unique(), key=lambda n: np.nanmedian(epochs.loc[epochs["estimator"] == n, metric])
-    )
+    present = [str(n) for n in epochs["estimator"].unique()]
+    rest = sorted(set(present) - set(order), key=lambda n: np.nanmedian(epochs.loc[epochs["estimator"] == n, metric]))
+    order = [n for n in order if n in present] + rest
     styles = estimator_styles(order)
     data = [epochs.loc[epochs["estimator"] == n, metric].dropna().to_numpy() for n in order]
     labels = [f"{n}\n{availability_text(len(d) / counts[n])}" for n, d in zip(order, data)]

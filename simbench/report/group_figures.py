@@ -233,7 +233,14 @@ def group_figures(page: Recorder, out: Path, inputs: GroupInputs, scenarios: Map
         )
     )
     page.figure(
-        box_figure(shown, out / f"box_{tag}.png", f"Horizontal error per estimator: {name}", n_reference, **page.fmt)
+        box_figure(
+            shown,
+            out / f"box_{tag}.png",
+            f"Horizontal error per estimator: {name} (leaderboard order)",
+            n_reference,
+            order=order,
+            **page.fmt,
+        )
     )
     time_views(page, out, tag, name, shown, scenarios, order)
     sensitivity = sensitivity_curves(group_stats)
