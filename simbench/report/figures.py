@@ -450,7 +450,7 @@ def save_figure(fig: plt.Figure, path: str | Path, title: str, formats: Sequence
         else:
             # what is drawn past the canvas is measured by matplotlib (one more drawing)
             area = box if on_canvas else "tight"
-            with matplotlib.rc_context(TRUETYPE):  # whatever the preset: a vector file never embeds Type 3
+            with matplotlib.rc_context(cast(Any, TRUETYPE)):  # whatever the preset: a vector file never embeds Type 3
                 fig.savefig(buffer, format=fmt, dpi=PNG_DPI, bbox_inches=area, pad_inches=PAD_INCHES)
         target = path.with_suffix(f".{fmt}")
         write_bytes(target, buffer.getvalue())  # atomic: two reports of one run never mix their figures
