@@ -954,8 +954,8 @@ class _Page:
         return out
 
 
-#: Headers of the report's tables for their snake_case columns; a column not here keeps its name, its
-#: underscores as spaces (:func:`human_name`).
+#: Headers of the report's tables for their snake_case columns; a column not here keeps its name (it may be
+#: a world or an estimator, e.g. ``urban_deep``, whose name is its identity).
 COLUMN_NAMES = {
     "n_seeds": "seeds",
     "n_failed": "failed seeds",
@@ -980,12 +980,16 @@ COLUMN_NAMES = {
     "median_ref": "median [m]",
     "published_as": "published as",
     "wall_s": "wall time [s]",
+    "exit_code": "exit code",
+    "total_s": "total [s]",
+    "n_adaptations": "adaptations",
+    "ks_against": "KS against",
 }
 
 
 def human_name(column: Any) -> str:
-    """A table header for a column: :data:`COLUMN_NAMES`, else the name with spaces for underscores."""
-    return COLUMN_NAMES.get(str(column), str(column).replace("_", " "))
+    """A table header for a column: :data:`COLUMN_NAMES`, else its name."""
+    return COLUMN_NAMES.get(str(column), str(column))
 
 
 def _is_blank(value: Any) -> bool:

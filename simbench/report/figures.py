@@ -211,7 +211,7 @@ class Curves:
             return
         x, p = self.curves[name][metric]
         x = np.maximum(x, self.left())
-        ax.step(np.r_[x[0], x], np.r_[0.0, p], where="post", label=label, **{"lw": 1.2, **style})
+        ax.step(np.r_[x[0], x], np.r_[0.0, p], where="post", label=label, **{"lw": preset().font_pt / 7.5, **style})
         ax.plot(x[-1], p[-1], marker="o", ms=3, color=style["color"])
 
 
@@ -248,11 +248,14 @@ def ecdf_figure(
         File formats to write.
     """
     metrics = [metrics] if isinstance(metrics, str) else list(metrics)
+    if preset().name == "single":  # a 3.5 in column holds one panel and its legend: the first metric
+        metrics = metrics[:1]
     given = medians or {}
     data = Curves.of(epochs, metrics, n_reference, given)
     styles = estimator_styles(data.order)
     paper = preset().name != "screen"
-    fig, axes = grid_axes(len(metrics), 3.4, 3.0, ncols=len(metrics), sharex=True, sharey=True)
+    size = (5.2, 4.4) if preset().name == "single" else (3.4, 3.0)  # single: one panel, the column's width
+    fig, axes = grid_axes(len(metrics), *size, ncols=len(metrics), sharex=True, sharey=True)
     for i, (ax, metric) in enumerate(zip(axes, metrics)):
         for name in data.order:
             shown = None if medians is None or paper else [given.get(m, {}).get(name, np.nan) for m in metrics]
@@ -261,11 +264,8 @@ def ecdf_figure(
         _ecdf_axes(ax, metric, data.left())
         ax.label_outer()  # shared axes: the outer panels carry the labels
     handles, labels = axes[0].get_legend_handles_labels()
-    # one legend for the figure, beside the last panel (below it in a single column), in leaderboard order
-    if preset().name == "single":
-        axes[-1].legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, -0.28), frameon=False, ncols=2)
-    else:
-        axes[-1].legend(handles, labels, loc="upper left", bbox_to_anchor=(1.02, 1.0), frameon=False)
+    # one legend for the figure, beside the last panel, in leaderboard order
+    axes[-1].legend(handles, labels, loc="upper left", bbox_to_anchor=(1.02, 1.0), frameon=False)
     return save_figure(fig, path, f"{title} ({REFERENCE_NOTE})", formats)
 
 
@@ -329,11 +329,15 @@ def _ecdf_label(name: str, availability: float, medians: Sequence[float] | None,
     return f"{name} ({availability_text(availability)}, median {' / '.join(sig3(m) for m in medians)} m)"
 
 
+#: Up to this many decades on a log axis are each ticked and labelled (matplotlib skips some on a short axis).
+LOG_DECADES_MAX = 12
+
+
 def log_ticks(axis: Any) -> None:
     """A log axis labelled by matplotlib's own locator and formatter: decades as 10^k, and the 2-9 x 10^k
     ticks labelled only where the axis spans few decades (its ``minor_thresholds``), so labels never run
     together; minor ticks unlabelled otherwise."""
-    axis.set_major_locator(LogLocator(base=10.0))
+    axis.set_major_locator(LogLocator(base=10.0, numticks=LOG_DECADES_MAX))  # every decade, also on a small axis
     # minor ticks at 2 and 5 x 10^k only: each tick is drawn (most of a small figure's time) and 2, 5 guide the eye
     axis.set_minor_locator(LogLocator(base=10.0, subs=(2.0, 5.0)))
     axis.set_major_formatter(LogFormatterSciNotation(base=10.0))

@@ -247,7 +247,7 @@ def curve_styles(names: Mapping[str, str]) -> dict[str, dict[str, Any]]:
                 "marker": FAMILY_MARKERS[family],
                 # a marker every tenth of the axes' diagonal: a line of thousands of epochs stays a line
                 "markevery": MARKEVERY,
-                "markersize": 3.5,
+                "markersize": 0.4 * preset().font_pt,
             }
     return out
 
