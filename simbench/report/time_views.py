@@ -100,6 +100,9 @@ def trajectory_figure(
         ax.label_outer()  # shared axes: the outer panels carry the labels
     for ax in axes:
         ax.autoscale_view()
+    for ax in axes[-TRAJECTORY_COLUMNS:]:  # the last row, and a panel over an empty place, keep east labelled
+        ax.tick_params(labelbottom=True)
+        ax.set_xlabel("east [m]")
     if lines is not None and norm is not None:
         bar = fig.colorbar(lines, ax=axes, shrink=0.6, label="horizontal error [m]")
         log_ticks(bar.ax.yaxis)
