@@ -12,10 +12,11 @@ from PIL import Image
 
 from estimators import registered
 from simbench.analysis.metrics import block_bootstrap, block_length, reference_percentiles, rmse, row_rmse
-from simbench.analysis.tables import with_rmse
+from simbench.analysis.tables import epoch_intervals, with_rmse
 from simbench.cli.report import report_settings
 from simbench.errors import SimbenchError
 from simbench.report.figures import ecdf_figure, log_ticks
+from simbench.report.group_figures import shown_seeds
 from simbench.report.leaderboard import leaderboard, terminal_summary, to_csv, to_latex
 from simbench.report.style import (
     ESTIMATOR_COLORS,
@@ -27,6 +28,7 @@ from simbench.report.style import (
     sig3,
     use_style,
 )
+from simbench.report.time_views import error_segments
 from simbench.runs.checks import REPORT_STYLES
 
 
@@ -198,3 +200,39 @@ def test_report_settings_are_spelled_as_on_a_run() -> None:
     }
     with pytest.raises(SimbenchError, match="report.formats=\\[png,pdf\\]"):
         report_settings(["formats=pdf"])
+
+
+def test_a_trajectory_line_never_crosses_an_unsolved_epoch() -> None:
+    reference = pd.DataFrame({"epoch": np.arange(6)})
+    rows = pd.DataFrame({"epoch": [0, 1, 2, 4, 5], "east": [0.0, 1, 2, 4, 5], "north": 0.0, "horizontal": 1.0})
+    lines = error_segments(rows, reference, None)
+    starts = sorted(float(s[0, 0]) for s in lines.get_segments())
+    assert starts == [0.0, 1.0, 4.0]  # 0-1, 1-2, 4-5: none over epoch 3
+    # without the reference epochs, a jump in the epoch index is the gap
+    assert len(error_segments(rows, None, None).get_segments()) == 3
+
+
+def test_several_seeds_show_the_worst_and_the_best() -> None:
+    shown = pd.DataFrame({"seed": [0, 0, 1, 1, 2, 2], "horizontal": [2.0, 3.0, 9.0, 8.0, 0.5, 0.7]})
+    assert [s for s, _ in shown_seeds(shown)] == [1, 2]
+    assert shown_seeds(shown.iloc[:2]) == [(0, "")]
+
+
+def test_one_seed_gets_intervals_over_its_epochs() -> None:
+    rng = np.random.default_rng(5)
+    n = 300
+    errors = np.abs(rng.normal(0, 2, n))
+    solved = np.arange(n) % 10 != 0  # every tenth epoch unsolved
+    keys = {"sweep": "", "scenario": "urban", "receiver": "low", "estimator": "l2", "gnss_model": "urban"}
+    summary = pd.DataFrame([{**keys, "scenario_key": "k", "overrides": "{}", "variant": "", "status": "ok"}])
+    epochs = pd.DataFrame(
+        {**keys, "scenario_key": "k", "overrides": "{}", "epoch": np.flatnonzero(solved), "horizontal": errors[solved]}
+    ).assign(error_3d=lambda f: 2 * f["horizontal"])
+    stats = pd.DataFrame(
+        [{**keys, "overrides": "{}", "variant": "", "n_seeds": 1, "ci_low": np.nan, "ci_high": np.nan}]
+    )
+    out = epoch_intervals(stats, summary, epochs, {"k": np.arange(n)}).iloc[0]
+    median = reference_percentiles(np.sort(np.where(solved, errors, np.inf))[None, :], 50.0)[0]
+    assert out["ci_over"] == "epochs" and out["ci_low"] < median < out["ci_high"]
+    assert out["horizontal_rmse_ci_low"] < rmse(errors[solved]) < out["horizontal_rmse_ci_high"]
+    assert np.isnan(out["horizontal_p95_ref_ci_low"])  # 90 % solved: a p95 no resample reaches

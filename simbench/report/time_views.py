@@ -91,7 +91,7 @@ def trajectory_figure(
         if reference is not None:
             ax.plot(reference["east"], reference["north"], color=REFERENCE_COLOR, lw=0.6)
         rows = epochs[epochs["estimator"] == name].sort_values("epoch")
-        lines = ax.add_collection(_error_segments(rows, epochs_of, norm))
+        lines = ax.add_collection(error_segments(rows, epochs_of, norm))
         ax.set_title(name, y=PANEL_TITLE_Y, fontsize="small")
         ax.set_aspect("equal", adjustable="box")
         ax.grid(True, alpha=0.3)
@@ -119,7 +119,7 @@ def trajectory_figure(
 TRAJECTORY_COLUMNS = 6
 
 
-def _error_segments(rows: pd.DataFrame, reference: pd.DataFrame | None, norm: LogNorm | None) -> LineCollection:
+def error_segments(rows: pd.DataFrame, reference: pd.DataFrame | None, norm: LogNorm | None) -> LineCollection:
     """One estimator's track as segments between solved epochs that follow each other, coloured by the
     horizontal error of the later one: no segment crosses an unsolved epoch."""
     if reference is not None:
