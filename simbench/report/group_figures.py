@@ -303,7 +303,11 @@ def time_views(
                 )
             )
         if track is not None and "up" in one and np.ptp(track["up"].to_numpy(float)) > ALTITUDE_SPAN_M:
-            page.figure(altitude_figure(one, track, out / f"altitude_{suffix}.png", f"Altitude: {where}", **page.fmt))
+            page.figure(
+                altitude_figure(
+                    one, track, out / f"altitude_{suffix}.png", f"Altitude: {where}", order=order, **page.fmt
+                )
+            )
         page.figure(
             enu_error_figure(
                 one, reference, out / f"enu_time_{suffix}.png", f"Error against time: {where}", order=order, **page.fmt

@@ -141,8 +141,10 @@ def altitude_figure(
     path: str | Path,
     title: str,
     formats: Sequence[Format] = ("png",),
+    order: Sequence[str] = (),
 ) -> FigureFile:
-    """Altitude (local up) against time: the reference and every estimate, unsolved epochs as gaps.
+    """Altitude (local up) against time: the reference and every estimate (legend in ``order``, the
+    leaderboard's), unsolved epochs as gaps.
 
     Parameters
     ----------
@@ -151,7 +153,8 @@ def altitude_figure(
     reference : pandas.DataFrame
         The reference epochs: ``epoch``, ``t`` [s] and ``up`` [m] in the same local frame.
     """
-    names = sorted(epochs["estimator"].unique())
+    present = set(epochs["estimator"].unique())
+    names = [n for n in order if n in present] + sorted(present - set(order))
     styles = estimator_styles(names)
     fig, ax = plt.subplots(figsize=figsize(7.0, 3.0), dpi=PNG_DPI)
     ax.plot(reference["t"], reference["up"], color=REFERENCE_COLOR, lw=1.4, label="reference")
