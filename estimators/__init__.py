@@ -28,16 +28,16 @@ from importlib.metadata import EntryPoint, entry_points
 from typing import TypeVar
 
 from estimators.base import Estimator, Solution
-from simbench.entry_points import load_plugin
+from simbench.entry_points import ALL_ESTIMATORS, ESTIMATOR_GROUP, load_plugin
 from simbench.errors import SimbenchError
 
 #: Entry-point group in which installed packages name their estimator classes.
-ENTRY_POINT_GROUP = "simbench.estimators"
+ENTRY_POINT_GROUP = ESTIMATOR_GROUP
 #: :func:`source` of the estimators in this package.
 BUILT_IN = "built-in"
 #: The ``estimator`` option that selects every registered estimator (the default run); no
 #: estimator may take this name.
-ALL = "all"
+ALL = ALL_ESTIMATORS
 
 _REGISTRY: dict[str, type[Estimator]] = {}
 

@@ -14,6 +14,7 @@ estimator whose needs a scenario cannot meet. Its config dataclass has one
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
@@ -22,6 +23,7 @@ from typing import Any, ClassVar
 import numpy as np
 import pandas as pd
 
+from simbench.bounds import FINITE_ONLY, check_bounds
 from simbench.contract import Need, ReceiverData
 
 #: Columns of :attr:`Solution.epochs`.
@@ -82,13 +84,16 @@ class Solution:
 
 
 def validate_config(config: Any, where: str) -> None:
-    """Call ``config.validate(where)`` when the config dataclass has one (a plug-in's may not).
+    """Refuse a NaN or infinite parameter, then call ``config.validate(where)`` when the config has one
+    (a plug-in's may not).
 
     Raises
     ------
     SimbenchError
-        From ``validate``, in one line naming the field under ``where`` (e.g. ``estimator.dcs``).
+        In one line naming the field under ``where`` (e.g. ``estimator.dcs``).
     """
+    if dataclasses.is_dataclass(config):
+        check_bounds(config, where, FINITE_ONLY)
     validate = getattr(config, "validate", None)
     if validate is not None:
         validate(where)

@@ -108,6 +108,7 @@ from estimators.measurement import (
 )
 from estimators.ppp_config import (
     DIRECTION_MIN_SPEED_MPS,
+    MIN_ODOMETRY_VARIANCE,
     STANDSTILL_MPS,
     ClockModel,
     MotionModel,
@@ -477,26 +478,27 @@ class EkfPpp(Estimator):
         speed, yaw rate and their variances); the non-holonomic row only ``with_doppler`` (the
         epoch has range rates, which measure the direction it is taken along); returns 1 when an
         update was made."""
-        speed, _, var_speed, _ = sample
+        speed, _, var_speed, _, right, down, var_right, var_down = sample
         east, north, up = enu_basis(kf.x[_POS])
         vel = kf.x[vel0 : vel0 + 3]
-        sig_s = float(np.sqrt(max(var_speed, 1e-6)))
+        sig_s = float(np.sqrt(max(var_speed, MIN_ODOMETRY_VARIANCE)))
+        # the reported vertical velocity, else none beyond the road grade (loosely at rest, see the config)
+        vertical = self.config.vertical_velocity(speed, sig_s, down, var_down)
         if abs(speed) < STANDSTILL_MPS:
-            # wheels at rest: no velocity on any axis (the vertical one loosely, see the config)
-            rows, z = np.vstack([east, north, up]), np.zeros(3)
-            sigma = np.array([sig_s, sig_s, self.config.standstill_vertical_sigma_mps])
+            # wheels at rest: no horizontal velocity
+            rows, z = np.vstack([east, north, up]), np.array([0.0, 0.0, vertical.value])
+            sigma = np.array([sig_s, sig_s, vertical.sigma])
         else:
-            # a car follows the road: no vertical velocity beyond the grade
-            rows, z = up[None, :], np.zeros(1)
-            sigma = np.array([self.config.road_grade_vertical_sigma(speed, sig_s)])
+            rows, z, sigma = up[None, :], np.array([vertical.value]), np.array([vertical.sigma])
             horizontal = east * (east @ vel) + north * (north @ vel)
             moving = float(np.linalg.norm(horizontal))
             if moving >= DIRECTION_MIN_SPEED_MPS:
                 along = horizontal / moving
-                rows, z, sigma = np.vstack([rows, along]), np.array([0.0, abs(speed)]), np.r_[sigma, sig_s]
+                rows, z, sigma = np.vstack([rows, along]), np.r_[z, abs(speed)], np.r_[sigma, sig_s]
                 if with_doppler:
+                    left = self.config.left_velocity(right, var_right)
                     rows = np.vstack([rows, np.cross(up, along)])
-                    z, sigma = np.r_[z, 0.0], np.r_[sigma, self.config.nhc_sigma_mps]
+                    z, sigma = np.r_[z, left.value], np.r_[sigma, left.sigma]
         H = np.zeros((len(rows), kf.dim_x))
         H[:, vel0 : vel0 + 3] = rows
         kf.update(z, _const(H), _const(H @ kf.x), R=np.diag(sigma**2))

@@ -272,9 +272,10 @@ class PppObservations:
     #: receiver clock drift and the geometric range rate explain); NaN without a usable Doppler
     range_rate: np.ndarray | None = None
     sat_vel: np.ndarray | None = None  #: m/s, (N, 3) satellite ECEF velocity
-    #: per solved epoch, (n_epochs, 4): mean wheel speed [m/s], mean yaw rate [rad/s] (positive
-    #: turning right) and their mean reported variances over the odometry samples since the
-    #: previous epoch (t_{k-1}, t_k]; NaN rows without samples; None when there is no odometry
+    #: per solved epoch, (n_epochs, 8), the columns of :data:`EPOCH_ODOMETRY`: mean wheel speed [m/s],
+    #: yaw rate [rad/s] (positive turning right), body right and down velocities [m/s] and their mean
+    #: reported variances over the odometry samples since the previous epoch (t_{k-1}, t_k]; NaN rows
+    #: without samples, NaN right/down where the vehicle reports none; None when there is no odometry
     odometry: np.ndarray | None = None
     #: rows dropped for want of a second frequency (ionosphere-free only)
     n_single_frequency_dropped: int = 0
@@ -1108,15 +1109,22 @@ def _sat_dcb(obs: pd.DataFrame) -> np.ndarray | float:
     return np.nan_to_num(obs[SAT_DCB_COLUMN].to_numpy(float)) if SAT_DCB_COLUMN in obs.columns else 0.0
 
 
+#: The odometry columns the GNSS estimators use, in the order of :attr:`PppObservations.odometry`.
+EPOCH_ODOMETRY = (
+    *("speed", "yaw_rate", "var_speed", "var_yaw_rate"),
+    *("vel_right", "vel_down", "var_vel_right", "var_vel_down"),
+)
+
+
 def _odometry_per_epoch(odo: pd.DataFrame, epoch_t: np.ndarray) -> np.ndarray:
     """Means of the odometry samples in (t_{k-1}, t_k] for every epoch (the first: up to t_0)."""
     odo = odo.sort_values("t")
-    values = odo[["speed", "yaw_rate", "var_speed", "var_yaw_rate"]].to_numpy(float)
+    values = odo[list(EPOCH_ODOMETRY)].to_numpy(float)
     k = np.searchsorted(epoch_t, odo["t"].to_numpy(float), side="left")
     inside = k < len(epoch_t)
     count = np.bincount(k[inside], minlength=len(epoch_t)).astype(float)
-    out = np.full((len(epoch_t), 4), np.nan)
-    for j in range(4):
+    out = np.full((len(epoch_t), len(EPOCH_ODOMETRY)), np.nan)
+    for j in range(len(EPOCH_ODOMETRY)):
         total = np.bincount(k[inside], values[inside, j], minlength=len(epoch_t))
         np.divide(total, count, out=out[:, j], where=count > 0)
     return out

@@ -15,7 +15,7 @@ and ``conf/gnss_model/dissertation.yaml`` restores Table 4.4.2's.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -335,6 +335,25 @@ class StochasticModelConfig:
 
 #: Below this wheel speed the vehicle stands still (zero horizontal velocity) [m/s].
 STANDSTILL_MPS = 0.2
+#: The smallest variance of a reported odometry component [m^2/s^2] (a reported 0 would make the row rigid).
+MIN_ODOMETRY_VARIANCE = 1e-6
+
+
+class Reported(NamedTuple):
+    """A velocity component a vehicle reports, or the estimator's default for it."""
+
+    value: float  #: [m/s]
+    sigma: float  #: [m/s]
+
+
+def reported(value: float, variance: float, default_sigma: float) -> Reported:
+    """``value`` at the sigma of ``variance`` when both are finite (the vehicle reported it), else 0 at
+    ``default_sigma`` (the estimator's own prior for the component)."""
+    if np.isfinite(value) and np.isfinite(variance):
+        return Reported(float(value), float(np.sqrt(max(variance, MIN_ODOMETRY_VARIANCE))))
+    return Reported(0.0, float(default_sigma))
+
+
 #: A velocity slower than this gives no usable direction of travel for the odometry [m/s].
 DIRECTION_MIN_SPEED_MPS = 2.0
 
@@ -377,6 +396,22 @@ class MotionModelConfig(StochasticModelConfig):
         """Sigma of the zero-vertical-velocity row of a car moving at ``speed_mps`` [m/s]: the road
         grade times the speed, with the wheel-speed sigma ``speed_sigma_mps`` as a floor in quadrature."""
         return float(np.hypot(self.road_grade_sigma * speed_mps, speed_sigma_mps))
+
+    def vertical_velocity(self, speed_mps: float, speed_sigma_mps: float, down: float, var_down: float) -> Reported:
+        """The up velocity [m/s] and its sigma: the vehicle's reported body-down velocity, negated (a car's
+        pitch is small), at its reported variance where it gives one; else 0 at the road grade
+        (moving) or at ``standstill_vertical_sigma_mps`` (wheels at rest)."""
+        default = (
+            self.standstill_vertical_sigma_mps
+            if abs(speed_mps) < STANDSTILL_MPS
+            else self.road_grade_vertical_sigma(speed_mps, speed_sigma_mps)
+        )
+        return reported(-down, var_down, default)
+
+    def left_velocity(self, right: float, var_right: float) -> Reported:
+        """The velocity to the vehicle's left [m/s] and its sigma: the reported body-right velocity,
+        negated, at its reported variance; else 0 at ``nhc_sigma_mps`` (no sideways motion)."""
+        return reported(-right, var_right, self.nhc_sigma_mps)
 
     def validate(self, where: str) -> None:
         """The shared checks, then the motion-model densities and sigmas."""

@@ -114,6 +114,7 @@ import numpy as np
 from estimators.measurement import PppObservations, content_digest, zenith_wet_delay_m
 from estimators.ppp_config import (
     DIRECTION_MIN_SPEED_MPS,
+    MIN_ODOMETRY_VARIANCE,
     STANDSTILL_MPS,
     WET_DELAY_CLIMATOLOGY_SIGMA_M,
     WET_DELAY_GATE_SIGMAS,
@@ -509,31 +510,36 @@ class PppGraph:
         g = gtsam.NonlinearFactorGraph()
         odo = self.obs.odometry
         assert odo is not None  # built with_odometry only
-        speed, yaw_rate, var_speed, var_yaw = odo[k]
+        speed, yaw_rate, var_speed, var_yaw, right, down, var_right, var_down = odo[k]
         if not np.isfinite(speed):
             return g
         horizontal = self.enu[k, :2]
-        sig_s = float(np.sqrt(max(var_speed, 1e-6)))
+        sig_s = float(np.sqrt(max(var_speed, MIN_ODOMETRY_VARIANCE)))
+        vertical = self.cfg.vertical_velocity(speed, sig_s, down, var_down)
         zero = gtsam.Point3(0.0, 0.0, 0.0)
         if abs(speed) < STANDSTILL_MPS:
-            sigmas = np.array([sig_s, sig_s, self.cfg.standstill_vertical_sigma_mps])
+            sigmas = np.array([sig_s, sig_s, vertical.sigma])
             g.add(
                 _linear(
                     gtsam.JacobianFactor(
-                        vel_key(k), self.enu[k], np.zeros(3), gtsam.noiseModel.Diagonal.Sigmas(sigmas)
+                        vel_key(k),
+                        self.enu[k],
+                        np.array([0.0, 0.0, vertical.value]),
+                        gtsam.noiseModel.Diagonal.Sigmas(sigmas),
                     ),
                     {vel_key(k): zero},
                 )
             )
         else:
             up = self.enu[k, 2]
-            rows, z = up[None, :], np.zeros(1)
-            sigmas = np.array([self.cfg.road_grade_vertical_sigma(speed, sig_s)])
+            rows, z = up[None, :], np.array([vertical.value])
+            sigmas = np.array([vertical.sigma])
             if np.isfinite(self.heading_ref[k]).all():
                 u = self.heading_ref[k]
+                left = self.cfg.left_velocity(right, var_right)
                 rows = np.vstack([rows, u, np.cross(up, u)])
-                z = np.array([0.0, abs(speed), 0.0])
-                sigmas = np.r_[sigmas, sig_s, self.cfg.nhc_sigma_mps]
+                z = np.array([vertical.value, abs(speed), left.value])
+                sigmas = np.r_[sigmas, sig_s, left.sigma]
             g.add(
                 _linear(
                     gtsam.JacobianFactor(vel_key(k), rows, z, gtsam.noiseModel.Diagonal.Sigmas(sigmas)),

@@ -28,6 +28,7 @@ from simbench.report.build import finalize
 from simbench.runs.checks import check_run
 from simbench.runs.compose import compose_config, overrides_from_kwargs
 from simbench.runs.jobs import run_job
+from simbench.runs.run_dirs import unique_run_dir
 from simbench.runs.scenarios import build_scenario, scenario_settings, simulate
 
 __all__ = ["StudyResult", "run", "scenario", "simulate"]
@@ -114,7 +115,8 @@ def run(
         Dotted config keys and values as on the command line, e.g.
         ``{"scenario.duration_s": 60, "estimator.dcs.prior_scale": 2.0, "sweep_name": "nb"}``.
     results_dir : str or Path, optional
-        Run directory; the command line's default (``results/run-<time>``) when None.
+        Run directory; the command line's default (``results/run-<time>``, ``-2`` added when a run of the same
+        second has it) when None.
         Give the ``results_dir`` of a sweep to reuse its scenarios and results.
     progress : bool
         Progress bars over seeds and estimators.
@@ -142,12 +144,22 @@ def run(
         *([f"estimator=[{','.join(names)}]"] if names is not None else []),
         *overrides_from_kwargs(dict(overrides or {})),
     ]
-    # resolved once: each composition would give ${now:} another time
-    root = Path(results_dir if results_dir is not None else compose_config(base).results_dir)
+    # resolved once: each composition would give ${now:} another time; the default folder is claimed, so two
+    # runs of one second get one each (simbench.runs.run_dirs)
+    claimed: Path | None = None
+    if results_dir is None:
+        root = claimed = unique_run_dir(Path(compose_config(base).results_dir))
+    else:
+        root = Path(results_dir)
     base.append(f"results_dir={root}")
-    configs = [compose_config([*base, f"seed={seed}"]) for seed in seed_list]
-    for cfg in configs:  # every config error before any job
-        check_run(cfg)
+    try:
+        configs = [compose_config([*base, f"seed={seed}"]) for seed in seed_list]
+        for cfg in configs:  # every config error before any job
+            check_run(cfg)
+    except SimbenchError:
+        if claimed is not None and not any(claimed.iterdir()):
+            claimed.rmdir()
+        raise
     rows = [
         run_job(cfg, fail_fast=len(configs) == 1)
         for cfg in tqdm(configs, desc="seeds", disable=not progress or len(configs) == 1)

@@ -87,8 +87,9 @@ IMU_COLUMNS: dict[str, str] = {
     "gz": "rad/s, angular rate about body z",
 }
 
-#: Odometry table, one row per odometry sample (wheel speed and yaw rate, e.g. libRSF ``odom3``);
-#: zero rows when the vehicle gives none. Body axes as the IMU table: x forward, y right, z down.
+#: Odometry table, one row per odometry sample (wheel speed and yaw rate, and whatever else the vehicle
+#: reports, e.g. every component of libRSF ``odom3``); zero rows when the vehicle gives none. Body axes as
+#: the IMU table: x forward, y right, z down.
 ODOMETRY_COLUMNS: dict[str, str] = {
     "t": "s, sample time since scenario start (GPS time scale; may precede the first epoch)",
     "speed": "m/s, speed over ground along body x (forward; negative when reversing)",
@@ -96,7 +97,19 @@ ODOMETRY_COLUMNS: dict[str, str] = {
     "(clockwise seen from above)",
     "var_speed": "m^2/s^2, variance of speed as the vehicle reports it (not the true error)",
     "var_yaw_rate": "rad^2/s^2, variance of yaw_rate as the vehicle reports it",
+    "vel_right": "m/s, velocity along body y (right) as the vehicle reports it; NaN when it reports none "
+    "(a car's odometry may report 0: its non-holonomic constraint)",
+    "vel_down": "m/s, velocity along body z (down) as the vehicle reports it; NaN when it reports none",
+    "roll_rate": "rad/s, turn rate about body x (forward); NaN when the vehicle reports none",
+    "pitch_rate": "rad/s, turn rate about body y (right); NaN when the vehicle reports none",
+    "var_vel_right": "m^2/s^2, variance of vel_right as the vehicle reports it; NaN with vel_right",
+    "var_vel_down": "m^2/s^2, variance of vel_down as the vehicle reports it; NaN with vel_down",
+    "var_roll_rate": "rad^2/s^2, variance of roll_rate as the vehicle reports it",
+    "var_pitch_rate": "rad^2/s^2, variance of pitch_rate as the vehicle reports it",
 }
+
+#: The odometry columns a vehicle may leave out (NaN): all but the wheel speed and yaw rate a car always gives.
+ODOMETRY_OPTIONAL_COLUMNS: tuple[str, ...] = tuple(list(ODOMETRY_COLUMNS)[5:])
 
 #: Truth trajectory, one row per GNSS epoch.
 TRUTH_COLUMNS: dict[str, str] = {
@@ -414,6 +427,10 @@ def write_parquet(df: pd.DataFrame, path: str | Path, metadata: dict[str, Any] |
     try:
         pq.write_table(table, tmp, write_page_checksum=True)
         os.replace(tmp, path)
+    except OSError as exc:
+        if exc.filename is None:  # pyarrow's errors (a full disk) name no file: name the one being written
+            exc.filename = str(path)
+        raise
     finally:
         tmp.unlink(missing_ok=True)
     return path

@@ -7,12 +7,20 @@ are discovered alike; each group adds its own checks on the loaded class.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from importlib.metadata import EntryPoint
+from importlib.metadata import EntryPoint, entry_points
 from typing import Generic, TypeVar
 
 from simbench.errors import SimbenchError, one_line
 
-__all__ = ["LoadedPlugin", "load_plugin"]
+__all__ = ["ALL_ESTIMATORS", "ESTIMATOR_GROUP", "SOURCE_GROUP", "LoadedPlugin", "entry_point_names", "load_plugin"]
+
+#: Entry-point group in which installed packages name their estimator classes (:mod:`estimators`).
+ESTIMATOR_GROUP = "simbench.estimators"
+#: Entry-point group in which packages (simbench itself too) name their source classes (:mod:`simbench.source`).
+SOURCE_GROUP = "simbench.sources"
+#: The ``estimator`` option that selects every registered estimator (the default run); no
+#: estimator may take this name.
+ALL_ESTIMATORS = "all"
 
 T = TypeVar("T")
 
@@ -61,3 +69,12 @@ def load_plugin(entry: EntryPoint, base: type[T], kind: str, readme_section: str
             field, f"package '{package}' names {entry.value}, not {article} {base.__name__} subclass", fix
         )
     return LoadedPlugin(cls=cls, package=package, field=field, fix=fix)
+
+
+def entry_point_names(group: str) -> list[str]:
+    """The names the installed packages declare in an entry-point group, without loading one.
+
+    What ``--help`` and the name checks of a command line need: loading the estimators takes
+    seconds. A plug-in that cannot load is refused when the run composes its config.
+    """
+    return sorted({entry.name for entry in entry_points(group=group)})

@@ -18,7 +18,7 @@ class SimbenchError(ValueError):
     """Bad input (config value, file, estimator name) with a one-line explanation."""
 
     def __init__(self, field: str, problem: str, fix: str) -> None:
-        self.field = field
+        self.field, self.problem, self.fix = field, problem, fix
         super().__init__(f"{field}: {problem} -- {fix}")
 
 

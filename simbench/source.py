@@ -27,8 +27,9 @@ from dataclasses import dataclass
 from importlib.metadata import EntryPoint, entry_points
 from typing import Any, ClassVar, Protocol, TypeVar
 
+from simbench.bounds import check_bounds
 from simbench.contract import Scenario
-from simbench.entry_points import load_plugin
+from simbench.entry_points import SOURCE_GROUP, load_plugin
 from simbench.errors import SimbenchError
 from simbench.typed import check_choices
 
@@ -47,7 +48,7 @@ __all__ = [
 ]
 
 #: Entry-point group in which packages (simbench itself too) name their source classes.
-ENTRY_POINT_GROUP = "simbench.sources"
+ENTRY_POINT_GROUP = SOURCE_GROUP
 #: The default source, the simulator: a result row or scenario that names no source was simulated.
 SIMULATED = "simulated"
 
@@ -90,9 +91,11 @@ class Source(ABC):
     def check(self, cfg: DataConfig) -> None:
         """Raise a one-line :class:`~simbench.errors.SimbenchError` for a config :meth:`load` cannot use.
 
-        Runs before any file is read or data generated; the default checks the choice fields.
+        Runs before any file is read or data generated; the default checks the choice fields and
+        the bounds of every number (:func:`~simbench.bounds.check_bounds`).
         """
         check_choices(cfg.scenario, "scenario")
+        check_bounds(cfg.scenario, "scenario")
 
     def label(self, cfg: DataConfig) -> str:
         """The scenario's name in result tables, known before :meth:`load` (for rows of a job that fails).

@@ -18,13 +18,14 @@ import pandas as pd
 import pytest
 from conftest import one_line_error
 
-import simbench.cli.main
 from simbench.cli.main import check_jobs, job_overrides, main
 from simbench.runs.checks import check_run
 from simbench.runs.compose import compose_config
 
 ROOT = Path(__file__).resolve().parent.parent
 TINY = ["scenario.duration_s=30"]
+#: Any existing file, for a real-log scenario whose bad value is checked before the file is read.
+TINY_FILE = ROOT / "README.md"
 
 #: (overrides, the field the one-line error starts with, a fragment of the message or "")
 CASES: list[tuple[list[str], str, str]] = [
@@ -44,9 +45,54 @@ CASES: list[tuple[list[str], str, str]] = [
     (["scenario.constellation.elevation_mask_deg=90"], "scenario.constellation.elevation_mask_deg", "[0, 90)"),
     (["scenario.trajectory.kind=boat"], "scenario.trajectory.kind", ""),
     (["scenario.constellation.kind=broadcast"], "scenario.constellation.nav_path", "no navigation file"),
+    # every number of the scenario by the unit in its name (simbench.bounds); these ran, or ran a broken world
+    (["scenario.errors.multipath.code_sigma_m=-1"], "scenario.errors.multipath.code_sigma_m", "0 .. 1000"),
+    (["scenario.errors.multipath.code_sigma_m=nan"], "scenario.errors.multipath.code_sigma_m", "got nan"),
+    (["scenario.errors.multipath.code_sigma_m=1e9"], "scenario.errors.multipath.code_sigma_m", "not a ranging error"),
+    (["scenario.errors.multipath.tau_s=-3"], "scenario.errors.multipath.tau_s", "positive"),
+    (["scenario.errors.multipath.tau_s=0"], "scenario.errors.multipath.tau_s", "positive"),
+    (["scenario.errors.multipath.el_c_deg=0"], "scenario.errors.multipath.el_c_deg", "positive"),
+    (["scenario.errors.orbit_clock.orbit_sigma_m=inf"], "scenario.errors.orbit_clock.orbit_sigma_m", "got inf"),
+    (["scenario.errors.ionosphere.scale_sigma=-1"], "scenario.errors.ionosphere.scale_sigma", "at least 0"),
+    (["scenario.errors.ionosphere.residual_tau_s=nan"], "scenario.errors.ionosphere.residual_tau_s", "got nan"),
+    (["scenario.errors.troposphere.wet_rw_mps=-1"], "scenario.errors.troposphere.wet_rw_mps", "at least 0"),
+    (["scenario.errors.receiver_clock.h0=-1"], "scenario.errors.receiver_clock.h0", "at least 0"),
+    (["scenario.errors.nlos.open_fraction=2"], "scenario.errors.nlos.open_fraction", "0 .. 1"),
+    (["scenario.errors.nlos.reflection_probability=-0.1"], "scenario.errors.nlos.reflection_probability", "0 .. 1"),
+    (["scenario.errors.nlos.building_height_m=[40,10]"], "scenario.errors.nlos.building_height_m", "above high"),
+    (["scenario.errors.nlos.wall_distance_m=[-1,3]"], "scenario.errors.nlos.wall_distance_m", "[-1.0, 3.0]"),
+    (["scenario.errors.cycle_slips.max_jump_cycles=-2"], "scenario.errors.cycle_slips.max_jump_cycles", "at least 1"),
+    (["scenario.errors.cycle_slips.rate_per_s=-1"], "scenario.errors.cycle_slips.rate_per_s", "at least 0"),
+    # a NaN fading sigma was blamed on the acquisition threshold
+    (["scenario.errors.cn0.noise_db=nan"], "scenario.errors.cn0.noise_db", "got nan"),
+    (["scenario.errors.cn0.received_power_dbw=-50"], "scenario.errors.cn0.received_power_dbw", "-200 .. -100"),
+    (["scenario.errors.cn0.constant_db=nan"], "scenario.errors.cn0.constant_db", "finite"),
+    (["scenario.gps_week=-1"], "scenario.gps_week", "0 .. 9999"),
+    (["scenario.start_sow_s=nan"], "scenario.start_sow_s", "seconds of the week"),
+    (["scenario.start_sow_s=700000"], "scenario.start_sow_s", "seconds of the week"),
+    (["scenario.trajectory.origin_lat_deg=95"], "scenario.trajectory.origin_lat_deg", "latitude"),
+    (["scenario.trajectory.origin_lon_deg=-200"], "scenario.trajectory.origin_lon_deg", "longitude"),
+    (["scenario.trajectory.urban_drive.cruise_speed_mps=-1"], "scenario.trajectory.urban_drive.cruise_speed_mps", ""),
+    (["scenario.trajectory.urban_drive.n_blocks_east=0"], "scenario.trajectory.urban_drive.n_blocks_east", "least 1"),
+    (["scenario.trajectory.urban_drive.stop_duration_s=[30,5]"], "scenario.trajectory.urban_drive.stop_duration_s", ""),
+    (["scenario=flight", "scenario.trajectory.flight.airspeed_mps=0"], "scenario.trajectory.flight.airspeed_mps", ""),
+    (["scenario=flight", "scenario.trajectory.flight.climb_rate_mps=0"], "scenario.trajectory.flight", "positive"),
+    (["scenario.odometry.rate_hz=0"], "scenario.odometry.rate_hz", "positive"),
+    (["scenario.odometry.speed_sigma_mps=-0.1"], "scenario.odometry.speed_sigma_mps", "at least 0"),
+    (["scenario=replay", "scenario.trajectory.replay.gps_week=-5"], "scenario.trajectory.replay.gps_week", "0 .. 9999"),
+    (["scenario=replay", "scenario.trajectory.replay.max_gap_s=0"], "scenario.trajectory.replay.max_gap_s", "positive"),
+    (["receiver.doppler_ref_cn0_dbhz=nan"], "receiver.doppler_ref_cn0_dbhz", "dB-Hz"),
+    # physical consistency: L2 generated for an L1-only chip on 100 % of rows, without a word
+    (["scenario.dual_frequency=true", "receiver=consumer"], "scenario.dual_frequency", "tracks L1 only"),
+    (["scenario=flight", "receiver=consumer"], "scenario.dual_frequency", "tracks L1 only"),
+    # real logs' settings (simbench.source.Source.check): a false "does not overlap" after loading before
+    (["scenario=hk_tst_2019", "scenario.truth_max_gap_s=-1"], "scenario.truth_max_gap_s", "positive"),
+    (["scenario=hk_tst_2019", "scenario.truth_max_gap_s=nan"], "scenario.truth_max_gap_s", "got nan"),
+    (["scenario=librsf", f"scenario.obs={TINY_FILE}", "scenario.start_sow_s=nan"], "scenario.start_sow_s", "week"),
+    (["scenario=librsf", f"scenario.obs={TINY_FILE}", "scenario.gps_week=-3"], "scenario.gps_week", "0 .. 9999"),
     # receiver
     (
-        ["receiver.acquisition_threshold_dbhz=200", "receiver.lock_threshold_dbhz=150"],
+        ["receiver.acquisition_threshold_dbhz=80", "receiver.lock_threshold_dbhz=70"],
         "receiver.acquisition_threshold_dbhz",
         "no satellite is ever acquired",
     ),
@@ -90,6 +136,12 @@ CASES: list[tuple[list[str], str, str]] = [
     (["estimator=[ekf_ins]", "estimator.ekf_ins.accel_bias_sigma_mps2=1e6"], "estimator.ekf_ins", "IMU grade"),
     (["estimator=[rtklib_spp]", "estimator.rtklib_spp.elevation_mask_deg=90"], "estimator.rtklib_spp", "[0, 90)"),
     (["estimator.dcs.prior_scale=-1"], "estimator.dcs.prior_scale", "positive"),  # in the default estimator=all
+    # NaN and infinity in any estimator's parameters (estimators.base.validate_config)
+    (["estimator=[l2]", "estimator.l2.clock_sigma_m=nan"], "estimator.l2.clock_sigma_m", "finite"),
+    (["estimator=[ekf_ppp]", "estimator.ekf_ppp.code_sigma_m=inf"], "estimator.ekf_ppp.code_sigma_m", "finite"),
+    (["estimator=[ice]", "estimator.ice.alpha=nan"], "estimator.ice.alpha", "finite"),
+    (["estimator=[dcs]", "estimator.dcs.kernel_width=inf"], "estimator.dcs.kernel_width", "finite"),
+    (["estimator=[crt_lss]", "estimator.crt_lss.lambda_rho=inf"], "estimator.crt_lss.lambda_rho", "finite"),
     # typos, with and without '+'
     (["+scenario.duraton_s=10"], "scenario.duraton_s", "did you mean scenario.duration_s?"),
     (["scenario.duraton_s=10"], "scenario.duraton_s", ""),
@@ -117,12 +169,14 @@ CASES: list[tuple[list[str], str, str]] = [
 
 
 def _check(overrides: list[str]) -> None:
-    check_run(compose_config(overrides))
+    logs = [o for o in overrides if o.startswith("scenario=") and o not in ("scenario=flight", "scenario=replay")]
+    simulated = not logs
+    check_run(compose_config([*(TINY if simulated else []), *overrides]))
 
 
 @pytest.mark.parametrize(("overrides", "field", "fragment"), CASES, ids=[" ".join(c[0]) for c in CASES])
 def test_bad_config_is_one_line_naming_the_field(overrides: list[str], field: str, fragment: str) -> None:
-    message = one_line_error(_check, [*TINY, *overrides])
+    message = one_line_error(_check, overrides)
     assert message.startswith((f"{field}:", f"{field}.")), message
     assert fragment in message, message
 
@@ -164,7 +218,8 @@ def test_job_overrides_cover_every_swept_value() -> None:
 
 def test_a_sweep_files_params_are_checked_too(monkeypatch) -> None:
     checked: list[float] = []
-    monkeypatch.setattr(simbench.cli.main, "check_run", lambda cfg: checked.append(cfg.prior_scale))
+    # check_jobs imports it when it runs (simbench.cli.main imports no config check, for --help's start-up)
+    monkeypatch.setattr("simbench.runs.checks.check_run", lambda cfg: checked.append(cfg.prior_scale))
     check_jobs(["+sweep=ch5_sensitivity", *TINY])
     assert sorted(checked) == [0.1, 0.3, 1, 3, 10, 100]
 

@@ -189,6 +189,16 @@ def test_odometry_lines_become_the_odometry_table(glonass: Scenario, tmp_path: P
     got = read_librsf(p).odometry
     assert got["t"].tolist() == [-1.5, 0.5] and got["speed"].tolist() == [5.0, 4.0]
     assert got["yaw_rate"].tolist() == [0.2, -0.1]
+    # every component and variance is carried, y and z flipped into x forward, y right, z down
+    p.write_text(
+        "odom3 1.0 4.0 0.3 -0.2 0.01 0.02 0.1 0.0025 0.0009 0.0016 1e-06 2e-06 4e-06\n"
+        f"pseudorange3 1.0 2.1e7 4.0 {sat} 11 1 45.0 40.0\n"
+    )
+    row = read_librsf(p).odometry.iloc[0]
+    assert row[["speed", "vel_right", "vel_down"]].tolist() == [4.0, -0.3, 0.2]
+    assert row[["roll_rate", "pitch_rate", "yaw_rate"]].tolist() == [0.01, -0.02, -0.1]
+    assert row[["var_speed", "var_vel_right", "var_vel_down"]].tolist() == [0.0025, 0.0009, 0.0016]
+    assert row[["var_roll_rate", "var_pitch_rate", "var_yaw_rate"]].tolist() == [1e-06, 2e-06, 4e-06]
     # a file without odom3 lines gives the empty table
     p.write_text(f"pseudorange3 2.0 2.1e7 4.0 {sat} 11 1 45.0 40.0\n")
     none = read_librsf(p).odometry

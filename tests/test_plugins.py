@@ -192,3 +192,16 @@ def test_the_example_runs_in_a_sweep_through_the_cli(tmp_path: Path) -> None:
     # the low receiver; its 4.092 MHz sample grid now costs a single-point fix metres, hence high)
     assert (summary["horizontal_median"] < 3.0).all()
     assert EXAMPLE in (out / "report" / "README.md").read_text()
+
+
+def test_a_built_in_module_without_its_yaml_runs_on_its_defaults(fresh_discovery, monkeypatch) -> None:
+    """README: a new estimator module is all it takes. Before, a built-in without conf/estimator/<name>.yaml
+    broke every default run ("Could not load 'estimator/<name>'")."""
+    new = fake_estimator("brand_new")
+    new.__module__ = "estimators.brand_new"
+    built_in = estimators.built_in()
+    monkeypatch.setattr(estimators, "built_in", lambda: {**built_in, "brand_new": new})
+    assert not (ROOT / "conf" / "estimator" / "brand_new.yaml").exists()
+    assert "brand_new" in compose_config([]).estimator  # the default run, estimator=all
+    chosen = compose_config(["estimator=[brand_new]", "estimator.brand_new.k=3"]).estimator
+    assert list(chosen) == ["brand_new"] and chosen.brand_new.k == 3.0

@@ -1,4 +1,5 @@
-"""Hydra callbacks: build the run's aggregate, claims and report when jobs end, and set the exit code."""
+"""Hydra callbacks: the sweep's progress bar; build the run's aggregate, claims and report when jobs end, and
+set the exit code."""
 
 from __future__ import annotations
 
@@ -10,9 +11,11 @@ import pandas as pd
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
+from simbench.cli.progress import end_sweep_bar, start_sweep_bar
 from simbench.errors import SimbenchError
 from simbench.report.build import finalize
 from simbench.report.leaderboard import terminal_summary
+from simbench.runs.run_dirs import keep_earlier_configs
 
 #: Exit code of a run or sweep with a ``failed`` row (0: every row ``ok``, ``skipped`` or ``diverged``;
 #: 2: a config refused before any job, :func:`simbench.cli.main.main`).
@@ -22,15 +25,27 @@ EXIT_FAILED_ROWS = 1
 class FinalizeRun(Callback):
     """Aggregate job files, evaluate claims and build the report after a run or multirun.
 
+    Before, an earlier run's Hydra config in the same folder is kept under a numbered name
+    (:func:`~simbench.runs.run_dirs.keep_earlier_configs`).
+
     Every job has finished by then; when a row of the aggregated ``summary.parquet``
     failed (an exception, not a divergence), it prints how many on one line and ends
     the process with :data:`EXIT_FAILED_ROWS`, so a script or CI sees it.
     """
 
+    def on_run_start(self, config: DictConfig, **kwargs: Any) -> None:
+        keep_earlier_configs(Path(config.hydra.run.dir))  # before Hydra writes this run's .hydra
+
+    def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
+        keep_earlier_configs(Path(config.hydra.sweep.dir))
+        if config.get("progress"):  # the sweep's one progress bar, from the first job to the last
+            start_sweep_bar(config.hydra.sweep.dir)
+
     def on_run_end(self, config: DictConfig, **kwargs: Any) -> None:
         self._finalize(Path(config.results_dir), config, sweep=False)
 
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
+        end_sweep_bar(config.hydra.sweep.dir)  # at N/N before the summary prints
         self._finalize(Path(config.hydra.sweep.dir), config, sweep=True)
 
     @staticmethod

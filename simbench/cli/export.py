@@ -12,10 +12,13 @@ from __future__ import annotations
 
 import sys
 
+from simbench.cli.text import plain_text
 from simbench.data.export import ExportFormat, export_scenario
 from simbench.errors import SimbenchError
+from simbench.runs.checks import check_seed
 from simbench.runs.compose import compose_config
-from simbench.runs.scenarios import build_scenario, scenario_settings
+from simbench.runs.files import check_output_dir, staged_folder
+from simbench.runs.scenarios import build_scenario, check_scenario, scenario_settings
 
 _USAGE = "python -m simbench export scenario=urban receiver=low seed=0 format=rinex|librsf|gnsslogger out=DIR"
 
@@ -24,7 +27,7 @@ def main(argv: list[str]) -> int:
     """Run the export; return the process exit code (2 with a one-line error on bad input)."""
     args = list(argv)
     if any(a in ("-h", "--help") for a in args):
-        print(__doc__.strip().splitlines()[0] + f"\nusage: {_USAGE}")
+        print(plain_text(__doc__).strip().splitlines()[0] + f"\nusage: {_USAGE}")
         return 0
     own = {a.partition("=")[0]: a.partition("=")[2] for a in args if a.startswith(("format=", "out="))}
     overrides = [a for a in args if not a.startswith(("format=", "out="))]
@@ -38,10 +41,15 @@ def main(argv: list[str]) -> int:
             )
         cfg = compose_config(overrides)
         sim = scenario_settings(cfg)
+        check_seed(sim.seed)
+        inputs = [p for paths in check_scenario(sim).input_files(sim).values() for p in paths]
+        out = check_output_dir("out", own["out"], "out=results/export", inputs)  # before the scenario is built
         scenario = build_scenario(sim)
         # a RINEX log without scenario.name is named after its observation file (in meta)
         stem = f"{scenario.meta.get('name') or sim.scenario.name}_{sim.receiver.name}_{sim.seed}"
-        files = export_scenario(scenario, fmt, own["out"], stem, receiver=sim.receiver.name)
+        with staged_folder(out) as staging:  # every file or none: a full disk leaves no half export
+            staged = export_scenario(scenario, fmt, staging, stem, receiver=sim.receiver.name)
+        files = [out / f.name for f in staged]
     except SimbenchError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -9,63 +9,45 @@ builds ``claims.csv`` and ``report/``.
 
 from __future__ import annotations
 
+import importlib
 import inspect
 import sys
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import hydra
-import pandas as pd
 from hydra.core.hydra_config import HydraConfig
 from hydra.core.override_parser.overrides_parser import OverridesParser
+from hydra.core.override_parser.types import Glob
 from hydra.errors import HydraException
 from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf, open_dict
-from tabulate import tabulate
-from tqdm.auto import tqdm
 
-import estimators
-from simbench.cli import export, report, score, tables, validate, zero_baseline
-from simbench.cli.studies import run_studies
-from simbench.cli.terminal import compact_summary, did_you_mean, one_line_warnings
+from simbench.cli.command_line import check_no_sweep, check_subcommand, run_hydra, unresolved
+from simbench.cli.text import did_you_mean, one_line_warnings
+from simbench.entry_points import ALL_ESTIMATORS
 from simbench.errors import SimbenchError
-from simbench.runs.checks import check_report_formats, check_run
-from simbench.runs.compose import (
-    CONF_DIR,
-    available,
-    check_group_choices,
-    compose_config,
-    config_groups,
-    group_choices,
-    register_schemas,
-)
-from simbench.runs.jobs import run_job
-from simbench.runs.studies import StudiesConfig
+from simbench.runs.groups import CONF_DIR, available, config_groups, group_choices, recorded_built_in_estimators
+from simbench.runs.run_dirs import unique_run_dir
 
-#: ``python -m simbench NAME ...``: the commands beside Hydra runs and sweeps, each ``main(argv) -> exit code``.
-SUBCOMMANDS: dict[str, Callable[[list[str]], int]] = {
-    "report": report.main,
-    "export": export.main,
-    "score": score.main,
-    "tables": tables.main,
-    "validate": validate.main,
-    "zero-baseline": zero_baseline.main,
+if TYPE_CHECKING:
+    import pandas
+
+# ``--help`` and a misspelt name answer from the names above in well under a second; what runs a job,
+# composes a config or draws a table (estimators, pandas, Hydra's config store: seconds) is imported
+# where it is needed (``# lazy:``).
+
+#: ``python -m simbench NAME ...``: the commands beside Hydra runs and sweeps, each a module of
+#: ``simbench.cli`` whose ``main(argv)`` returns the exit code (imported when it runs).
+SUBCOMMANDS: dict[str, str] = {
+    "report": "report",
+    "export": "export",
+    "score": "score",
+    "tables": "tables",
+    "validate": "validate",
+    "zero-baseline": "zero_baseline",
 }
-
-
-class _Progress:
-    """The one progress bar of a run or a sweep whose jobs run in this process (Hydra's basic launcher)."""
-
-    jobs: int | None = None  #: jobs the sweep will run, when :func:`planned_jobs` could count them
-    bar: tqdm | None = None
-
-
-def progress_bar(estimators_per_job: int) -> tqdm:
-    """The bar over jobs x estimators, made at the first job (with an ETA when the job count is known)."""
-    if _Progress.bar is None:
-        total = (_Progress.jobs or 1) * estimators_per_job
-        _Progress.bar = tqdm(total=total, desc="jobs x estimators", unit="est", dynamic_ncols=True)
-    return _Progress.bar
 
 
 @hydra.main(config_path=str(CONF_DIR), config_name="config", version_base="1.3")
@@ -78,15 +60,19 @@ def _app(cfg: DictConfig) -> None:
             cfg.results_dir = hc.sweep.dir
         if cfg.blas_threads is None:  # a cluster job uses the CPUs its launcher reserved (submitit)
             cfg.blas_threads = hc.launcher.get("cpus_per_task")
-    bar = progress_bar(len(cfg.estimator)) if cfg.progress else None
+    from simbench.cli.progress import job_progress  # lazy: a job's imports, not --help's
+    from simbench.cli.terminal import compact_summary  # lazy: pandas
+    from simbench.runs.jobs import run_job  # lazy: every estimator
+
+    multirun = hc.mode == RunMode.MULTIRUN
+    job = f"job{hc.job.num}" if multirun else None  # a sweep's job reports to the parent's bar through a file
     try:
-        rows = run_job(cfg, fail_fast=hc.mode != RunMode.MULTIRUN, bar=bar)
+        with job_progress(cfg.progress, len(cfg.estimator), cfg.results_dir, job) as bar:
+            rows = run_job(cfg, fail_fast=not multirun, bar=bar)
     except SimbenchError as exc:
         print(f"error: {exc}", file=sys.stderr)
         sys.exit(2)
-    if hc.mode != RunMode.MULTIRUN:
-        if bar is not None:
-            bar.close()
+    if not multirun:
         print(compact_summary(rows))
 
 
@@ -104,34 +90,56 @@ def main() -> None:
     one_line_warnings()
     args = sys.argv[1:]
     if args and args[0] in SUBCOMMANDS:
-        sys.exit(SUBCOMMANDS[args[0]](args[1:]))
+        sys.exit(importlib.import_module(f"simbench.cli.{SUBCOMMANDS[args[0]]}").main(args[1:]))
+    if any(a in ("-h", "--help") for a in args):
+        print(help_text())
+        return
+    reserved: Path | None = None
     try:
+        check_subcommand(args, SUBCOMMANDS)
+        # group options are checked for sweeps and flags too: Hydra would only say "Could not load"
+        suggest_names(a for a in args if not a.startswith("-"))
+        from tabulate import tabulate  # lazy: --help and a misspelt name need none of these
+
+        from simbench.cli.progress import Planned  # lazy
+        from simbench.runs.compose import compose_config, register_schemas  # lazy
+
         register_schemas()  # a broken plug-in estimator stops here, in one line naming its package
         if "--estimators" in args:
             print(tabulate(estimator_table(), headers="keys", tablefmt="plain", showindex=False))
             return
-        if any(a in ("-h", "--help") for a in args):
-            print(help_text())
-            return
-        # group options are checked for sweeps and flags too: Hydra would only say "Could not load"
-        suggest_names(a for a in args if not a.startswith("-"))
-        check_group_choices(a for a in args if not a.startswith("-"))
         shaping = config_overrides(args)
         cfg = compose_config(shaping, with_hydra=True) if shaping is not None else None
         if cfg is not None and "studies" in cfg:  # a sweep of sweeps (thesis): studies x worlds
+            from simbench.cli.studies import run_studies  # lazy: the report's imports (matplotlib)
+            from simbench.runs.checks import check_report_formats  # lazy
+            from simbench.runs.studies import StudiesConfig  # lazy
+
             formats = OmegaConf.select(cfg, "report.formats", default=None)
             check_report_formats(formats)  # before the first study, not after the last
             formats = list(formats or ["png"])
             sys.exit(run_studies(StudiesConfig.from_config(cfg), Path(cfg.results_dir), args, formats))
-        check_jobs(args, (shaping, cfg) if shaping is not None and cfg is not None else None)
-        if cfg is not None and (
-            any(a in RUN_FLAGS for a in args) or OmegaConf.select(cfg, "hydra.mode") == RunMode.MULTIRUN
-        ):
-            _Progress.jobs = planned_jobs(args, cfg)
+        multirun = any(a in RUN_FLAGS for a in args) or (
+            cfg is not None and OmegaConf.select(cfg, "hydra.mode") == RunMode.MULTIRUN
+        )
+        if cfg is not None and not multirun:
+            check_no_sweep(args)
+        first = check_jobs(args, (shaping, cfg) if shaping is not None and cfg is not None else None)
+        cfg = cfg if cfg is not None else first  # -m: composed for the checks only
+        if cfg is not None and multirun:
+            Planned.jobs = planned_jobs(args, cfg)
+        if first is not None and "${now:" in str(unresolved(first, "results_dir")):
+            # the default folder is named by the second it starts in: two runs of one second get one each
+            reserved = unique_run_dir(Path(first.results_dir))
+            sys.argv.append(f"results_dir={reserved}")
     except SimbenchError as exc:
         print(f"error: {exc}", file=sys.stderr)
         sys.exit(2)
-    _app()
+    try:
+        run_hydra(_app)
+    finally:
+        if reserved is not None and reserved.is_dir() and not any(reserved.iterdir()):
+            reserved.rmdir()  # nothing ran (Hydra refused the command line): no empty folder left behind
 
 
 def help_text() -> str:
@@ -162,6 +170,8 @@ def suggest_names(overrides: Iterable[str]) -> None:
         if sep and group in groups:
             known = available(group)
             for name in group_choices(value) or []:
+                if name not in known and group == "estimator":
+                    known = all_estimator_options()
                 if name not in known:
                     raise SimbenchError(
                         group,
@@ -170,13 +180,27 @@ def suggest_names(overrides: Iterable[str]) -> None:
                     )
         parts = group.split(".")
         if sep and len(parts) > 2 and parts[0] == "estimator":
-            known = sorted(estimators.registered())
+            known = [name for name in available("estimator") if name != ALL_ESTIMATORS]
+            if parts[1] not in known:
+                known = [name for name in all_estimator_options() if name != ALL_ESTIMATORS]
             if parts[1] not in known:
                 raise SimbenchError(
                     f"estimator.{parts[1]}",
                     f"unknown estimator '{parts[1]}'{did_you_mean(parts[1], known)}",
                     f"choose from {', '.join(known)} (python -m simbench --estimators lists them)",
                 )
+
+
+def all_estimator_options() -> list[str]:
+    """The ``estimator`` options, certainly: when the built-in names recorded at the last registration are
+    stale (an estimator file changed since), every estimator is imported and registered (seconds) to tell."""
+    if recorded_built_in_estimators() is not None:
+        return available("estimator")
+    import estimators  # lazy: only to refuse a name the recorded ones lack
+    from simbench.runs.compose import record_estimator_names  # lazy
+
+    record_estimator_names()  # for the next command line
+    return available("estimator", estimators.registered())
 
 
 def planned_jobs(args: list[str], cfg: DictConfig) -> int | None:
@@ -217,7 +241,7 @@ def config_overrides(args: list[str]) -> list[str] | None:
     return [a for a, o in zip(args, parsed) if not o.is_sweep_override() and not o.key_or_group.startswith("hydra.")]
 
 
-def check_jobs(args: list[str], composed: tuple[list[str], DictConfig] | None = None) -> None:
+def check_jobs(args: list[str], composed: tuple[list[str], DictConfig] | None = None) -> DictConfig | None:
     """Compose and check (:func:`simbench.runs.checks.check_run`) every job config of a run or sweep.
 
     The override lists are :func:`job_overrides`'s, with the sweeper params of a sweep file
@@ -232,14 +256,22 @@ def check_jobs(args: list[str], composed: tuple[list[str], DictConfig] | None = 
         Overrides and the config the caller composed from them ``with_hydra``: reused when they
         are the first job's.
 
+    Returns
+    -------
+    DictConfig or None
+        The first job's config (``with_hydra``); None when Hydra handles the command line itself.
+
     Raises
     ------
     SimbenchError
         For the first config refused, in one line.
     """
+    from simbench.runs.checks import check_run  # lazy: --help needs neither
+    from simbench.runs.compose import compose_config  # lazy
+
     jobs = job_overrides(args)
     if not jobs:
-        return
+        return None
     first = composed[1] if composed is not None and composed[0] == jobs[0] else compose_config(jobs[0], with_hydra=True)
     given = {item.partition("=")[0].lstrip("+~") for item in jobs[0]}
     params = OmegaConf.select(first, "hydra.sweeper.params", default=None) or {}
@@ -251,6 +283,7 @@ def check_jobs(args: list[str], composed: tuple[list[str], DictConfig] | None = 
         jobs = jobs[1:]
     for overrides in jobs:
         check_run(compose_config(overrides))
+    return first
 
 
 #: The flags of a run or sweep whose configs :func:`job_overrides` can check; with any other
@@ -270,6 +303,12 @@ def job_overrides(args: list[str]) -> list[list[str]] | None:
 
     None when there is another flag (``--help``) or an argument Hydra's parser rejects:
     Hydra then handles the command line itself.
+
+    Raises
+    ------
+    SimbenchError
+        For a sweep of no value (``seed=range(5,0)``, a ``glob(...)`` matching no option of its
+        group), which Hydra would run as 0 jobs and exit 0.
     """
     if any(a.startswith("-") and a not in RUN_FLAGS for a in args):
         return None
@@ -286,14 +325,23 @@ def job_overrides(args: list[str]) -> list[list[str]] | None:
         if not override.is_sweep_override():
             fixed.append(arg)
             continue
-        try:
-            values = list(override.sweep_string_iterator())
-        except HydraException:  # glob(): its options are known only to Hydra's config loader
+        key = override.get_key_element()
+        value = override.value()
+        if isinstance(value, Glob):  # its options are a group's files (Hydra's config loader expands it)
+            group = key.lstrip("+~")
+            if group in config_groups() and not value.filter(available(group)):
+                raise SimbenchError(
+                    key, f"'{arg}' matches no {group} option: 0 jobs", f"choose from {', '.join(available(group))}"
+                )
             continue
+        values = list(override.sweep_string_iterator())
+        if not values:
+            raise SimbenchError(
+                key, f"'{arg}' sweeps no value: 0 jobs", "give a sweep of at least one value, e.g. seed=range(0,5)"
+            )
         if override.key_or_group == "seed":  # one composition will do
             values = values[:1]
-        if values:
-            swept.append((override.get_key_element(), values))
+        swept.append((key, values))
     first = [f"{key}={values[0]}" for key, values in swept]
     jobs = [[*fixed, *first]]
     for i, (key, values) in enumerate(swept):
@@ -301,7 +349,7 @@ def job_overrides(args: list[str]) -> list[list[str]] | None:
     return jobs
 
 
-def estimator_table() -> pd.DataFrame:
+def estimator_table() -> pandas.DataFrame:
     """The registered estimators (``python -m simbench --estimators``).
 
     Returns
@@ -311,6 +359,10 @@ def estimator_table() -> pd.DataFrame:
         ``estimators.`` prefix of the built-ins), ``source`` (``built-in`` or the
         plug-in's package) and ``description`` (the first line of the class docstring).
     """
+    import pandas as pd  # lazy: --help does not list the estimators
+
+    import estimators  # lazy
+
     rows = [
         {
             "name": name,

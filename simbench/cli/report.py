@@ -3,20 +3,21 @@ report of a run at any time. The settings are spelled as on a run; ``--formats p
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 from typing import Any
 
+from simbench.cli.text import OneLineParser, plain_text
 from simbench.errors import SimbenchError
 from simbench.report.build import finalize
 from simbench.runs.checks import check_report_formats, check_report_style
-from simbench.runs.store import run_folders
+from simbench.runs.store import job_stems, run_folders
 
 
 def main(argv: list[str]) -> int:
-    """Rebuild the report of the run folder ``argv`` names; the exit code (2 for a folder without jobs)."""
-    parser = argparse.ArgumentParser(prog="simbench report", description=__doc__)
+    """Rebuild the report of the run folder ``argv`` names; the exit code (2 with one line: a folder without
+    jobs, a damaged study_times.csv, a folder that cannot be written, a full disk)."""
+    parser = OneLineParser(prog="simbench report", description=plain_text(__doc__))
     parser.add_argument("run_dir", type=Path, help="a results directory written by python -m simbench")
     parser.add_argument(
         "settings",
@@ -37,17 +38,21 @@ def main(argv: list[str]) -> int:
         formats = settings.get("formats", args.formats)
         check_report_formats(formats)
         check_report_style(settings.get("style"))
-    except SimbenchError as exc:
+        # a study collection (+sweep=thesis) keeps each study's jobs/ in the folders its study_times.csv names
+        if not any((folder / "jobs").is_dir() for folder in run_folders(args.run_dir)):
+            raise SimbenchError(
+                "run_dir", f"{args.run_dir} holds no jobs/ folder", "give a directory written by python -m simbench"
+            )
+        if not job_stems(args.run_dir):  # an empty page would look like a run whose estimators gave nothing
+            raise SimbenchError(
+                "run_dir",
+                f"{args.run_dir} has a jobs/ folder but no finished job in it",
+                "run python -m simbench into it first, or give the folder of a finished run",
+            )
+        report = finalize(args.run_dir, None, formats=formats, style=settings.get("style"))
+    except SimbenchError as exc:  # also a damaged study_times.csv, a read-only folder or a full disk
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    # a study collection (+sweep=thesis) keeps each study's jobs/ in the folders its study_times.csv names
-    if not any((folder / "jobs").is_dir() for folder in run_folders(args.run_dir)):
-        print(
-            f"error: run_dir: {args.run_dir} holds no jobs/ folder -- give a directory written by python -m simbench",
-            file=sys.stderr,
-        )
-        return 2
-    report = finalize(args.run_dir, None, formats=formats, style=settings.get("style"))
     print(f"report: {report.resolve() / 'index.html'}")
     return 0
 

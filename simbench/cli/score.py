@@ -12,14 +12,18 @@ import argparse
 import sys
 from pathlib import Path
 
-import pandas as pd
-
+from simbench.cli.callbacks import EXIT_FAILED_ROWS
 from simbench.cli.terminal import compact_summary
-from simbench.contract import read_parquet_metadata
+from simbench.cli.text import OneLineParser, plain_text
 from simbench.errors import SimbenchError
 from simbench.report.build import finalize
+from simbench.report.stale import check_report_dir
+from simbench.runs.files import check_output_dir, os_fault
 from simbench.runs.foreign import score_solution_file
+from simbench.runs.store import load_table
 
+#: How to repair a damaged summary.parquet: the report rebuilds it from the verified job files.
+REBUILD = "rebuild it: python -m simbench report RUN_DIR"
 #: summary.parquet columns a ``key=value`` selector may name.
 SELECTORS = ("scenario", "seed", "receiver", "sweep", "source")
 
@@ -47,7 +51,7 @@ def scenario_key_of(run_dir: Path, selectors: list[str]) -> str:
         raise SimbenchError(
             "run_dir", f"{run_dir} has no summary.parquet", "give a results directory of a finished run"
         )
-    rows = pd.read_parquet(path, columns=["scenario_key", *SELECTORS])
+    rows = load_table(path, f"{REBUILD}, or name the scenario with --scenario-key", ["scenario_key", *wanted])[0]
     for key, value in wanted.items():
         rows = rows[rows[key].astype(str) == value]
     keys = sorted(rows["scenario_key"].dropna().unique())
@@ -60,9 +64,14 @@ def scenario_key_of(run_dir: Path, selectors: list[str]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Command line: score the file, then rebuild the run's aggregate, claims and report."""
-    parser = argparse.ArgumentParser(
-        prog="simbench score", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    """Command line: score the file, then rebuild the run's aggregate, claims and report.
+
+    Exit codes: 0 when the row is ``ok`` (or ``diverged``), 1 when it ``failed`` (no solution within
+    half an epoch of a scenario epoch), 2 with one line for bad input, a damaged store file, a run
+    folder that cannot be written or a fault of the machine (a full disk).
+    """
+    parser = OneLineParser(
+        prog="simbench score", description=plain_text(__doc__), formatter_class=argparse.RawDescriptionHelpFormatter
     )
     parser.add_argument("run_dir", type=Path, help="results_dir of the run (or sweep) to add the solution to")
     parser.add_argument("selectors", nargs="*", help="key=value on summary.parquet, e.g. scenario=urban seed=0")
@@ -76,14 +85,40 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
     try:
+        check_run_dir(args.run_dir)
         key = args.scenario_key or scenario_key_of(args.run_dir, args.selectors)
-        row = score_solution_file(args.run_dir, key, args.name, args.solution)
+        try:
+            row = score_solution_file(args.run_dir, key, args.name, args.solution)
+        except OSError as exc:  # a full disk, a read-only store
+            raise os_fault(exc, args.run_dir / "jobs" / key) from None
+        print(compact_summary(row))
+        report = finalize(args.run_dir, run_config(args.run_dir))
     except SimbenchError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    print(compact_summary(row))
-    previous = args.run_dir / "summary.parquet"  # keep the run's own config in the rebuilt aggregate
-    config = read_parquet_metadata(previous).get("simbench.config") if previous.is_file() else None
-    report = finalize(args.run_dir, config)
     print(f"results: {args.run_dir.resolve()}  report: {report.resolve() / 'index.html'}", file=sys.stderr)
+    if (row["status"] == "failed").any():  # as a run with a failed row (simbench.cli.callbacks.EXIT_FAILED_ROWS)
+        print(f"{args.name}: {row['message'].iloc[0]}", file=sys.stderr)
+        return EXIT_FAILED_ROWS
     return 0
+
+
+def check_run_dir(run_dir: Path) -> None:
+    """Raise a one-line :class:`SimbenchError` unless ``run_dir`` is a run folder whose store and report can
+    be written: checked before the solution is read and scored."""
+    if not run_dir.is_dir():
+        raise SimbenchError("RUN_DIR", f"'{run_dir}' is not a directory", "give the results_dir of a run or sweep")
+    check_output_dir("RUN_DIR", run_dir, "the results_dir of a run you can write")
+    check_report_dir(run_dir / "report", run_dir)
+
+
+def run_config(run_dir: Path) -> dict | None:
+    """The run's own config, from the metadata of its summary.parquet, kept in the rebuilt aggregate; None
+    (a rebuild's provenance) when the file is missing or damaged: the report rebuilds it from the job files."""
+    path = run_dir / "summary.parquet"
+    if not path.is_file():
+        return None
+    try:
+        return load_table(path, REBUILD)[1].get("simbench.config")
+    except SimbenchError:
+        return None

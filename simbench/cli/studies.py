@@ -16,7 +16,7 @@ import pandas as pd
 from simbench.cli.terminal import compact_summary
 from simbench.report.build import finalize
 from simbench.runs.checks import ReportFormat
-from simbench.runs.studies import STUDY_TIMES, StudiesConfig, plan
+from simbench.runs.studies import STUDY_TIMES, StudiesConfig, plan, read_study_times
 
 
 class StudyProcess(NamedTuple):
@@ -88,7 +88,8 @@ def run_studies(
     root.mkdir(parents=True, exist_ok=True)
     path = root / STUDY_TIMES
     # appended to: a second invocation into the same results_dir (another world, other seeds) keeps the first's
-    earlier = pd.read_csv(path, keep_default_na=False) if path.is_file() else pd.DataFrame()
+    earlier = read_study_times(root)  # a damaged one is one line naming it, before the first study
+    earlier = pd.DataFrame() if earlier is None else earlier
     times = []
     for i, run in enumerate(runs, 1):
         print(

@@ -29,7 +29,11 @@ import pandas as pd
 from simbench.analysis.claims import claims_by_world
 from simbench.analysis.published import DRIVE_MEDIANS_BY_SWEEP, PUBLISHED_FAMILY
 from simbench.analysis.tables import drive_comparison
-from simbench.runs.studies import STUDY_TIMES, time_budget
+from simbench.cli.text import OneLineParser, plain_text
+from simbench.errors import SimbenchError
+from simbench.runs.files import read_csv_table
+from simbench.runs.store import load_table
+from simbench.runs.studies import STUDY_TIMES, read_study_times, time_budget
 
 TABLES = ("claims", "drives", "times")
 #: The published source of a drive table whose sweep has no own entry in DRIVE_MEDIANS_BY_SWEEP.
@@ -45,11 +49,19 @@ def markdown(frame: pd.DataFrame) -> str:
     return frame.to_markdown(index=False, floatfmt=".4g") if len(frame) else "(none)"
 
 
+#: How to repair a damaged file of a run folder: every one is rebuilt from the verified job files.
+REBUILD = "rebuild it: python -m simbench report RUN_DIR"
+#: Columns of summary.parquet the drive and time tables read.
+SUMMARY_READ = ("sweep", "scenario", "receiver", "estimator", "overrides", "status", "horizontal_median_ref", "total_s")
+#: Columns of claims.csv that :func:`claims_by_world` reads.
+CLAIMS_COLUMNS = ("claim_id", "world", "published", "measured", "holds", "ci_low", "ci_high")
+
+
 def claims_section(run_dir: Path) -> str | None:
     path = run_dir / "claims.csv"
     if not path.is_file():
         return None
-    claims = pd.read_csv(path, keep_default_na=True)
+    claims = read_csv_table(path, CLAIMS_COLUMNS, REBUILD, numbers=("measured", "ci_low", "ci_high"))
     return f"## Claims per world (`{path}`)\n\n{markdown(claims_by_world(claims))}"
 
 
@@ -91,7 +103,7 @@ def drives_section(run_dir: Path) -> str | None:
     path = run_dir / "summary.parquet"
     if not path.is_file():
         return None
-    tables = drive_tables(pd.read_parquet(path))
+    tables = drive_tables(load_table(path, REBUILD, SUMMARY_READ)[0])
     parts = [f"## Morgantown drives: median_ref (published) [m] (`{path}`)"]
     if not tables:
         parts.append("(no default-variant results on morgantown1..3 with a published counterpart)")
@@ -119,8 +131,8 @@ def study_times_table(times: pd.DataFrame, values: str = "wall_s") -> pd.DataFra
 def times_section(run_dir: Path) -> str | None:
     times_path, summary_path = run_dir / STUDY_TIMES, run_dir / "summary.parquet"
     parts = []
-    if times_path.is_file():
-        times = pd.read_csv(times_path, keep_default_na=False)
+    times = read_study_times(run_dir)
+    if times is not None:
         parts.append(
             f"## Wall time per study and world [s] (`{times_path}`; total {times['wall_s'].sum() / 60:.1f} min)"
             f"\n\n{markdown(study_times_table(times))}"
@@ -133,7 +145,7 @@ def times_section(run_dir: Path) -> str | None:
                 f"or the study itself; largest {peak:.0f} MB)\n\n{markdown(study_times_table(times, 'peak_rss_mb'))}"
             )
     if summary_path.is_file():
-        budget = time_budget(pd.read_parquet(summary_path))
+        budget = time_budget(load_table(summary_path, REBUILD, SUMMARY_READ)[0])
         parts.append(
             f"## Estimator time per sweep, world and estimator (`time_budget`; "
             f"{budget['total_s'].sum():.0f} s in all, largest {BUDGET_ROWS})\n\n{markdown(budget.head(BUDGET_ROWS))}"
@@ -146,15 +158,25 @@ SECTIONS = {"claims": claims_section, "drives": drives_section, "times": times_s
 
 def main(argv: list[str]) -> int:
     """Print the tables of the run folder ``argv`` names; the exit code (2 when it holds none of their files)."""
-    parser = argparse.ArgumentParser(
-        prog="python -m simbench tables", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    parser = OneLineParser(
+        prog="python -m simbench tables",
+        description=plain_text(__doc__),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("run_dir", type=Path, help="a results directory written by python -m simbench")
     parser.add_argument("--only", choices=TABLES, help="print one table")
     args = parser.parse_args(argv)
+    if args.run_dir.exists() and not args.run_dir.is_dir():
+        fix = "give a directory written by python -m simbench"
+        print(f"error: run_dir: {args.run_dir} is a file -- {fix}", file=sys.stderr)
+        return 2
     printed = []
     for name in (args.only,) if args.only else TABLES:
-        text = SECTIONS[name](args.run_dir)
+        try:  # files read through the store's checks: a damaged one is one line naming it
+            text = SECTIONS[name](args.run_dir)
+        except SimbenchError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
         if text is None:
             print(f"note: {name}: {args.run_dir} has no file for it", file=sys.stderr)
         else:

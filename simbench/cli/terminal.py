@@ -1,13 +1,7 @@
-"""What the terminal shows: a compact sorted summary of result rows, "did you mean" suggestions, and
-simbench's warnings as one line each."""
+"""What the terminal shows after a run: a compact sorted summary of result rows (the lines of a command
+line that need no result table are in :mod:`simbench.cli.text`)."""
 
 from __future__ import annotations
-
-import difflib
-import sys
-import warnings
-from collections.abc import Iterable
-from typing import TextIO
 
 import numpy as np
 import pandas as pd
@@ -15,7 +9,6 @@ from tabulate import tabulate
 
 from simbench.analysis.tables import with_variant_columns
 from simbench.analysis.variants import display_names
-from simbench.errors import SimbenchWarning
 from simbench.report.style import sig3
 
 #: Widest summary line [characters]: it fits a terminal of 100 columns.
@@ -36,7 +29,7 @@ def compact_summary(summary: pd.DataFrame) -> str:
     Returns
     -------
     str
-        A table at most :data:`SUMMARY_WIDTH` characters wide: estimator, rows ok / all,
+        A table at most :data:`SUMMARY_WIDTH` characters wide: estimator, rows ok / run (:func:`ok_count`),
         availability [%], horizontal median and p95 and 3-D median over reference epochs [m]
         (— when the availability does not reach the percentile) and time per epoch [ms]; under the
         table, one line per variant with a row that is not ok: its status and message.
@@ -58,7 +51,7 @@ def compact_summary(summary: pd.DataFrame) -> str:
         out.append(
             {
                 "estimator": str(name) if len(str(name)) <= NAME_WIDTH else str(name)[: NAME_WIDTH - 1] + "…",
-                "ok": f"{len(ok)}/{len(group)}",
+                "ok": ok_count(group),
                 "avail [%]": sig3(100 * mean("availability")),
                 "h med [m]": sig3(mean("horizontal_median_ref")),
                 "h p95 [m]": sig3(mean("horizontal_p95_ref")),
@@ -83,31 +76,14 @@ def compact_summary(summary: pd.DataFrame) -> str:
     return "\n".join(line.rstrip()[:SUMMARY_WIDTH] for line in [*text.splitlines(), *notes])
 
 
-def did_you_mean(name: str, known: Iterable[str]) -> str:
-    """`` (did you mean 'dcs'?)`` for the closest known name, or ``''`` when none is close."""
-    close = difflib.get_close_matches(name, list(known), n=1, cutoff=0.6)
-    return f" (did you mean '{close[0]}'?)" if close else ""
+def ok_count(group: pd.DataFrame) -> str:
+    """``2/3``: rows ok of those that ran; ``skipped`` when none ran (the data lack what it needs).
 
-
-def one_line_warnings() -> None:
-    """Print every :class:`~simbench.errors.SimbenchWarning` as ``warning: <message>`` on stderr.
-
-    Python's default format adds the file, line and source line of the ``warn`` call, which
-    points into simbench rather than at the user's input. Other warnings keep that format.
+    A skipped row is no failure, so it is not counted against the estimator: ``2/3 +1 skipped``.
     """
-    default = warnings.showwarning
-
-    def show(
-        message: Warning | str,
-        category: type[Warning],
-        filename: str,
-        lineno: int,
-        file: TextIO | None = None,
-        line: str | None = None,
-    ) -> None:
-        if issubclass(category, SimbenchWarning):
-            print(f"warning: {message}", file=file or sys.stderr)
-        else:
-            default(message, category, filename, lineno, file, line)
-
-    warnings.showwarning = show
+    skipped = int((group["status"] == "skipped").sum())
+    ran = len(group) - skipped
+    if not ran:
+        return "skipped"
+    text = f"{int(group['ok'].sum())}/{ran}"
+    return f"{text} +{skipped} skipped" if skipped else text

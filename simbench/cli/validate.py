@@ -25,8 +25,11 @@ import pandas as pd
 from tqdm import tqdm
 
 from simbench.analysis.validation import cn0_by_elevation, comparison_table, residual_sample
-from simbench.errors import SimbenchError
+from simbench.cli.text import plain_text
+from simbench.contract import write_bytes
+from simbench.errors import SimbenchError, require_elevation_mask
 from simbench.report.figures import validation_figure
+from simbench.runs.files import check_output_dir, staged_folder
 from simbench.runs.scenarios import scenario_from_overrides
 
 #: Columns the terminal table shows (validation.csv has them all).
@@ -93,6 +96,8 @@ def run(args: list[str]) -> pd.DataFrame:
         raise SimbenchError(
             "--mask", f"is not a number: {options['mask']}", "give the elevation mask in degrees"
         ) from None
+    require_elevation_mask("--mask", mask, "give the elevation mask in degrees, e.g. --mask 10")
+    out = check_output_dir("--out", options["out"], "--out results/validation") if "out" in options else None
     samples = []
     for overrides in tqdm(worlds, desc="worlds", unit="world", disable=len(worlds) < 2):
         samples.append(residual_sample(scenario_from_overrides(overrides)[1], elevation_mask_deg=mask))
@@ -102,20 +107,21 @@ def run(args: list[str]) -> pd.DataFrame:
     table = comparison_table(samples, options.get("reference"))
     print(table[SHOWN].to_string(index=False, float_format=lambda v: f"{v:.3g}"))
     print(f"KS distances against: {table['ks_against'].iloc[0]}")
-    if "out" in options:
-        out = Path(options["out"])
-        out.mkdir(parents=True, exist_ok=True)
-        table.to_csv(out / "validation.csv", index=False)
-        pd.concat([cn0_by_elevation(s) for s in samples]).to_csv(out / "cn0_by_elevation.csv", index=False)
-        figure = validation_figure(samples, out / "validation.png", "Sim vs real: " + ", ".join(names))
-        print(f"written: {out / 'validation.csv'}, {out / 'cn0_by_elevation.csv'}, {figure}", file=sys.stderr)
+    if out is not None:
+        with staged_folder(out) as staging:  # the three files or none (a full disk)
+            write_bytes(staging / "validation.csv", table.to_csv(index=False).encode())
+            cn0 = pd.concat([cn0_by_elevation(s) for s in samples])
+            write_bytes(staging / "cn0_by_elevation.csv", cn0.to_csv(index=False).encode())
+            figure = validation_figure(samples, staging / "validation.png", "Sim vs real: " + ", ".join(names))
+        written = [out / "validation.csv", out / "cn0_by_elevation.csv", out / Path(figure.path).name]
+        print(f"written: {', '.join(map(str, written))}", file=sys.stderr)
     return table
 
 
 def main(argv: list[str]) -> int:
     """Run :func:`run` on ``argv``; the exit code (2 with a one-line error on bad input)."""
     if argv and argv[0] in ("-h", "--help"):
-        print(__doc__)
+        print(plain_text(__doc__))
         return 0
     try:
         run(argv)

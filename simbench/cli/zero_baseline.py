@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -10,13 +9,17 @@ from pathlib import Path
 import pandas as pd
 from tqdm.auto import tqdm
 
+from simbench.cli.text import OneLineParser, plain_text
+from simbench.contract import write_bytes
 from simbench.errors import SimbenchError
-from simbench.runs.zero_baseline import TABLE_NAME, zero_baseline
+from simbench.runs.checks import check_seed
+from simbench.runs.files import check_output_dir, os_fault
+from simbench.runs.zero_baseline import TABLE_NAME, check_zero_baseline, zero_baseline
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """``python -m simbench zero-baseline SCENARIO... [KEY=VALUE...] [--seed N] [--out DIR]``."""
-    parser = argparse.ArgumentParser(prog="python -m simbench zero-baseline", description=__doc__)
+    parser = OneLineParser(prog="python -m simbench zero-baseline", description=plain_text(__doc__))
     parser.add_argument(
         "scenarios",
         nargs="+",
@@ -28,18 +31,24 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     names = [a for a in args.scenarios if "=" not in a]
     overrides = dict(a.split("=", 1) for a in args.scenarios if "=" in a)
-    try:
+    try:  # the seed and the output folder before the first scenario is generated
+        check_seed(args.seed, "--seed", "--seed 0")
+        if not names:
+            raise SimbenchError("scenarios", "names no scenario preset", "e.g. zero-baseline morgantown1 morgantown2")
+        out = check_output_dir("--out", args.out, "--out results/zero_baseline")
+        for name in names:  # every scenario's config before the first is generated
+            check_zero_baseline(name, args.seed, **overrides)
         table = pd.concat(
             [zero_baseline(s, args.seed, **overrides) for s in tqdm(names, desc="zero baseline")], ignore_index=True
         )
+        path = out / TABLE_NAME
+        try:
+            write_bytes(path, table.to_csv(index=False).encode())
+        except OSError as exc:  # a full disk: one line, and no half-written table (written under another name)
+            raise os_fault(exc, path) from None
     except SimbenchError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    args.out.mkdir(parents=True, exist_ok=True)
-    path = args.out / TABLE_NAME
-    tmp = path.with_name(f".{path.name}.tmp")
-    table.to_csv(tmp, index=False)
-    tmp.replace(path)
     print(table.to_string(index=False))
     print(f"written: {path}")
     return 0

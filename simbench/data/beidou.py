@@ -12,24 +12,18 @@ user also needs TGD2, the B2I group delay (BDS-SIS-ICD-B1I 5.2.4.10), which
 
 from __future__ import annotations
 
-import os
-
 from simbench.core.beidou_orbits import BDT_WEEK_OFFSET, GPS_MINUS_BDT_S, BeidouEphemeris
 from simbench.core.constants import SECONDS_PER_WEEK
 from simbench.core.gpstime import datetime64_to_gps
 from simbench.core.orbits import FIT_HALF_WINDOW_S
-from simbench.errors import SimbenchError
 from simbench.gnss.navigation import (
     KEPLER_CLOCK_FIELDS,
     GroupDelays,
     NavPaths,
     complete_kepler_records,
-    files_field,
     kepler_layout,
     kepler_records,
-    nav_paths,
-    read_rinex3_records,
-    record_columns,
+    read_system_nav,
     satellite_medians,
 )
 
@@ -86,18 +80,14 @@ def load_beidou_navigation(
     SimbenchError
         Missing file, not RINEX 3 navigation data, or no healthy BeiDou record.
     """
-    paths = nav_paths(path)
     fix = "pass a RINEX 3 BeiDou or mixed navigation file (e.g. hksc1180.19b)"
-    field = files_field(setting, paths)
-    nav = read_rinex3_records(paths, "C", setting, fix)
-    c = record_columns(nav, _LAYOUT, "C", field, fix)
-    keep = complete_kepler_records(c, _FIELDS) & (c["health"] == 0)
-    if not keep.any():
-        raise SimbenchError(field, "has no complete healthy BeiDou record", fix)
+    nav = read_system_nav(path, "C", _LAYOUT, setting, fix)
+    c = nav.columns
+    keep = nav.healthy(complete_kepler_records(c, _FIELDS) & (c["health"] == 0))
     toe = (c["week"][keep] + BDT_WEEK_OFFSET) * SECONDS_PER_WEEK + c["toe"][keep] + GPS_MINUS_BDT_S
-    toc = datetime64_to_gps(nav.epoch[keep]) + GPS_MINUS_BDT_S
-    sats, sat_idx, records = kepler_records(nav, c, _FIELDS, keep, toe, toc)
-    eph = BeidouEphemeris(sats, records, source=", ".join(os.path.basename(p) for p in paths), max_age_s=max_age_s)
+    toc = datetime64_to_gps(nav.records.epoch[keep]) + GPS_MINUS_BDT_S
+    sats, sat_idx, records = kepler_records(nav.records, c, _FIELDS, keep, toe, toc)
+    eph = BeidouEphemeris(sats, records, source=nav.source, max_age_s=max_age_s)
     return eph, {"tgd2": satellite_medians(sat_idx, c["tgd2"][keep], sats.size)}
 
 

@@ -18,26 +18,20 @@ file), so that field counts as missing there.
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 
 from simbench.core.constants import SECONDS_PER_WEEK
 from simbench.core.galileo_orbits import GalileoEphemeris
 from simbench.core.gpstime import datetime64_to_gps
 from simbench.core.orbits import FIT_HALF_WINDOW_S
-from simbench.errors import SimbenchError
 from simbench.gnss.navigation import (
     KEPLER_CLOCK_FIELDS,
     GroupDelays,
     NavPaths,
     complete_kepler_records,
-    files_field,
     kepler_layout,
     kepler_records,
-    nav_paths,
-    read_rinex3_records,
-    record_columns,
+    read_system_nav,
     satellite_medians,
 )
 
@@ -101,11 +95,9 @@ def load_galileo_navigation(
     SimbenchError
         Missing file, not RINEX 3 navigation data, a malformed record, or no healthy Galileo record.
     """
-    paths = nav_paths(path)
-    field = files_field(setting, paths)
     fix = "pass a RINEX 3 Galileo or mixed navigation file (e.g. BRDC00IGS_R_<yyyydoy>0000_01D_MN.rnx)"
-    nav = read_rinex3_records(paths, "E", setting, fix)
-    c = record_columns(nav, _LAYOUT, "E", field, fix)
+    nav = read_system_nav(path, "E", _LAYOUT, setting, fix)
+    c = nav.columns
     src = np.nan_to_num(c["sources"]).astype(np.int64)
     inav = ((src & _INAV_CLOCK_BIT) != 0) | (((src & _FNAV_CLOCK_BIT) == 0) & ((src & _INAV_SIGNAL_BITS) != 0))
     bgd_e5a = c["bgd_e5a"]
@@ -113,15 +105,14 @@ def load_galileo_navigation(
     bgd = np.where(inav, bgd_e5b, bgd_e5a)
     keep = complete_kepler_records(c, _FIELDS) & (c["health"] == 0)
     # one message type per satellite, I/NAV first: the two clock models differ by the BGDs
-    has_inav = {s for s, ok in zip(nav.sv.tolist(), keep & inav) if ok}
-    keep &= inav | ~np.isin(nav.sv, list(has_inav))
-    if not keep.any():
-        raise SimbenchError(field, "has no complete healthy Galileo record", fix)
+    sv = nav.records.sv
+    has_inav = {s for s, ok in zip(sv.tolist(), keep & inav) if ok}
+    keep = nav.healthy(keep & (inav | ~np.isin(sv, list(has_inav))))
     toe = c["week"][keep] * SECONDS_PER_WEEK + c["toe"][keep]
-    toc = datetime64_to_gps(nav.epoch[keep])
-    sats, sat_idx, records = kepler_records(nav, c, _FIELDS, keep, toe, toc)
+    toc = datetime64_to_gps(nav.records.epoch[keep])
+    sats, sat_idx, records = kepler_records(nav.records, c, _FIELDS, keep, toe, toc)
     records["tgd"] = np.nan_to_num(bgd[keep])
-    eph = GalileoEphemeris(sats, records, source=", ".join(os.path.basename(p) for p in paths), max_age_s=max_age_s)
+    eph = GalileoEphemeris(sats, records, source=nav.source, max_age_s=max_age_s)
     delays = {
         name: satellite_medians(sat_idx, x[keep], sats.size) for name, x in (("bgd_e5a", bgd_e5a), ("bgd_e5b", bgd_e5b))
     }

@@ -9,8 +9,6 @@ and the state in km, km/s and km/s^2.
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 
 from simbench.core.glonass_orbits import GLO_MAX_AGE_S, GlonassEphemeris
@@ -18,10 +16,7 @@ from simbench.core.gpstime import utc_to_gps
 from simbench.errors import SimbenchError
 from simbench.gnss.navigation import (
     NavPaths,
-    files_field,
-    nav_paths,
-    read_rinex3_records,
-    record_columns,
+    read_system_nav,
 )
 
 __all__ = ["read_glonass_navigation"]
@@ -61,26 +56,22 @@ def read_glonass_navigation(
         Missing file, not RINEX 3 navigation data, a malformed record, a
         frequency number outside -7..+13, or no healthy GLONASS record.
     """
-    paths = nav_paths(path)
-    field = files_field(setting, paths)
     fix = "pass a RINEX 3 GLONASS or mixed navigation file (e.g. BRDC00IGS_R_<yyyydoy>0000_01D_MN.rnx)"
-    nav = read_rinex3_records(paths, "R", setting, fix)
-    v = record_columns(nav, _LAYOUT, "R", field, fix)
+    nav = read_system_nav(path, "R", _LAYOUT, setting, fix)
+    v = nav.columns
     freq = v["freq"]
     bad = np.isfinite(freq) & ((freq != np.round(freq)) | (freq < -7) | (freq > 13))
     if bad.any():
         k = int(np.argmax(bad))
         raise SimbenchError(
-            field,
-            f"record {nav.sv[k]} {nav.epoch[k]} has frequency number {freq[k]:g}",
+            nav.field,
+            f"record {nav.records.sv[k]} {nav.records.epoch[k]} has frequency number {freq[k]:g}",
             "GLONASS FDMA channels are whole numbers -7..+13; check the file",
         )
     need = ("clock", "gamma", "x", "vx", "ax", "y", "vy", "ay", "z", "vz", "az", "freq")
-    keep = np.all(np.isfinite(np.stack([v[k] for k in need])), axis=0) & (v["health"] == 0)
-    if not keep.any():
-        raise SimbenchError(field, "has no complete healthy GLONASS record", fix)
-    tb = utc_to_gps(nav.epoch[keep])
-    sats, sat_idx = np.unique(nav.sv[keep], return_inverse=True)
+    keep = nav.healthy(np.all(np.isfinite(np.stack([v[k] for k in need])), axis=0) & (v["health"] == 0))
+    tb = utc_to_gps(nav.records.epoch[keep])
+    sats, sat_idx = np.unique(nav.records.sv[keep], return_inverse=True)
     records = {
         "sat": sat_idx,
         "tb": tb,
@@ -91,4 +82,4 @@ def read_glonass_navigation(
         "gamma": v["gamma"][keep],
         "freq": v["freq"][keep].astype(int),
     }
-    return GlonassEphemeris(sats, records, source=", ".join(os.path.basename(p) for p in paths), max_age_s=max_age_s)
+    return GlonassEphemeris(sats, records, source=nav.source, max_age_s=max_age_s)

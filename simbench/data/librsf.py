@@ -35,10 +35,12 @@ Mapping ``odom3`` into the odometry table (:data:`simbench.contract.ODOMETRY_COL
 libRSF's vehicle frame is x forward, y left, z up (its ``OdometryModel4DOFECEF``
 turns about the local up axis; in the smartLoc Berlin log a positive ``wz``
 comes with a heading turning anticlockwise), the contract's is x forward,
-y right, z down, so ``speed = vx`` and ``yaw_rate = -wz``. Columns 9-14 are
-variances ((m/s)^2, (rad/s)^2; smartLoc writes 0.0025 and 4e-6). ``vy``, ``vz``
-(zero in smartLoc: the car's non-holonomic constraint, which an estimator can
-apply itself) and the roll and pitch rates are not carried.
+y right, z down, so ``speed = vx``, ``vel_right = -vy``, ``vel_down = -vz``,
+``roll_rate = wx``, ``pitch_rate = -wy`` and ``yaw_rate = -wz``. Columns 9-14 are
+their variances ((m/s)^2, (rad/s)^2; smartLoc writes 0.0025, 0.0009, 0.0009 for the
+velocities, 4e-6 for the turn rates): every component is carried. ``vy = vz = 0`` in
+smartLoc is the car's non-holonomic constraint at the vehicle's own variance, which the
+GNSS estimators apply in place of their road-grade and sideways defaults.
 """
 
 from __future__ import annotations
@@ -279,10 +281,7 @@ def read_librsf(path: str | os.PathLike[str]) -> LibrsfLog:
             "yaw rate (14) ones > 0",
             int(line_no[oi[row[0]]]),
         )
-    odometry = pd.DataFrame(
-        {"t": o[:, 0] - t0, "speed": o[:, 1], "yaw_rate": -o[:, 6], "var_speed": o[:, 7], "var_yaw_rate": o[:, 12]},
-        columns=list(ODOMETRY_COLUMNS),
-    )
+    odometry = pd.DataFrame(odometry_columns(o, t0), columns=list(ODOMETRY_COLUMNS))
     odometry = odometry.sort_values("t", kind="stable").reset_index(drop=True)
 
     gi = np.flatnonzero(kind == "point")
@@ -293,6 +292,31 @@ def read_librsf(path: str | os.PathLike[str]) -> LibrsfLog:
     reference = pd.DataFrame(num[gi][:, :4], columns=["t", "x", "y", "z"])
     reference["t"] -= t0
     return LibrsfLog(t0=t0, ranges=ranges, odometry=odometry, reference=reference, path=p)
+
+
+def odometry_columns(o: np.ndarray, t0: float) -> dict[str, np.ndarray]:
+    """The odometry table's columns from ``odom3`` values ``o`` (rows: t, v xyz, w xyz, their 6 variances).
+
+    libRSF's x forward, y left, z up becomes the contract's x forward, y right, z down: the y and z
+    components change sign, the variances do not.
+    """
+    flip = np.array([1.0, -1.0, -1.0])
+    vel, rate, var_vel, var_rate = o[:, 1:4] * flip, o[:, 4:7] * flip, o[:, 7:10], o[:, 10:13]
+    return {
+        "t": o[:, 0] - t0,
+        "speed": vel[:, 0],
+        "yaw_rate": rate[:, 2],
+        "var_speed": var_vel[:, 0],
+        "var_yaw_rate": var_rate[:, 2],
+        "vel_right": vel[:, 1],
+        "vel_down": vel[:, 2],
+        "roll_rate": rate[:, 0],
+        "pitch_rate": rate[:, 1],
+        "var_vel_right": var_vel[:, 1],
+        "var_vel_down": var_vel[:, 2],
+        "var_roll_rate": var_rate[:, 0],
+        "var_pitch_rate": var_rate[:, 1],
+    }
 
 
 def load_librsf(

@@ -10,24 +10,18 @@ records come from the shared reader :func:`simbench.gnss.navigation.read_rinex3_
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 
 from simbench.core.constants import SECONDS_PER_WEEK
 from simbench.core.gpstime import datetime64_to_gps
 from simbench.core.orbits import FIT_HALF_WINDOW_S, BroadcastEphemeris
-from simbench.errors import SimbenchError
 from simbench.gnss.navigation import (
     KEPLER_CLOCK_FIELDS,
     NavPaths,
     complete_kepler_records,
-    files_field,
     kepler_layout,
     kepler_records,
-    nav_paths,
-    read_rinex3_records,
-    record_columns,
+    read_system_nav,
 )
 
 __all__ = ["read_qzss_navigation"]
@@ -70,16 +64,12 @@ def read_qzss_navigation(
         Missing file, not RINEX 3 navigation data, a malformed record, no healthy QZSS
         record.
     """
-    paths = nav_paths(path)
-    field = files_field(setting, paths) if paths else setting
     fix = "pass a RINEX 3 mixed navigation file with QZSS (J) records (e.g. BRDC00IGS_R_<yyyydoy>0000_01D_MN.rnx)"
-    nav = read_rinex3_records(paths, "J", setting, fix)
-    c = record_columns(nav, _LAYOUT, "J", field, fix)
+    nav = read_system_nav(path, "J", _LAYOUT, setting, fix)
+    c = nav.columns
     health = np.nan_to_num(c["health"], nan=1.0).astype(np.int64)
-    keep = complete_kepler_records(c, _FIELDS) & (health & ~_UNUSED_HEALTH_BITS == 0)
-    if not keep.any():
-        raise SimbenchError(field, "has no complete healthy QZSS record", fix)
+    keep = nav.healthy(complete_kepler_records(c, _FIELDS) & (health & ~_UNUSED_HEALTH_BITS == 0))
     toe = c["week"][keep] * SECONDS_PER_WEEK + c["toe"][keep]
-    toc = datetime64_to_gps(nav.epoch[keep])
-    sats, _, records = kepler_records(nav, c, _FIELDS, keep, toe, toc)
-    return BroadcastEphemeris(sats, records, source=", ".join(os.path.basename(p) for p in paths), max_age_s=max_age_s)
+    toc = datetime64_to_gps(nav.records.epoch[keep])
+    sats, _, records = kepler_records(nav.records, c, _FIELDS, keep, toe, toc)
+    return BroadcastEphemeris(sats, records, source=nav.source, max_age_s=max_age_s)

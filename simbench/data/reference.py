@@ -104,12 +104,13 @@ def read_reference(
     SimbenchError
         Missing file, unknown layout, a point that is neither lat,lon,h nor ECEF, ``SOW X Y Z`` without ``week_hint``,
         a latitude beyond +-90 or a longitude beyond +-180 degrees, time going
-        backwards; the message names the line.
+        backwards, more than :data:`MAX_MISSING_FRACTION` of the rows lacking a value; the message names the line.
 
     Warns
     -----
     SimbenchWarning
-        Rows that repeat the time of the row before (the first is kept).
+        Rows that repeat the time of the row before (the first is kept); rows lacking a value (``nan``,
+        an empty or text field, a short line: dropped), with their number and the first line.
     """
     p = os.fspath(path)
     point = _numbers(p)
@@ -130,7 +131,9 @@ def read_reference(
         )
     except (pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
         raise _ref_error(field, p, f"cannot be parsed ({str(exc).splitlines()[0][:60]})") from None
-    df = df.apply(pd.to_numeric, errors="coerce").dropna(how="any")  # drops a header line
+    if len(df) and not any(_is_number(v) for v in df.iloc[0]):
+        df = df.iloc[1:]  # a header line: names, no number
+    df = _numeric_rows(df.apply(pd.to_numeric, errors="coerce"), content, kept, field, p)
     if df.empty:
         raise _ref_error(field, p, "contains no numeric rows")
     a = df.to_numpy(float)
@@ -177,6 +180,40 @@ def read_reference(
         )
     first = np.setdiff1d(np.arange(t.size), repeat)
     return Reference(t_gps=t[first], xyz=np.asarray(xyz)[first], path=p)
+
+
+#: Most of a reference's rows may lack a value before it is refused rather than read with a warning.
+MAX_MISSING_FRACTION = 0.5
+
+
+def _is_number(value: object) -> bool:
+    """Whether a field read from a reference file is a number (``nan`` and an empty field count)."""
+    try:
+        float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return False
+    return True
+
+
+def _numeric_rows(df: pd.DataFrame, content: list[str], kept: list[int], field: str, path: str) -> pd.DataFrame:
+    """The rows of ``df`` (numbers, NaN where a field was missing, ``nan`` or text) with every value.
+
+    A row without a value in some column (an outage written as NaN, a cut line) cannot be
+    used; dropping it is said in one warning naming how many and the first, and a file where
+    more than :data:`MAX_MISSING_FRACTION` of the rows lack values is refused (a wrong layout
+    more likely than outages). Row ``i`` of ``df`` is line ``kept[i]`` of ``content``.
+    """
+    missing = df.isna().any(axis=1).to_numpy()
+    n = int(missing.sum())
+    if n in (0, len(df)):  # every row whole, or none (the caller refuses a file without numeric rows)
+        return df[~missing]
+    first = kept[int(df.index[np.argmax(missing)])]
+    where = f"first at line {first + 1}: '{content[first].strip()[:60]}'"
+    problem = f"{n} of {len(df)} rows lack a value ({where})"
+    if n > MAX_MISSING_FRACTION * len(df):
+        raise SimbenchError(f"{field} '{path}'", problem, "repair the file: every row needs a number in every column")
+    warn(f"{field} '{path}'", problem, "dropped them: epochs only they would cover have no truth and are not scored")
+    return df[~missing]
 
 
 #: A point with a norm above this is ECEF metres, below it latitude, longitude and height [m].

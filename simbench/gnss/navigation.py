@@ -323,8 +323,7 @@ def read_gps_navigation(
     records["sat"] = sat_idx[rows]
     klobuchar = next((k for _, k in found if k is not None), None)
     alpha, beta = (klobuchar[:4], klobuchar[4:]) if klobuchar is not None else (None, None)
-    source = ", ".join(os.path.basename(p) for p in paths)
-    return BroadcastEphemeris(sats, records, alpha, beta, source=source, max_age_s=max_age_s)
+    return BroadcastEphemeris(sats, records, alpha, beta, source=source_label(paths), max_age_s=max_age_s)
 
 
 @dataclass(frozen=True)
@@ -435,6 +434,54 @@ def record_columns(nav: NavRecords, layout: Sequence[str], system: str, field: s
             field, f"has {SYSTEM_NAMES[system]} records of {a.shape[1]} numbers, not {len(layout)}", fix
         )
     return {name: a[:, k] for k, name in enumerate(layout) if name}
+
+
+def source_label(paths: Sequence[str]) -> str:
+    """The file names of ``paths``, comma-separated: an ephemeris's ``source``."""
+    return ", ".join(os.path.basename(p) for p in paths)
+
+
+@dataclass(frozen=True)
+class SystemNav:
+    """One system's records of RINEX 3 navigation files, by name, with what its errors name.
+
+    Attributes
+    ----------
+    records : NavRecords
+    columns : dict of str to ndarray
+        :func:`record_columns` of ``records`` by the system's layout.
+    system : str
+        The system letter.
+    field : str
+        The setting and files, for errors (:func:`files_field`).
+    fix : str
+        What the user should pass instead, for errors.
+    source : str
+        :func:`source_label` of the files.
+    """
+
+    records: NavRecords
+    columns: dict[str, np.ndarray]
+    system: str
+    field: str
+    fix: str
+    source: str
+
+    def healthy(self, keep: np.ndarray) -> np.ndarray:
+        """``keep``, or a one-line error when it keeps no record."""
+        if not keep.any():
+            raise SimbenchError(self.field, f"has no complete healthy {SYSTEM_NAMES[self.system]} record", self.fix)
+        return keep
+
+
+def read_system_nav(path: NavPaths, system: str, layout: Sequence[str], setting: str, fix: str) -> SystemNav:
+    """Read one system's records from RINEX 3 navigation files (:func:`read_rinex3_records`) and name
+    their numbers by ``layout`` (:func:`record_columns`); errors name ``setting`` and say ``fix``."""
+    paths = nav_paths(path)
+    field = files_field(setting, paths) if paths else setting
+    records = read_rinex3_records(paths, system, setting, fix)
+    columns = record_columns(records, layout, system, field, fix)
+    return SystemNav(records, columns, system, field, fix, source_label(paths))
 
 
 def complete_kepler_records(columns: dict[str, np.ndarray], fields: Sequence[str]) -> np.ndarray:

@@ -57,7 +57,7 @@ from simbench.analysis.tables import (
 from simbench.analysis.validation import MIN_ROWS_PER_CLOCK, comparison_table, residual_sample
 from simbench.analysis.variants import NO_OVERRIDES, display_names
 from simbench.contract import Scenario, read_parquet_metadata, write_bytes
-from simbench.errors import SimbenchError
+from simbench.errors import SimbenchError, warn
 from simbench.gnss.navigation import UNREAD_SYSTEM_NAMES
 from simbench.report.figures import (
     LABELS_MARK,
@@ -69,12 +69,16 @@ from simbench.report.figures import (
 )
 from simbench.report.group_figures import MIN_PARALLEL_GROUPS, GroupDrawing, GroupInputs
 from simbench.report.leaderboard import leaderboards, ranked, to_csv, to_latex
+from simbench.report.stale import check_report_dir, mark_stale, old_page
 from simbench.report.style import UNDEFINED, sig3, use_style
 from simbench.runs.checks import check_report_formats, check_report_style
+from simbench.runs.files import os_fault, read_csv_table
 from simbench.runs.provenance import provenance
 from simbench.runs.runner import SUMMARY_COLUMNS
+from simbench.runs.solutions import write_solutions
 from simbench.runs.store import aggregate, cached_scenarios, diagnostics, intact_jobs, job_stems
-from simbench.runs.studies import STUDY_TIMES, time_budget
+from simbench.runs.studies import read_study_times, time_budget
+from simbench.runs.zero_baseline import COLUMNS as ZERO_BASELINE_COLUMNS
 from simbench.runs.zero_baseline import TABLE_NAME as ZERO_BASELINE_TABLE
 from simbench.source import SIMULATED
 
@@ -142,7 +146,10 @@ def finalize(
     ------
     SimbenchError
         For a figure format not in :data:`~simbench.runs.checks.REPORT_FORMATS`, before any file is written
-        (:func:`~simbench.runs.checks.check_report_formats`; a run checks it before its first job).
+        (:func:`~simbench.runs.checks.check_report_formats`; a run checks it before its first job); a run
+        folder or report folder that cannot be written (:func:`~simbench.report.stale.check_report_dir`),
+        also before; a damaged ``study_times.csv``; a fault of the machine while writing (a full disk),
+        naming the path. An old page that is not replaced is marked stale (:mod:`simbench.report.stale`).
     """
     start = time.perf_counter()
     if formats is None:
@@ -151,6 +158,24 @@ def finalize(
     style = style or ((config or {}).get("report") or {}).get("style") or "screen"
     check_report_style(style)
     run_dir = Path(run_dir)
+    out = run_dir / "report"
+    check_report_dir(out, run_dir)
+    mark_stale(out, run_dir)  # a killed or failed rebuild leaves it marked; the new page replaces it
+    try:
+        return _finalize(run_dir, config, formats, figures, start, style)
+    except OSError as exc:  # a full disk, a folder made read-only meanwhile: one line naming the path
+        raise os_fault(exc, out, note=old_page(out, run_dir)) from None
+
+
+def _finalize(
+    run_dir: Path,
+    config: dict[str, Any] | None,
+    formats: Sequence[Format],
+    figures: bool,
+    start: float,
+    style: str = "screen",
+) -> Path:
+    """:func:`finalize` once its folders are checked."""
     # the drawing workers import while this process verifies and reads the store. A group's jobs are in
     # one scenario folder per seed or more (jobs/<scenario key>/), so fewer folders than
     # MIN_PARALLEL_GROUPS cannot make enough groups to be worth the workers (a smoke sweep: 72 jobs, 4 folders)
@@ -162,6 +187,7 @@ def finalize(
         summary = summary.reindex(columns=list(dict.fromkeys([*SUMMARY_COLUMNS, *summary.columns])))
         diag = diagnostics(run_dir, jobs)
         epochs = _ok_epochs(epochs, summary)  # figures and claims use the results the tables use
+        write_solutions(run_dir, summary, epochs)  # .pos and TUM for rtkplot, evo and simbench score
         # the report selects and groups the epoch rows many times: its labels as categories are an integer
         # take each, not an Arrow string take (about 8 s of a 5-world thesis report)
         text = epochs.select_dtypes(include=["string", "object"]).columns
@@ -323,8 +349,8 @@ def build_report(
             cls="note",
         )
         page.table(drives)
-    zero = run_dir / ZERO_BASELINE_TABLE
-    if zero.exists():
+    zero = _zero_baseline(run_dir)
+    if zero is not None:
         page.h2("Zero-baseline test: each preset's single-point solution against the geodetic receiver's")
         page.p(
             "Same scenario and seed for every receiver preset (identical sky, street and NLOS), code-only "
@@ -332,7 +358,7 @@ def build_report(
             "fixed [m], beside the dissertation's Table 5.3.2 for the drive the scenario replays.",
             cls="note",
         )
-        page.table(pd.read_csv(zero))
+        page.table(zero)
     # what follows each group's figures is written while the workers draw them
     tables = [page.part() for _ in groups]
     for part, inputs in zip(tables, groups):
@@ -352,6 +378,18 @@ def build_report(
         page.extend(part)
     page.extend(tail)
     return page.write(out, started)
+
+
+def _zero_baseline(run_dir: Path) -> pd.DataFrame | None:
+    """The run folder's zero-baseline table; None, with a one-line warning naming it when it is damaged."""
+    path = run_dir / ZERO_BASELINE_TABLE
+    if not path.exists():
+        return None
+    try:
+        return read_csv_table(path, ZERO_BASELINE_COLUMNS, "", numbers=("mean_3d_diff_m",))
+    except SimbenchError as exc:
+        warn(exc.field, exc.problem, "left out of the report; rerun python -m simbench zero-baseline to rebuild it")
+        return None
 
 
 def _group_inputs(keys: tuple, group: pd.DataFrame, summary: pd.DataFrame, stats: pd.DataFrame) -> GroupInputs:
@@ -446,8 +484,9 @@ def _provenance_box(page: _Page, run_dir: Path, summary: pd.DataFrame, scenarios
         rows["seeds"] = f"{len(seeds)} ({_ranges(seeds)})"
         rows["estimators"] = f"{summary['name'].nunique()} variants of {summary['estimator'].nunique()} estimators"
         rows["estimator time"] = f"{sig3(summary['total_s'].sum())} s (sum over jobs of the estimators' own run time)"
-        if (run_dir / STUDY_TIMES).is_file():
-            rows["wall time"] = f"{sig3(pd.read_csv(run_dir / STUDY_TIMES)['wall_s'].sum())} s (all studies)"
+        times = read_study_times(run_dir)
+        if times is not None:
+            rows["wall time"] = f"{sig3(pd.to_numeric(times['wall_s']).sum())} s (all studies)"
     notes = [_system_notes(d) for key, d in scenarios.items() if key in set(summary.get("scenario_key", []))]
     for text in dict.fromkeys(n for n in notes if n):
         rows.setdefault("GNSS systems", "")
@@ -610,18 +649,17 @@ def _not_measured_line(claims: pd.DataFrame) -> str:
 
 def _study_times_section(page: _Page, run_dir: Path, summary: pd.DataFrame) -> None:
     """Wall time per study x world of a run of several studies, and the estimators' time by sweep."""
-    path = run_dir / STUDY_TIMES
-    if not path.is_file():
+    times = read_study_times(run_dir)
+    if times is None:
         return
     page.h2("Where the time went")
-    times = pd.read_csv(path, keep_default_na=False)
     page.p(
         f"Wall time per study and world (simbench.runs.studies; total {times['wall_s'].sum() / 60:.1f} min), then "
         "the estimators' own run time summed over jobs per sweep, world and estimator (largest first; "
         "scenario generation, process start and report are in the wall times only).",
         cls="note",
     )
-    page.table(times.drop(columns=["results_dir"]))
+    page.table(times.drop(columns=["results_dir"], errors="ignore"))
     page.table(time_budget(summary).head(20))
 
 

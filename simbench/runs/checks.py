@@ -13,9 +13,7 @@ they are cheap.
 
 from __future__ import annotations
 
-import tempfile
 from collections.abc import Sequence
-from pathlib import Path
 from typing import Any, Literal, cast
 
 from omegaconf import DictConfig, OmegaConf
@@ -23,6 +21,7 @@ from omegaconf import DictConfig, OmegaConf
 import estimators
 from estimators.base import validate_config
 from simbench.errors import SimbenchError
+from simbench.runs.files import check_output_dir
 from simbench.runs.scenarios import check_scenario, scenario_settings
 from simbench.typed import to_typed
 
@@ -75,15 +74,17 @@ def check_run(cfg: DictConfig) -> None:
 MAX_SEED = 2**63 - 1
 
 
-def check_seed(seed: Any) -> None:
-    """Raise a one-line :class:`SimbenchError` unless ``seed`` is an integer in ``0 .. MAX_SEED``.
+def check_seed(seed: Any, field: str = "seed", example: str = "seed=0 or -m seed=range(5)") -> None:
+    """Raise a one-line :class:`SimbenchError` naming ``field`` unless ``seed`` is an integer in ``0 .. MAX_SEED``.
 
     Checked at the door: a negative seed failed in numpy's generator and a huge one overflowed the
     result table, both after the progress bar started (the second after the estimators ran).
+    ``field`` and ``example`` are a subcommand's own (``--seed``, ``--seed 0``).
     """
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= MAX_SEED:
-        fix = "give a non-negative seed, e.g. seed=0 or -m seed=range(5)"
-        raise SimbenchError("seed", f"{seed!r} is not an integer in 0 .. 2**63-1", fix)
+        raise SimbenchError(
+            field, f"{seed!r} is not an integer in 0 .. 2**63-1", f"give a non-negative seed, e.g. {example}"
+        )
 
 
 def check_report_formats(formats: Sequence[str] | str | None) -> None:
@@ -125,7 +126,8 @@ def check_report_style(style: str | None) -> None:
 
 
 def check_results_dir(path: str) -> None:
-    """Raise a one-line :class:`SimbenchError` unless ``path`` names a folder simbench can write.
+    """Raise a one-line :class:`SimbenchError` unless ``path`` names a folder simbench can write
+    (:func:`simbench.runs.files.check_output_dir`, as every subcommand checks its output folder).
 
     An existing folder must be writable; a missing one is created by the run, so the
     nearest existing parent must be a writable folder. It is not created here: the
@@ -143,24 +145,4 @@ def check_results_dir(path: str) -> None:
             "is empty, so the run would write into the working directory",
             "give a folder, e.g. results_dir=results/run",
         )
-    target = Path(path)
-    if target.exists() and not target.is_dir():
-        raise SimbenchError(
-            "results_dir", f"{path} is a file, not a folder", "give a folder, e.g. results_dir=results/run"
-        )
-    parent = target
-    while not parent.exists():
-        parent = parent.parent
-    if not parent.is_dir():
-        raise SimbenchError(
-            "results_dir", f"{parent} is a file, not a folder", "give a path of folders, e.g. results_dir=results/run"
-        )
-    try:  # os.access would say yes to root on a read-only mount or in /proc
-        with tempfile.TemporaryFile(dir=parent):
-            pass
-    except OSError as exc:
-        raise SimbenchError(
-            "results_dir",
-            f"cannot write in {parent} ({exc.strerror})",
-            "give a folder you can write, e.g. results_dir=results/run",
-        ) from None
+    check_output_dir("results_dir", path, "results_dir=results/run")

@@ -5,7 +5,6 @@ from __future__ import annotations
 import difflib
 import functools
 import inspect
-import re
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any, cast
@@ -23,11 +22,10 @@ from estimators.ppp_config import GnssModelConfig
 from simbench import source as sources
 from simbench.errors import SimbenchError
 from simbench.paths import data_path
+from simbench.runs.groups import CONF_DIR, available, check_group_choices, config_groups, record_built_in_estimators
+from simbench.runs.provenance import module_file
 from simbench.sim.config import ImuConfig, ReceiverConfig, ScenarioConfig
 from simbench.typed import to_typed
-
-#: The repository's top-level ``conf/`` directory.
-CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
 
 
 @functools.cache
@@ -68,7 +66,19 @@ def register_schemas() -> None:
         cs.store(group="estimator", name=f"{name}_schema", node={name: estimator_schema(name, cls.Config)})
     for name, plugin in estimators.plugins().items():
         cs.store(group="estimator", name=name, node=plugin_config_node(plugin))
+    for name in estimators.registered():
+        # a built-in module without conf/estimator/<name>.yaml runs on its Config defaults, as a plug-in
+        # does (before, 'Could not load estimator/<name>' broke the default run for everyone)
+        if name not in estimators.plugins() and not (CONF_DIR / "estimator" / f"{name}.yaml").is_file():
+            cs.store(group="estimator", name=name, node={"defaults": [f"{name}_schema", "_self_"], name: {}})
     cs.store(group="estimator", name=estimators.ALL, node={"defaults": list(estimators.registered())})
+    record_estimator_names()
+
+
+def record_estimator_names() -> None:
+    """Record the built-in estimators' names, which ``--help`` and a name check read without importing an
+    estimator (:func:`simbench.runs.groups.recorded_built_in_estimators`); a built-in is a module file."""
+    record_built_in_estimators(n for n, cls in estimators.built_in().items() if module_file(cls.__module__))
 
 
 def estimator_schema(name: str, config: type) -> DictConfig:
@@ -185,90 +195,6 @@ def estimator_yaml(name: str) -> Path | None:
     return shipped_yaml(estimators.get(name))
 
 
-def available(group: str) -> list[str]:
-    """Names of the options of a config group (``scenario``, ``receiver``, ...).
-
-    The files of ``conf/<group>/``; for ``estimator`` also the plug-in estimators
-    and ``all`` (every registered estimator); for ``scenario`` also every source by name.
-    """
-    names = {p.stem for p in (CONF_DIR / group).glob("*.yaml")}
-    if group == "estimator":
-        names |= {*estimators.plugins(), estimators.ALL}
-    if group == "scenario":
-        names |= set(sources.registered())
-    return sorted(names)
-
-
-def config_groups() -> list[str]:
-    """The config groups a user chooses from: the folders of ``conf/`` (not the ConfigStore schemas)."""
-    return sorted(d.name for d in CONF_DIR.iterdir() if d.is_dir() and any(d.glob("*.yaml")))
-
-
-def group_choices(value: str) -> list[str] | None:
-    """Option names in the value of a group override.
-
-    Understands ``a``, a list ``[a,b]``, sweep lists ``a,b`` or ``[a],[a,b]`` and
-    ``choice(a,b)``; None for the other sweep functions (``range``, ``glob``),
-    which Hydra expands itself.
-    """
-    text = value.strip()
-    if text.startswith("choice(") and text.endswith(")"):
-        text = text[len("choice(") : -1]
-    elif "(" in text:
-        return None
-    names = (name.strip().strip("'\"") for name in re.split(r"[\[\],]", text))
-    return [name for name in names if name]
-
-
-def check_group_choices(overrides: Iterable[str]) -> None:
-    """Reject an unknown option of a config group (``estimator=[nosuch]``) in one line.
-
-    Raises
-    ------
-    SimbenchError
-        Naming the group, the unknown option and the known ones.
-    """
-    groups = config_groups()
-    for item in overrides:
-        key, sep, value = item.partition("=")
-        group = key.lstrip("+~")
-        if not sep or group not in groups:
-            continue
-        known = available(group)
-        for name in group_choices(value) or []:
-            if name not in known:
-                raise SimbenchError(group, f"unknown {group} '{name}'", f"choose from {', '.join(known)}")
-
-
-def config_groups_help() -> str:
-    """One line per config group, as typed on the command line, with its options and default.
-
-    ``--help`` shows it (``conf/config.yaml`` hydra.help.template); Hydra's own
-    group list would also show the ConfigStore schemas, which are not choices.
-    """
-    defaults: dict[str, Any] = {}
-    for entry in (yaml.safe_load((CONF_DIR / "config.yaml").read_text()) or {}).get("defaults", []):
-        if isinstance(entry, dict):
-            defaults.update(entry)
-    lines = []
-    for group in config_groups():
-        options = available(group)
-        default = defaults.get(group)
-        if default == estimators.ALL:
-            note = "a list, e.g. [ekf_ppp,l2]; default: all, every registered estimator"
-        elif isinstance(default, list):
-            note = "a list, e.g. [ekf_ppp,l2]; default: " + ",".join(default)
-        elif default is not None:
-            note = f"default: {default}"
-        else:
-            note = "optional"
-        key = group if group in defaults else f"+{group}"
-        lines.append(f"  {key}: {', '.join(options)}  ({note})")
-    return "\n".join(lines)
-
-
-# conf/config.yaml's help template lists the groups with ${simbench_config_groups:}
-OmegaConf.register_new_resolver("simbench_config_groups", config_groups_help, replace=True)
 # the named presets' files: ${simbench_data:hk_tst_2019/x.obs} is x.obs in the data home ($SIMBENCH_DATA or
 # <repository>/../shared/data, simbench.paths), so a preset reads the same files from any working directory
 OmegaConf.register_new_resolver("simbench_data", data_path, replace=True)
@@ -292,7 +218,7 @@ def compose_config(overrides: list[str] | None = None, *, with_hydra: bool = Fal
         )
     overrides = list(overrides or [])
     register_schemas()
-    check_group_choices(overrides)
+    check_group_choices(overrides, estimators.registered())
     if GlobalHydra.instance().is_initialized():
         GlobalHydra.instance().clear()
     try:

@@ -26,7 +26,10 @@ scoring (:func:`simbench.runs.runner.score_solution`): availability over the
 reference epochs, the same statistics and status. The row and its epoch
 errors are written into the run's store like an estimator's result, under
 the name given, and the aggregate, ``claims.csv`` and ``report/`` are rebuilt,
-so the report shows the solution beside the built-in estimators. Scoring
+so the report shows the solution beside the built-in estimators. A solution
+whose times fit the truth clearly better shifted by whole seconds (UTC times
+under a GPST header: 18 s) is scored as written, with a warning naming the
+shift (:func:`check_time_system`). Scoring
 another file under the same name replaces the earlier result; run times are
 unknown (NaN).
 """
@@ -46,13 +49,13 @@ from simbench.analysis.variants import overrides_json, variant_label
 from simbench.contract import Scenario
 from simbench.data.reference import read_reference
 from simbench.data.rtklib_pos import parse_rtklib_pos
-from simbench.data.solution_times import match_receiver_epochs
-from simbench.errors import SimbenchError
+from simbench.data.solution_times import OFFSETS_S, best_time_offset, match_receiver_epochs, receiver_epoch_times
+from simbench.errors import SimbenchError, warn
 from simbench.runs.provenance import provenance
 from simbench.runs.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS, scenario_source, score_solution
-from simbench.runs.store import cache_problem, result_stem, write_result
+from simbench.runs.store import cache_problem, read_job, result_stem, write_result
 
-__all__ = ["read_solution", "score_solution_file"]
+__all__ = ["read_solution", "score_solution_file", "check_time_system"]
 
 #: The config a foreign result is keyed by: one result per name and scenario, replaced by a rescore.
 FOREIGN_CONFIG = {"foreign_solution": True}
@@ -90,6 +93,53 @@ def read_solution(path: str | Path, gps_week: int) -> tuple[pd.DataFrame, str]:
     return pd.DataFrame({"t_gps": ref.t_gps, "x": ref.xyz[:, 0], "y": ref.xyz[:, 1], "z": ref.xyz[:, 2]}), "csv"
 
 
+#: A shifted solution's mean error must be below this fraction of the unshifted one to be reported.
+SHIFT_GAIN = 0.5
+
+
+def check_time_system(pos: pd.DataFrame, scenario: Scenario, max_offset_s: float, path: str | Path) -> float:
+    """Warn when the solution fits the truth far better with its times shifted (UTC under a GPST header).
+
+    Parameters
+    ----------
+    pos : pandas.DataFrame
+        The solution (:func:`read_solution`).
+    scenario : Scenario
+        The cached scenario it is scored on.
+    max_offset_s : float
+        Largest distance in time of a solution from its epoch [s].
+    path : str or Path
+        The solution file, for the warning.
+
+    Returns
+    -------
+    float
+        The best whole-second shift [s] (0 when no shift fits clearly better); the solution is scored as written.
+    """
+    # both by epoch index: a log's grid has gaps, and epochs without a reference have no truth row
+    epochs = scenario.truth["epoch"].to_numpy()
+    t_epoch = receiver_epoch_times(scenario.receiver_view())
+    n = max(t_epoch.size, int(epochs.max()) + 1 if epochs.size else 0)
+    t_epoch = np.pad(t_epoch, (0, n - t_epoch.size), constant_values=np.nan)
+    truth = np.full((n, 3), np.nan)
+    truth[epochs] = scenario.truth[["x", "y", "z"]].to_numpy()
+    best, mean = best_time_offset(
+        pos["t_gps"].to_numpy(), pos[["x", "y", "z"]].to_numpy(), t_epoch, truth, max_offset_s
+    )
+    at_zero = float(mean[OFFSETS_S == 0][0])
+    at_best = float(mean[OFFSETS_S == best][0])
+    if best == 0 or not at_best < SHIFT_GAIN * at_zero:
+        return 0.0
+    leap = " (GPS-UTC is 18 s since 2017: UTC times under a GPST header?)" if abs(best) == 18 else ""
+    warn(
+        f"--solution '{path}'",
+        f"its times fit the reference best shifted by {best:+g} s: mean 3-D error {at_best:.3g} m, against "
+        f"{at_zero:.3g} m as written{leap}",
+        "scored as written; write the solution in GPS time",
+    )
+    return best
+
+
 def _find_cache(run_dir: Path, scenario_key: str) -> Path:
     """The cached scenario ``scenario_key`` below ``run_dir`` (a run, a sweep, or a root of several studies)."""
     if not run_dir.is_dir():
@@ -109,10 +159,12 @@ def _find_cache(run_dir: Path, scenario_key: str) -> Path:
 def _row_key(sweep_dir: Path, scenario_key: str, scenario: Scenario) -> dict[str, object]:
     """The identifying columns of a result on this scenario: those of a row already in the store
     (same sweep tag and receiver as the estimators it is compared with), else from the scenario."""
-    rows = sorted((sweep_dir / "jobs" / scenario_key).glob("*.summary.parquet"))
-    if rows:
-        first = pd.read_parquet(rows[0]).iloc[0]
-        return {k: first[k] for k in ("sweep", "scenario", "source", "receiver", "seed")}
+    for path in sorted((sweep_dir / "jobs" / scenario_key).glob("*.summary.parquet")):
+        # through the store's checks: a damaged job is named in one warning and the next one asked
+        rows = read_job(path.with_name(path.name.removesuffix(".summary.parquet")), "not used for the row's columns")
+        if rows is not None and len(rows):
+            first = rows.iloc[0]
+            return {k: first[k] for k in ("sweep", "scenario", "source", "receiver", "seed")}
     receiver = (scenario.meta.get("config") or {}).get("receiver") or {}
     return {
         "sweep": "",
@@ -169,6 +221,7 @@ def score_solution_file(run_dir: str | Path, scenario_key: str, name: str, solut
     pos, layout = read_solution(solution, scenario.nav.gps_week)
     data = scenario.receiver_view()
     si, ei, max_offset = match_receiver_epochs(data, pos["t_gps"].to_numpy())
+    check_time_system(pos, scenario, max_offset, solution)
     epochs = solution_frame(ei, data.epoch_times[ei], pos[["x", "y", "z"]].to_numpy()[si], np.full(si.size, np.nan))
     scores, errors = score_solution(scenario, epochs, float("nan"))
     if not si.size:

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
-from typing import Any, cast
+from typing import Any, Protocol, cast
 
 import pandas as pd
 from omegaconf import DictConfig, OmegaConf
@@ -58,7 +58,15 @@ class RunOptions:
     shared_results: list[str] = dataclasses.field(default_factory=list)
 
 
-def run_job(cfg: DictConfig, *, fail_fast: bool = True, bar: tqdm | None = None) -> pd.DataFrame:
+class Progress(Protocol):
+    """Where a job reports its progress: a tqdm bar, or anything with its two methods (simbench.cli.progress)."""
+
+    def update(self, n: int = 1) -> object: ...
+
+    def set_postfix_str(self, s: str) -> object: ...
+
+
+def run_job(cfg: DictConfig, *, fail_fast: bool = True, bar: Progress | None = None) -> pd.DataFrame:
     """Run (or resume) one job; return the summary rows of every estimator it covers.
 
     Parameters
@@ -70,28 +78,27 @@ def run_job(cfg: DictConfig, *, fail_fast: bool = True, bar: tqdm | None = None)
         config or a scenario that cannot be built, e.g. a missing or malformed
         input file (a single run: the user gets one line). In a sweep (False)
         it becomes a failed row like any other job failure and the sweep goes on.
-    bar : tqdm, optional
-        A progress bar over the jobs x estimators of a whole run or sweep, advanced by one per
-        estimator of this job (a finished one too); None: with ``progress`` set, a bar over this
-        job's estimators.
+    bar : Progress, optional
+        Advanced by one per estimator of this job (a finished one too), its postfix set to the
+        step under way (building the scenario, an estimator); None: with ``progress`` set, a
+        tqdm bar over this job's estimators.
     """
     opts = to_typed(
         {k: cfg[k] for k in (f.name for f in dataclasses.fields(RunOptions)) if k in cfg}, RunOptions, "config"
     )
     if opts.blas_threads is not None and opts.blas_threads < 1:
         raise SimbenchError("blas_threads", f"is {opts.blas_threads}", "set blas_threads to 1 or more (or null)")
-    own = bar is None
-    if bar is None:
-        bar = tqdm(total=len(cfg.estimator), desc="estimators", unit="est", disable=not opts.progress, leave=False)
-    try:
+    if bar is not None:
         with threadpool_limits(limits=opts.blas_threads or 1):
             return _run_job(cfg, opts, fail_fast=fail_fast, bar=bar)
-    finally:
-        if own:
-            bar.close()
+    with (
+        tqdm(total=len(cfg.estimator), desc="estimators", unit="est", disable=not opts.progress, leave=False) as own,
+        threadpool_limits(limits=opts.blas_threads or 1),
+    ):
+        return _run_job(cfg, opts, fail_fast=fail_fast, bar=own)
 
 
-def _run_job(cfg: DictConfig, opts: RunOptions, *, fail_fast: bool, bar: tqdm) -> pd.DataFrame:
+def _run_job(cfg: DictConfig, opts: RunOptions, *, fail_fast: bool, bar: Progress) -> pd.DataFrame:
     sim = scenario_settings(cfg)
     root = Path(opts.results_dir)
     key = scenario_key(sim)
@@ -123,6 +130,7 @@ def _run_job(cfg: DictConfig, opts: RunOptions, *, fail_fast: bool, bar: tqdm) -
         try:
             # the job's one check of its data config (the source's, e.g. validate_sim); loading trusts it
             source = check_scenario(sim)
+            bar.set_postfix_str(f"{label} seed {sim.seed}: reading or building the scenario")
             scenario = cached_scenario(root, key, lambda: source.load(sim))
         except Exception as exc:
             if fail_fast:  # a single run ends with one line instead of a failed row per estimator

@@ -158,6 +158,20 @@ def simulate(
         :func:`simbench.scenario`, which builds any source.
     """
 
+    return build_scenario(simulation_config(scenario, receiver, seed, imu, **overrides))
+
+
+def simulation_config(
+    scenario: str = "urban", receiver: str = "low", seed: int = 0, imu: str = "consumer", **overrides: Any
+) -> SimConfig:
+    """The checked config :func:`simulate` generates a scenario from (arguments as there), without generating
+    it: a command that simulates several scenarios checks them all before the first (``zero-baseline``).
+
+    Raises
+    ------
+    SimbenchError
+        As :func:`simulate`, for an unknown preset, a value the simulator refuses, or a preset of another source.
+    """
     cfg = compose_config(
         [
             f"scenario={scenario}",
@@ -174,4 +188,6 @@ def simulate(
             f"'{scenario}' is read by source '{settings.scenario.source}', not simulated",
             f"build it with simbench.scenario('{scenario}', ...), which builds real and simulated scenarios alike",
         )
-    return build_scenario(sim_config_of(settings))  # the simulator's check, then the generator
+    sim = sim_config_of(settings)
+    check_scenario(sim)  # the simulator's check
+    return sim

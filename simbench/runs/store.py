@@ -57,7 +57,7 @@ from simbench.contract import (
     write_bytes,
     write_parquet,
 )
-from simbench.errors import one_line, warn
+from simbench.errors import SimbenchError, one_line, warn
 from simbench.runs.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS
 from simbench.runs.studies import study_dirs
 
@@ -89,6 +89,14 @@ def result_stem(run_dir: Path, scenario_key: str, estimator: str, estimator_conf
 def _verified_table(path: Path, consequence: str) -> pa.Table | None:
     """A stored Parquet file, opened once, with its page checksums and metadata checksum verified; None,
     with a one-line warning naming ``path`` and ``consequence``, when it is missing or damaged."""
+    table, problem = _checked_table(path)
+    if problem:
+        warn(str(path), problem, consequence)
+    return table
+
+
+def _checked_table(path: Path) -> tuple[pa.Table | None, str]:
+    """A stored Parquet file with its checksums verified, and ``''``; or None and what is wrong with it."""
     try:
         file = pq.ParquetFile(path, page_checksum_verification=True)
         # the footer's own key-value metadata (pyarrow adds the serialized Arrow schema after the checksum),
@@ -98,14 +106,30 @@ def _verified_table(path: Path, consequence: str) -> pa.Table | None:
         recorded = kv.get(METADATA_SHA256.encode())
         # a file of another writer (no checksum) is taken as it reads
         if recorded is not None and (json.loads(recorded) != metadata_sha256(kv) or table.schema.metadata != kv):
-            warn(str(path), "has metadata that differs from its sha256 (damaged)", consequence)
-            return None
-        return table
+            return None, "has metadata that differs from its sha256 (damaged)"
+        return table, ""
     except FileNotFoundError:
-        warn(str(path), "is missing", consequence)
+        return None, "is missing"
     except Exception as exc:  # pyarrow raises several types (ArrowInvalid, OSError) for a damaged file
-        warn(str(path), f"cannot be read ({one_line(exc)})", consequence)
-    return None
+        return None, f"cannot be read ({one_line(exc)})"
+
+
+def load_table(path: Path, fix: str, columns: Sequence[str] = ()) -> tuple[pd.DataFrame, dict[str, Any]]:
+    """A stored Parquet file of a run folder (``summary.parquet``) with its checksums verified, and its
+    ``simbench.*`` metadata: what a subcommand reads, which has no job to leave out instead.
+
+    Raises
+    ------
+    SimbenchError
+        Naming ``path`` and ``fix`` when it is missing, damaged or lacks one of ``columns``.
+    """
+    table, problem = _checked_table(Path(path))
+    if table is None:
+        raise SimbenchError(str(path), problem, fix)
+    missing = [c for c in columns if c not in table.column_names]
+    if missing:
+        raise SimbenchError(str(path), f"has no column {', '.join(missing)} (damaged or not this file)", fix)
+    return table.to_pandas(), decode_metadata(table.schema.metadata)
 
 
 def read_table(path: Path, consequence: str) -> pd.DataFrame | None:

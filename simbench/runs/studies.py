@@ -18,19 +18,32 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
+from typing import Any
 
 import pandas as pd
 from omegaconf import DictConfig
 
 from simbench.errors import SimbenchError
 from simbench.runs.compose import available, overrides_from_kwargs
+from simbench.runs.files import read_csv_table
 from simbench.typed import to_typed
 
-__all__ = ["STUDY_TIMES", "StudiesConfig", "StudyRun", "plan", "study_dir", "study_dirs", "time_budget"]
+__all__ = [
+    "STUDY_TIMES",
+    "StudiesConfig",
+    "StudyRun",
+    "plan",
+    "read_study_times",
+    "study_dir",
+    "study_dirs",
+    "time_budget",
+]
 
 #: File of ``results_dir`` with one row per study x world: wall time, peak memory of the study's largest
 #: process [MB] (``peak_rss_mb``; a worker when the launcher has them) and exit code.
 STUDY_TIMES = "study_times.csv"
+#: Columns every reader of :data:`STUDY_TIMES` uses (``peak_rss_mb`` and ``exit_code`` came later).
+STUDY_TIMES_COLUMNS = ("study", "world", "wall_s")
 
 
 @dataclass
@@ -157,13 +170,26 @@ def study_dirs(root: Path) -> list[Path]:
     """The results_dir of every study ``root/study_times.csv`` records (:data:`STUDY_TIMES`), in its order;
     none when ``root`` is no study collection. Found from ``root``, not from the recorded paths,
     which are relative to the folder the collection ran from."""
-    path = Path(root) / STUDY_TIMES
-    if not path.is_file():
-        return []
-    times = pd.read_csv(path, keep_default_na=False, dtype=str)
-    if not {"study", "world"} <= set(times.columns):
+    times = read_study_times(Path(root), dtype=str)
+    if times is None:
         return []
     return list(dict.fromkeys(study_dir(Path(root), s, w) for s, w in zip(times["study"], times["world"])))
+
+
+def read_study_times(root: Path, **read_csv: Any) -> pd.DataFrame | None:
+    """``root/study_times.csv`` (:data:`STUDY_TIMES`), None when ``root`` has none.
+
+    Raises
+    ------
+    SimbenchError
+        Naming the file when it cannot be read, lacks a column of :data:`STUDY_TIMES_COLUMNS` or
+        has a wall time that is not a number.
+    """
+    path = Path(root) / STUDY_TIMES
+    if not path.is_file():
+        return None
+    fix = "restore it, or delete it if the folder is no collection of studies (+sweep=thesis)"
+    return read_csv_table(path, STUDY_TIMES_COLUMNS, fix, numbers=("wall_s",), keep_default_na=False, **read_csv)
 
 
 def time_budget(summary: pd.DataFrame) -> pd.DataFrame:

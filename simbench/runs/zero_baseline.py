@@ -31,7 +31,7 @@ from estimators.ppp_config import IonosphereMode, MeasurementMode, StochasticMod
 from simbench.analysis.metrics import enu_errors
 from simbench.analysis.published import DRIVE_SCENARIOS, ZERO_BASELINE_MEAN_3D_M, Receiver
 from simbench.contract import Scenario
-from simbench.runs.scenarios import simulate
+from simbench.runs.scenarios import simulate, simulation_config
 
 #: File name of the table in a run folder.
 TABLE_NAME = "zero_baseline.csv"
@@ -88,6 +88,18 @@ def single_point_positions(scenario: Scenario, keep: pd.MultiIndex | None = None
 def _pairs(observations: pd.DataFrame) -> pd.MultiIndex:
     """The ``(epoch, sat)`` pairs of an observation table, in its row order."""
     return pd.MultiIndex.from_frame(observations[["epoch", "sat"]])
+
+
+def check_zero_baseline(scenario: str, seed: int = 0, **overrides: Any) -> None:
+    """Check the config of every receiver's scenario :func:`zero_baseline` would simulate, generating none.
+
+    Raises
+    ------
+    SimbenchError
+        For an unknown preset, a preset of a real log or a value the simulator refuses, naming the key.
+    """
+    for preset in (REFERENCE_PRESET, *PRESETS):
+        simulation_config(scenario, preset, seed=seed, **overrides)
 
 
 def zero_baseline(scenario: str, seed: int = 0, **overrides: Any) -> pd.DataFrame:

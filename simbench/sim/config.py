@@ -14,6 +14,7 @@ import math
 import os
 from dataclasses import dataclass, field
 
+from simbench.bounds import check_bounds
 from simbench.errors import SimbenchError, require_at_least, require_elevation_mask, require_positive
 from simbench.paths import require_file
 from simbench.sim.tracking import antenna_gain_dbi
@@ -348,6 +349,8 @@ class ReceiverConfig:
     #: the PLL holds carrier lock, and the receiver reports phase, while its 1-sigma jitter plus a
     #: third of the dynamic stress error stays below this (Kaplan's 3 sigma + theta_e <= 45 deg) [deg]
     carrier_lock_threshold_deg: float = 15.0
+    #: the receiver tracks L2 as well as L1 (``scenario.dual_frequency`` needs it; a consumer chip does not)
+    tracks_l2: bool = True
 
     def validate(self, where: str = "receiver") -> None:
         """Raise a one-line :class:`SimbenchError` for the first value the tracking models cannot use.
@@ -523,6 +526,14 @@ def validate_sim(cfg: SimConfig) -> SimConfig:
             )
         require_file("scenario.constellation.nav_path", s.constellation.nav_path)
     cfg.receiver.validate("receiver")
+    for node in ("scenario", "receiver", "imu"):
+        check_bounds(getattr(cfg, node), node)
+    if s.dual_frequency and not cfg.receiver.tracks_l2:
+        raise SimbenchError(
+            "scenario.dual_frequency",
+            f"is true, but the '{cfg.receiver.name}' receiver tracks L1 only (receiver.tracks_l2=false)",
+            "set scenario.dual_frequency=false, or pick a receiver that tracks L2, e.g. receiver=low or geodetic",
+        )
     check_reachable_cn0(cfg)
     return cfg
 

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
-from simbench.contract import ODOMETRY_COLUMNS
+from simbench.contract import ODOMETRY_COLUMNS, ODOMETRY_OPTIONAL_COLUMNS
 from simbench.errors import SimbenchError
 from simbench.sim.config import OdometryConfig
 from simbench.sim.trajectory import Trajectory
@@ -111,6 +111,8 @@ def simulate_odometry(traj: Trajectory, cfg: OdometryConfig, rng: np.random.Gene
             "yaw_rate": yaw_rate,
             "var_speed": np.full(idx.size, cfg.speed_sigma_mps**2),
             "var_yaw_rate": np.full(idx.size, cfg.yaw_rate_sigma_rps**2),
+            # a simulated car reports its wheel speed and yaw rate only (the estimators' own priors hold the rest)
+            **{column: np.full(idx.size, np.nan) for column in ODOMETRY_OPTIONAL_COLUMNS},
         },
         columns=list(ODOMETRY_COLUMNS),
     )

@@ -135,14 +135,36 @@ def write_librsf(path: str | os.PathLike[str], data: ReceiverData) -> Path:
             o["cn0_l1"].to_numpy(float).tolist(),
         )
     ]
-    odo = data.odometry
-    lines += [
-        f"odom3 {t:.7f} {v:.6f} 0 0 0 0 {-w:.9f} {vv:.6g} {vv:.6g} {vv:.6g} {vw:.6g} {vw:.6g} {vw:.6g}"
-        for t, v, w, vv, vw in odo[["t", "speed", "yaw_rate", "var_speed", "var_yaw_rate"]].to_numpy(float).tolist()
-    ]
+    lines += odom3_lines(data.odometry)
     out = Path(path)
     out.write_text("\n".join(lines) + "\n")
     return out
+
+
+def odom3_lines(odometry: pd.DataFrame) -> list[str]:
+    """One ``odom3`` line per odometry sample, in libRSF's x forward, y left, z up.
+
+    A component the vehicle did not report (NaN: a simulated car gives wheel speed and yaw rate only)
+    is written as libRSF's car writes it, 0, at the speed's (or yaw rate's) variance: a car does not
+    move sideways or vertically in its own frame, nor roll or pitch much.
+    """
+    o = odometry
+    speed, yaw, var_speed, var_yaw = (o[c].to_numpy(float) for c in ("speed", "yaw_rate", "var_speed", "var_yaw_rate"))
+
+    def given(column: str, default: np.ndarray | float) -> np.ndarray:
+        return np.where(np.isfinite(o[column].to_numpy(float)), o[column].to_numpy(float), default)
+
+    flip = np.array([1.0, -1.0, -1.0])
+    # + 0.0: a flipped zero is written 0, not -0
+    vel = np.column_stack([speed, given("vel_right", 0.0), given("vel_down", 0.0)]) * flip + 0.0
+    rate = np.column_stack([given("roll_rate", 0.0), given("pitch_rate", 0.0), yaw]) * flip + 0.0
+    var_vel = np.column_stack([var_speed, given("var_vel_right", var_speed), given("var_vel_down", var_speed)])
+    var_rate = np.column_stack([given("var_roll_rate", var_yaw), given("var_pitch_rate", var_yaw), var_yaw])
+    return [
+        f"odom3 {t:.7f} {v[0]:.6f} {v[1]:.6f} {v[2]:.6f} {w[0]:.9f} {w[1]:.9f} {w[2]:.9f} "
+        + " ".join(f"{x:.6g}" for x in (*vv, *vw))
+        for t, v, w, vv, vw in zip(o["t"].to_numpy(float).tolist(), vel, rate, var_vel, var_rate)
+    ]
 
 
 def append_librsf_truth(path: str | os.PathLike[str], truth: pd.DataFrame) -> Path:
