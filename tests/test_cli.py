@@ -50,7 +50,7 @@ def test_cli_writes_store_and_report(tmp_path: Path) -> None:
     assert meta["simbench.config"]["scenario"]["duration_s"] == 90
     assert len(meta["simbench.git_sha"]) >= 7 and "numpy" in meta["simbench.versions"]
     assert (out / "report" / "ecdf_urban_low.png").stat().st_size > 10_000
-    assert "horizontal_median" in (out / "report" / "README.md").read_text()
+    assert "horizontal median" in (out / "report" / "README.md").read_text()
     # the compact summary: every estimator that ran, sorted by median, at most 100 columns
     lines = proc.stdout.splitlines()
     assert "h med [m]" in lines[0] and max(map(len, lines)) <= SUMMARY_WIDTH

@@ -93,3 +93,29 @@ def test_the_leaderboard_is_the_first_table(page) -> None:
 def test_the_page_fits_1280_px_without_a_horizontal_scrollbar(page) -> None:
     width, client = page.evaluate("[document.documentElement.scrollWidth, document.documentElement.clientWidth]")
     assert client == VIEWPORT["width"] and width <= client
+
+
+def test_the_contents_link_every_section(page) -> None:
+    links = page.evaluate("Array.from(document.querySelectorAll('#contents a')).map(a => a.getAttribute('href'))")
+    sections = page.evaluate("Array.from(document.querySelectorAll('h2[id], details[id]')).map(h => '#' + h.id)")
+    assert links == sections and "#leaderboard" in links and len(links) >= 3, (links, sections)
+    # the contents come before the leaderboard, after the provenance box
+    order = page.evaluate(
+        "document.querySelector('#contents').compareDocumentPosition(document.querySelector('table'))"
+    )
+    assert order == 4
+
+
+def test_no_table_overflows_its_box(page) -> None:
+    """A table wider than the page scrolls inside its box; no box reaches past the page's text column."""
+    boxes = page.evaluate(
+        """Array.from(document.querySelectorAll('table')).map(t => {
+            const box = t.parentElement, r = box.getBoundingClientRect(), body = document.body.getBoundingClientRect();
+            return [box.className, getComputedStyle(box).overflowX, t.scrollWidth, box.clientWidth,
+                    r.right <= body.right + 1];
+        })"""
+    )
+    assert boxes
+    for cls, overflow, table_width, box_width, inside in boxes:
+        assert cls == "scroll" and inside
+        assert table_width <= box_width or overflow == "auto"

@@ -19,7 +19,8 @@ import pytest
 
 from estimators.base import COVARIANCE_COLUMNS
 from simbench.report import build, group_figures
-from simbench.report.build import finalize, leaderboard
+from simbench.report.build import finalize
+from simbench.report.leaderboard import leaderboard
 from simbench.report.style import sig3
 from simbench.runs.compose import compose_config
 from simbench.runs.jobs import run_job
@@ -83,7 +84,7 @@ def test_the_consistency_figure_holds_the_estimators_with_a_covariance(figures: 
 
 def test_every_variant_is_in_every_table(run_dir: Path, page: str) -> None:
     tables = re.findall(r"<table[^>]*>(.*?)</table>", page, flags=re.S)
-    first_cells = [re.findall(r"<tr><td[^>]*>(.*?)</td>", t) for t in tables]
+    first_cells = [re.findall(r"<tr[^>]*><td[^>]*>(.*?)</td>", t) for t in tables]
     names_html = {n.replace("†", "†") for n in NAMES}
     leaderboard_rows, statistics_rows = first_cells[0], first_cells[1]
     assert set(leaderboard_rows) == names_html and set(statistics_rows) == names_html
@@ -96,7 +97,7 @@ def _leaderboard(page: str) -> list[list[str]]:
     """The leaderboard's rows as cell texts (a CI on its second line joined with a space)."""
     table = re.search(r"<table id='leaderboard-table'>(.*?)</table>", page, flags=re.S)
     assert table is not None
-    rows = re.findall(r"<tr>(.*?)</tr>", table.group(1), flags=re.S)[1:]
+    rows = re.findall(r"<tr[^>]*>(.*?)</tr>", table.group(1), flags=re.S)[1:]
     cells = [re.findall(r"<td[^>]*>(.*?)</td>", r, flags=re.S) for r in rows]
     return [[re.sub(r"<br><small>", " ", c).replace("</small>", "") for c in row] for row in cells]
 
@@ -107,12 +108,18 @@ def test_leaderboard_comes_first_sorted_by_the_legends_median(run_dir: Path, pag
     rows = _leaderboard(page)
     summary = pd.read_parquet(run_dir / "summary.parquet")
     medians = summary.groupby(["estimator", "overrides"])["horizontal_median_ref"].mean()
-    assert [r[4] for r in rows] == [sig3(v) for v in sorted(medians)]  # one seed: no CI
+    oracle = summary.loc[summary["estimator"] == "oracle", "horizontal_median_ref"].mean()
+    # sorted by median, the oracle (an accuracy floor) ranked apart at the end; one seed: a CI over epochs
+    shown = [r[4].split(" [")[0] for r in rows]
+    assert shown == [sig3(v) for v in sorted(medians[medians != oracle])] + [sig3(oracle)]
+    assert rows[-1][0] == "oracle†" and all(" [" in r[4] for r in rows)
     family = {r[0]: r[1] for r in rows}
-    assert family["ekf_ins"] == "GNSS/INS" and family["l2"] == "batch" and family["oracle†"] == "baselines"
-    # the ECDF legend prints the leaderboard's medians (horizontal / 3-D), not other ones
-    legend = next(f for f in figures if f["file"].startswith("ecdf_"))["legend"]
-    for name, median in ((r[0], r[4]) for r in rows):
+    assert family["ekf_ins"] == "GNSS/INS" and family["l2"] == "batch" and family["oracle†"] == "oracle"
+    # the ECDF legend prints the leaderboard's medians (horizontal / 3-D), not other ones, in its order
+    ecdf = next(f for f in figures if f["file"].startswith("ecdf_"))
+    legend = ecdf["legend"]
+    assert [t.split(" (")[0] for t in legend] == [r[0] for r in rows]
+    for name, median in ((r[0], r[4].split(" [")[0]) for r in rows):
         assert any(t.startswith(f"{name} (") and f", median {median} / " in t for t in legend), name
 
 
@@ -182,7 +189,8 @@ def test_no_blank_cell_and_no_nan_text(page: str) -> None:
     text = re.sub(r"<[^>]+>", " ", page)
     assert not re.search(r"\b(nan|NaN|None)\b", text)
     assert "<td></td>" not in page and "<td class='num'></td>" not in page
-    assert "n/a = ci_low: no bootstrap CI" in page  # one seed: every CI is blank, and says why
+    # one seed: no CI over seeds, an interval over the run's epochs instead, and the page says which
+    assert "block bootstrap over the run's reference epochs" in page and "CI over seeds (3 or more" not in page
 
 
 def test_worker_processes_draw_the_figures_drawn_in_process(

@@ -40,9 +40,15 @@ def test_multirun_writes_store_claims_and_report(tmp_path: Path) -> None:
     assert list(claims.columns) == CLAIM_COLUMNS
     assert (claims["holds"] == "not measured").all()  # none of the papers' sweeps ran here
     html = (out / "report" / "index.html").read_text()
-    # none measured: no table of twelve 'not measured' rows first, one line at the end
-    assert html.index("Statistics over seeds") < html.index("Published claims")
-    assert f"{len(claims)} of {len(claims)} published claims not measured" in html
+    # none measured: no claims section (claims.csv lists them)
+    assert "Statistics over seeds" in html and "Published claims" not in html
+    # the terminal ends with each group's leaderboard, with the page's numbers (leaderboard.csv), not an
+    # average over the groups
+    board = pd.read_csv(out / "report" / "leaderboard.csv", dtype=str)
+    assert sorted(board["group"]) == ["urban, high receiver (sweep mini)", "urban, low receiver (sweep mini)"]
+    for _, row in board.iterrows():
+        line = next(ln for ln in proc.stdout.split(row["group"] + "\n")[1].splitlines() if ln.startswith("ekf_ppp"))
+        assert row["horizontal median [m]"] in line.split() and row["horizontal RMSE [m]"] in line.split()
     assert "git_sha" in str(read_parquet_metadata(out / "summary.parquet"))
 
 

@@ -13,6 +13,8 @@ not exist (``inf``).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import pandas as pd
 import pymap3d
@@ -182,3 +184,100 @@ def _check_reference(n_solved: int, n_reference: int) -> None:
             f"is {n_reference}, fewer than the {n_solved} solved epochs",
             "pass the number of epochs with truth the errors were taken from",
         )
+
+
+def rmse(values: np.ndarray) -> float:
+    """Root mean square of the finite values (the solved epochs' errors) [m]; NaN when there are none.
+
+    Unlike the percentiles over reference epochs it cannot count an unsolved epoch: read it with the
+    availability beside it.
+    """
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    return float(np.sqrt(np.mean(v * v))) if v.size else np.nan
+
+
+def block_length(values: np.ndarray) -> int:
+    """Block length of a moving-block bootstrap of a time series [epochs].
+
+    The integrated autocorrelation time ``1 + 2 sum rho_k`` (summed until ``rho_k`` first drops
+    below 0.05), at least ``n^(1/3)`` (Kuensch's rate) and at most ``n / 4``: blocks of
+    correlated epochs are resampled together, so slowly varying errors (multipath, a filter's
+    memory) do not make the interval too narrow.
+    """
+    v = np.asarray(values, float)
+    v = v[np.isfinite(v)]
+    n = v.size
+    if n < 8:
+        return 1
+    d = v - v.mean()
+    spectrum = np.fft.rfft(d, 2 * n)
+    acf = np.fft.irfft(spectrum * np.conj(spectrum))[:n]
+    rho = acf / acf[0] if acf[0] > 0 else np.zeros(n)
+    below = np.flatnonzero(rho < 0.05)
+    k = int(below[0]) if below.size else n
+    tau = 1.0 + 2.0 * float(rho[1:k].sum())
+    return int(np.clip(np.ceil(max(tau, n ** (1 / 3))), 1, max(n // 4, 1)))
+
+
+def block_bootstrap(
+    errors: np.ndarray,
+    statistics: dict[str, Callable[[np.ndarray], np.ndarray]],
+    resamples: int = 2000,
+    confidence: float = 0.95,
+    seed: int = 0,
+) -> dict[str, tuple[float, float]]:
+    """Percentile intervals of statistics of one run's error series by a circular moving-block bootstrap.
+
+    Parameters
+    ----------
+    errors : numpy.ndarray
+        (n,) errors at the reference epochs in time order [m]; ``inf`` for an unsolved epoch.
+    statistics : dict
+        Name to a function of a (resamples, n) array, each row a resample sorted ascending (sorted
+        once for every statistic), giving (resamples,) values: e.g. :func:`reference_percentiles`,
+        :func:`row_rmse`.
+    resamples : int
+    confidence : float
+    seed : int
+        Of the random generator: the same series gives the same interval.
+
+    Returns
+    -------
+    dict
+        Name to (low, high); NaN for a series shorter than 8 epochs, or bounds that are not finite.
+    """
+    e = np.asarray(errors, float)
+    n = e.size
+    if n < 8:
+        return {name: (np.nan, np.nan) for name in statistics}
+    block = block_length(e)
+    rng = np.random.default_rng(seed)
+    starts = rng.integers(0, n, size=(resamples, -(-n // block)))
+    index = ((starts[:, :, None] + np.arange(block)) % n).reshape(resamples, -1)[:, :n]
+    sample = np.sort(e[index], axis=1)  # once: a percentile of a sorted row is an index
+    tail = 50.0 * (1.0 - confidence)
+    out = {}
+    for name, statistic in statistics.items():
+        # order statistics, not interpolation: a resample may hold an infinite (undefined) percentile
+        values = np.sort(statistic(sample))
+        low = values[int(np.floor(tail / 100.0 * (resamples - 1)))]
+        high = values[int(np.ceil((100.0 - tail) / 100.0 * (resamples - 1)))]
+        out[name] = (float(low), float(high)) if np.isfinite([low, high]).all() else (np.nan, np.nan)
+    return out
+
+
+def reference_percentiles(sample: np.ndarray, q: float) -> np.ndarray:
+    """:func:`reference_percentile` of each row of ``sample``, rows sorted ascending (unsolved epochs
+    ``inf``, last) [m]."""
+    n = sample.shape[1]
+    rank = max(int(np.ceil(q / 100.0 * n - 1e-9)), 1)
+    return sample[:, rank - 1]
+
+
+def row_rmse(sample: np.ndarray) -> np.ndarray:
+    """:func:`rmse` of each row of ``sample`` over its finite values [m]."""
+    finite = np.isfinite(sample)
+    squares = np.where(finite, sample, 0.0) ** 2
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.sqrt(squares.sum(axis=1) / finite.sum(axis=1))

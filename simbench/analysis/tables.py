@@ -10,11 +10,15 @@ errors; the percentiles ``*_ref`` are over all reference epochs
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
+from functools import partial
+
 import numpy as np
 import pandas as pd
 from scipy import stats
 
 from simbench.analysis.claims import BOOTSTRAP_RESAMPLES, CONFIDENCE, CONVERGENCE_S, ratio_of_means
+from simbench.analysis.metrics import block_bootstrap, reference_percentiles, rmse, row_rmse
 from simbench.analysis.published import DRIVE_MEDIANS_BY_SWEEP, DRIVE_MEDIANS_M, DRIVE_SCENARIOS, PUBLISHED_FAMILY
 from simbench.analysis.variants import NO_OVERRIDES, display_names, is_default
 from simbench.source import SIMULATED
@@ -89,7 +93,114 @@ CI_STATISTICS = {
     "horizontal_p95_ref": "horizontal_p95",
     "error_3d_median_ref": "error_3d_median",
     "error_3d_p95_ref": "error_3d_p95",
+    "horizontal_rmse": "horizontal_rmse",
+    "error_3d_rmse": "error_3d_rmse",
 }
+#: Resamples of a block bootstrap over one run's epochs (each is a whole run: 1000 keep the 2.5 and 97.5 %
+#: order statistics within a few per cent of their limit, at half the time of the seeds' 2000).
+EPOCH_RESAMPLES = 1000
+#: Columns that identify one job's result in both the summary and the epoch rows.
+JOB = ["sweep", "scenario_key", "estimator", "gnss_model", "overrides"]
+#: The error series of :data:`CI_STATISTICS` (the epoch column and the statistic of it).
+SERIES_STATISTICS = {
+    "horizontal_median_ref": ("horizontal", "median"),
+    "horizontal_p95_ref": ("horizontal", "p95"),
+    "error_3d_median_ref": ("error_3d", "median"),
+    "error_3d_p95_ref": ("error_3d", "p95"),
+    "horizontal_rmse": ("horizontal", "rmse"),
+    "error_3d_rmse": ("error_3d", "rmse"),
+}
+
+
+def with_rmse(summary: pd.DataFrame, epochs: pd.DataFrame) -> pd.DataFrame:
+    """``summary`` with ``horizontal_rmse`` and ``error_3d_rmse`` [m] of each job, over its solved epochs
+    (:func:`~simbench.analysis.metrics.rmse`) in ``epochs``; NaN for a job without epoch rows."""
+    if epochs.empty or summary.empty:
+        return summary.assign(horizontal_rmse=np.nan, error_3d_rmse=np.nan)
+    keyed = with_variant_columns(epochs)[JOB + ["horizontal", "error_3d"]].astype(dict.fromkeys(JOB, str))
+    per_job = keyed.groupby(JOB, observed=True)[["horizontal", "error_3d"]].agg(rmse)
+    per_job.columns = ["horizontal_rmse", "error_3d_rmse"]
+    keys = with_variant_columns(summary)[JOB].astype(str)
+    found = per_job.reindex(pd.MultiIndex.from_frame(keys))
+    return summary.assign(**{c: found[c].to_numpy() for c in per_job.columns})
+
+
+def epoch_intervals(
+    stats: pd.DataFrame, summary: pd.DataFrame, epochs: pd.DataFrame, reference: Mapping[str, np.ndarray]
+) -> pd.DataFrame:
+    """``stats`` (:func:`seed_statistics`) with a block-bootstrap CI over epochs
+    (:func:`~simbench.analysis.metrics.block_bootstrap`) for each row of one seed, and ``ci_over``.
+
+    A single run (or a real log) has no spread between seeds; its intervals resample blocks of
+    its reference epochs instead (an unsolved epoch counting as an infinite error for the
+    percentiles, left out of the RMSE).
+
+    Parameters
+    ----------
+    stats : pandas.DataFrame
+        :func:`seed_statistics` rows.
+    summary, epochs : pandas.DataFrame
+        The rows ``stats`` came from, and their solved epochs (columns :data:`JOB`, ``epoch``,
+        ``horizontal``, ``error_3d``).
+    reference : mapping of str to numpy.ndarray
+        Scenario key to its reference epochs' indices, in time order; a row whose scenario is
+        not in it keeps NaN intervals.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``stats`` with the CI columns of one-seed rows filled and ``ci_over``: ``seeds``
+        (3 or more), ``epochs`` (block bootstrap over one run's epochs) or ``''`` (none).
+    """
+    out = stats.copy()
+    out["ci_over"] = np.where(out["ci_low"].notna(), "seeds", "")
+    if stats.empty or epochs.empty:
+        return out
+    jobs = with_variant_columns(summary[summary["status"] == "ok"])
+    keyed = with_variant_columns(epochs).astype(dict.fromkeys(JOB, str))
+    by_job = dict(iter(keyed.groupby(JOB, observed=True)))
+    for i, row in with_variant_columns(out).iterrows():
+        if row["n_seeds"] != 1:
+            continue
+        match = np.logical_and.reduce(
+            [jobs[c].astype(str) == str(row[c]) for c in ["sweep", "scenario", "receiver", "estimator", *VARIANT[:2]]]
+        )
+        job = jobs[match]
+        key = tuple(str(job[c].iloc[0]) for c in JOB) if len(job) == 1 else None
+        if key is None or key[1] not in reference or key not in by_job:
+            continue
+        intervals = _epoch_intervals(by_job[key], np.asarray(reference[key[1]]))
+        for column, (low, high) in intervals.items():
+            low_column, high_column = (
+                ("ci_low", "ci_high")
+                if column == "horizontal_median_ref"
+                else (
+                    f"{column}_ci_low",
+                    f"{column}_ci_high",
+                )
+            )
+            out.loc[i, [low_column, high_column]] = [low, high]
+        out.loc[i, "ci_over"] = "epochs"
+    return out
+
+
+def _epoch_intervals(rows: pd.DataFrame, reference: np.ndarray) -> dict[str, tuple[float, float]]:
+    """Block-bootstrap intervals of every :data:`SERIES_STATISTICS` of one job's epoch rows."""
+    position = pd.Series(np.arange(len(reference)), index=reference)
+    out = {}
+    for series in ("horizontal", "error_3d"):
+        errors = np.full(len(reference), np.inf)
+        at = position.reindex(rows["epoch"].to_numpy()).to_numpy()
+        values = rows[series].to_numpy(float)
+        known = np.isfinite(at)
+        errors[at[known].astype(int)] = values[known]
+        wanted = {c: kind for c, (s, kind) in SERIES_STATISTICS.items() if s == series}
+        functions: dict[str, Callable[[np.ndarray], np.ndarray]] = {
+            c: (row_rmse if kind == "rmse" else partial(reference_percentiles, q=50.0 if kind == "median" else 95.0))
+            for c, kind in wanted.items()
+        }
+        out.update(block_bootstrap(errors, functions, EPOCH_RESAMPLES, CONFIDENCE))
+    return out
 
 
 def seed_statistics(summary: pd.DataFrame) -> pd.DataFrame:

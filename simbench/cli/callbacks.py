@@ -12,9 +12,9 @@ from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf
 
 from simbench.cli.progress import end_sweep_bar, start_sweep_bar
-from simbench.cli.terminal import compact_summary
 from simbench.errors import SimbenchError
 from simbench.report.build import finalize
+from simbench.report.leaderboard import terminal_summary
 from simbench.runs.run_dirs import keep_earlier_configs
 
 #: Exit code of a run or sweep with a ``failed`` row (0: every row ``ok``, ``skipped`` or ``diverged``;
@@ -62,8 +62,8 @@ class FinalizeRun(Callback):
         print(f"results: {run_dir.resolve()}  report: {report.resolve() / 'index.html'}", file=sys.stderr)
         summary_path = run_dir.resolve() / "summary.parquet"
         summary = pd.read_parquet(summary_path)
-        if sweep:  # a single run printed its rows already; a sweep ends with all of its rows, seeds averaged
-            print(compact_summary(summary))
+        if sweep:  # a single run printed its rows already; a sweep ends with each group's leaderboard, as the report's
+            print(terminal_summary(report))
         status = summary["status"]
         failed = int((status == "failed").sum())
         if failed:

@@ -36,6 +36,7 @@ from typing import Any, cast
 
 import numpy as np
 import pandas as pd
+from PIL import Image
 
 from simbench.analysis.claims import CLAIMS, NOT_MEASURED, NOT_RUN, claims_by_world, claims_table
 from simbench.analysis.tables import (
@@ -46,9 +47,11 @@ from simbench.analysis.tables import (
     data_label,
     data_source,
     drive_comparison,
+    epoch_intervals,
     oracle_gap,
     paired_comparisons,
     seed_statistics,
+    with_rmse,
     with_variant_columns,
 )
 from simbench.analysis.validation import MIN_ROWS_PER_CLOCK, comparison_table, residual_sample
@@ -58,15 +61,17 @@ from simbench.errors import SimbenchError, warn
 from simbench.gnss.navigation import UNREAD_SYSTEM_NAMES
 from simbench.report.figures import (
     LABELS_MARK,
+    PNG_DPI,
     FigureFile,
     Format,
     mixture_evolution_figure,
     validation_figure,
 )
 from simbench.report.group_figures import MIN_PARALLEL_GROUPS, GroupDrawing, GroupInputs
+from simbench.report.leaderboard import leaderboards, ranked, to_csv, to_latex
 from simbench.report.stale import check_report_dir, mark_stale, old_page
-from simbench.report.style import UNDEFINED, families, sig3, with_ci
-from simbench.runs.checks import check_report_formats
+from simbench.report.style import UNDEFINED, sig3, use_style
+from simbench.runs.checks import check_report_formats, check_report_style
 from simbench.runs.files import os_fault, read_csv_table
 from simbench.runs.provenance import provenance
 from simbench.runs.runner import SUMMARY_COLUMNS
@@ -95,8 +100,7 @@ BLANK_REASONS: dict[str, str] = {
 #: Median definition, printed once under the leaderboard and used by every legend.
 MEDIAN_DEFINITION = (
     "median = mean over seeds of each seed's median over its reference epochs (epochs with truth; an "
-    "unsolved epoch counts as an infinite error), the same number in every legend; [low, high] = 95 % "
-    "bootstrap CI over seeds (3 or more seeds). p95 likewise. "
+    "unsolved epoch counts as an infinite error), the same number in every legend; p95 likewise. "
     f"{UNDEFINED} = the availability is below the percentile (below 50 % for a median, 95 % for p95)."
 )
 
@@ -109,12 +113,17 @@ figcaption{font-size:13px;color:#333}.scroll{overflow-x:auto;max-width:100%}
 h2{border-bottom:2px solid #ddd;padding-bottom:3px}.note{color:#555;font-size:13px}
 .provenance{display:grid;grid-template-columns:max-content 1fr;gap:1px 12px;background:#f6f8fa;
 border:1px solid #ddd;padding:0.5em 1em;font-size:13px}.provenance dt{font-weight:600}.provenance dd{margin:0}
-details{margin:0.8em 0}
+details{margin:0.8em 0}.toc{font-size:13px;margin:0.8em 0}.toc ol{columns:3;margin:0.3em 0}
+tr.apart td{border-top:2px solid #888}
 summary{cursor:pointer;font-weight:600}"""
 
 
 def finalize(
-    run_dir: str | Path, config: dict[str, Any] | None, formats: Sequence[Format] | None = None, figures: bool = True
+    run_dir: str | Path,
+    config: dict[str, Any] | None,
+    formats: Sequence[Format] | None = None,
+    figures: bool = True,
+    style: str | None = None,
 ) -> Path:
     """Aggregate job files, write ``claims.csv`` and build ``report/``; return the report directory.
 
@@ -129,6 +138,9 @@ def finalize(
     figures : bool
         False: the tables, claims and page without drawing a figure (most of the build time), e.g.
         to check a store; the page says so.
+    style : str, optional
+        The figures' size preset (:data:`~simbench.report.style.PRESETS`); None: ``config['report']['style']``,
+        else ``screen``.
 
     Raises
     ------
@@ -143,18 +155,25 @@ def finalize(
     if formats is None:
         formats = cast(Sequence[Format], ((config or {}).get("report") or {}).get("formats") or ("png",))
     check_report_formats(formats)
+    style = style or ((config or {}).get("report") or {}).get("style") or "screen"
+    check_report_style(style)
     run_dir = Path(run_dir)
     out = run_dir / "report"
     check_report_dir(out, run_dir)
     mark_stale(out, run_dir)  # a killed or failed rebuild leaves it marked; the new page replaces it
     try:
-        return _finalize(run_dir, config, formats, figures, start)
+        return _finalize(run_dir, config, formats, figures, start, style)
     except OSError as exc:  # a full disk, a folder made read-only meanwhile: one line naming the path
         raise os_fault(exc, out, note=old_page(out, run_dir)) from None
 
 
 def _finalize(
-    run_dir: Path, config: dict[str, Any] | None, formats: Sequence[Format], figures: bool, start: float
+    run_dir: Path,
+    config: dict[str, Any] | None,
+    formats: Sequence[Format],
+    figures: bool,
+    start: float,
+    style: str = "screen",
 ) -> Path:
     """:func:`finalize` once its folders are checked."""
     # the drawing workers import while this process verifies and reads the store. A group's jobs are in
@@ -180,7 +199,16 @@ def _finalize(
             return table
 
         return build_report(
-            run_dir, summary, epochs, claims, diag, formats=formats, started=start, figures=figures, drawing=drawing
+            run_dir,
+            summary,
+            epochs,
+            claims,
+            diag,
+            formats=formats,
+            started=start,
+            figures=figures,
+            drawing=drawing,
+            style=style,
         )
 
 
@@ -226,6 +254,7 @@ def build_report(
     started: float | None = None,
     figures: bool = True,
     drawing: GroupDrawing | None = None,
+    style: str = "screen",
 ) -> Path:
     """Write ``report/`` of a run from its tables; return the directory.
 
@@ -248,6 +277,8 @@ def build_report(
     drawing : GroupDrawing, optional
         Where the groups' figures are drawn (:class:`~simbench.report.group_figures.GroupDrawing`,
         open for this call); None: in this process.
+    style : str
+        The figures' size preset (:data:`~simbench.report.style.PRESETS`).
     """
     started = time.perf_counter() if started is None else started
     out = run_dir / "report"
@@ -260,15 +291,21 @@ def build_report(
     names = variant_names(summary, oracles)
     summary = _named(summary, names)
     epochs = _named(epochs, names)
-    stats = _named(seed_statistics(summary), names) if len(summary) else pd.DataFrame()
     scenarios = {d.name: d for d in cached_scenarios(run_dir)}
+    summary = with_rmse(summary, epochs)
+    stats = _named(seed_statistics(summary), names) if len(summary) else pd.DataFrame()
+    if len(stats):
+        stats = epoch_intervals(stats, summary, epochs, _reference_epoch_indices(scenarios, summary))
     grouped = epochs.groupby(GROUP, dropna=False) if len(epochs) else []
     groups = [_group_inputs(keys, group, summary, stats) for keys, group in grouped]
-    drawn = (drawing or GroupDrawing(parallel=False)).start(groups, out, page.formats, scenarios, draw=page.draw)
+    drawn = (drawing or GroupDrawing(parallel=False)).start(
+        groups, out, page.formats, scenarios, draw=page.draw, style=style
+    )
     claims = claims() if callable(claims) else claims
     _provenance_box(page, run_dir, summary, scenarios)
+    page.contents()
     if len(stats):
-        _leaderboard_section(page, summary, stats, oracles)
+        _leaderboard_section(page, out, summary, stats, oracles)
     measured = claims["holds"] != NOT_MEASURED
     if measured.any():
         page.h2("Published claims")
@@ -290,10 +327,7 @@ def build_report(
         if not measured.all():
             page.p(_not_measured_line(claims), cls="note")
     if summary.empty:
-        _unmeasured_claims_section(page, claims)
         return page.write(out, started)
-    if oracles:
-        page.p(f"<b>{', '.join(oracles)}</b> ({LABELS_MARK}) {LABEL_USERS_NOTE}.", cls="note")
     failed = summary[summary["status"] != "ok"]
     if len(failed):
         page.h2("Jobs not ok (left out of the figures and statistics)")
@@ -331,8 +365,9 @@ def build_report(
         _group_tables(part, inputs.name, inputs.group, inputs.in_group, summary, inputs.group_stats)
     tail = page.part()
     _study_times_section(tail, run_dir, summary)
-    _validation_section(tail, run_dir, out, list(scenarios.values()))
-    _diagnostics_section(tail, diag, out)
+    with use_style(style):
+        _validation_section(tail, run_dir, out, list(scenarios.values()))
+        _diagnostics_section(tail, diag, out)
     for inputs, items, part in zip(groups, drawn(), tables):
         page.h2(inputs.name)
         for item in items:
@@ -342,8 +377,6 @@ def build_report(
                 page.p(*item)
         page.extend(part)
     page.extend(tail)
-    if not measured.any():
-        _unmeasured_claims_section(page, claims)
     return page.write(out, started)
 
 
@@ -388,16 +421,14 @@ def _group_tables(
 ) -> None:
     """A group's detailed tables, collapsed: statistics over seeds, convergence, paired comparisons, oracle gap."""
     page.details_open(f"Statistics over seeds, paired comparisons and gap to the oracle: {name}")
-    page.h3("Statistics over seeds (errors in m, availability beside them)")
+    page.h3("Statistics over seeds beyond the leaderboard (errors in m)")
     page.p(
-        "availability = solved / reference epochs (epochs with truth). The <code>*_ref</code> percentiles "
-        "are over all reference epochs, an unsolved epoch counting as an infinite error: "
-        f"{UNDEFINED} when the availability is below the percentile (below 0.5 for a median, 0.95 for "
-        "p95). horizontal_median_ref is the mean of per-seed medians with its 95 % bootstrap CI; "
-        "<code>*_solved</code> and max are over the solved epochs only.",
+        "In leaderboard order; what the leaderboard does not show: failed seeds, the median and maximum over "
+        "the solved epochs only (mean over seeds; read them with the leaderboard's availability) and the "
+        "two other timings.",
         cls="note",
     )
-    page.table(group_stats[list(DETAIL_COLUMNS)].rename(columns={"name": "estimator"}))
+    page.table(ranked(group_stats)[list(DETAIL_COLUMNS)].rename(columns={"name": "estimator"}))
     early = convergence_statistics(group)
     if len(early):
         page.h3(
@@ -521,78 +552,69 @@ def _ranges(values: Sequence[int]) -> str:
     return ", ".join(out)
 
 
-#: Columns of the collapsed statistics table (the leaderboard has the 3-D p95 and every CI).
+#: Columns of the collapsed statistics table: what the leaderboard does not show.
 DETAIL_COLUMNS = (
     "name",
     "gnss_model",
-    "n_seeds",
     "n_failed",
-    "availability",
-    "horizontal_median_ref",
-    "ci_low",
-    "ci_high",
-    "horizontal_p95_ref",
-    "error_3d_median_ref",
     "horizontal_median_solved",
     "horizontal_max",
     "time_per_obs_s",
     "update_median_s",
-    "time_per_epoch_s",
 )
-#: Leaderboard columns: header (with unit) -> (statistic, CI low, CI high) of :func:`seed_statistics`.
-LEADERBOARD_STATISTICS = {
-    "horizontal median [m]": ("horizontal_median_ref", "ci_low", "ci_high"),
-    "horizontal p95 [m]": ("horizontal_p95_ref", "horizontal_p95_ref_ci_low", "horizontal_p95_ref_ci_high"),
-    "3-D median [m]": ("error_3d_median_ref", "error_3d_median_ref_ci_low", "error_3d_median_ref_ci_high"),
-    "3-D p95 [m]": ("error_3d_p95_ref", "error_3d_p95_ref_ci_low", "error_3d_p95_ref_ci_high"),
-}
+#: CSS pixels per inch: a figure is shown at the size it was drawn for.
+CSS_DPI = 96
+#: Files the leaderboard is exported to, beside index.html (:mod:`simbench.report.leaderboard`).
+LEADERBOARD_FILES = ("leaderboard.csv", "leaderboard.tex")
 
 
-def leaderboard(stats: pd.DataFrame) -> pd.DataFrame:
-    """One row per estimator variant of a group, sorted by median horizontal error (undefined last).
-
-    Parameters
-    ----------
-    stats : pandas.DataFrame
-        :func:`~simbench.analysis.tables.seed_statistics` rows of one group, with ``name``.
-
-    Returns
-    -------
-    pandas.DataFrame
-        ``estimator`` (the variant's name), ``family``, ``seeds``, ``availability [%]``, the
-        :data:`LEADERBOARD_STATISTICS` as ``value [CI]`` text (3 significant digits) and
-        ``time per epoch [ms]``.
-    """
-    rows = stats.sort_values(["horizontal_median_ref", "error_3d_median_ref", "name"], na_position="last")
-    table = pd.DataFrame(
-        {
-            "estimator": rows["name"],
-            "family": rows["estimator"].map(families(rows["estimator"].unique())),
-            "seeds": rows["n_seeds"].astype(int),
-            "availability [%]": [sig3(100 * a) for a in rows["availability"]],
-        }
-    )
-    for header, (value, low, high) in LEADERBOARD_STATISTICS.items():
-        table[header] = [with_ci(v, lo, hi) for v, lo, hi in zip(rows[value], rows[low], rows[high])]
-    table["time per epoch [ms]"] = [sig3(1e3 * t) if np.isfinite(t) else BLANK for t in rows["time_per_epoch_s"]]
-    return table.reset_index(drop=True)
-
-
-def _leaderboard_section(page: _Page, summary: pd.DataFrame, stats: pd.DataFrame, oracles: Sequence[str]) -> None:
+def _leaderboard_section(
+    page: _Page, out: Path, summary: pd.DataFrame, stats: pd.DataFrame, oracles: Sequence[str]
+) -> None:
+    """The leaderboard of every group, and its export as CSV and LaTeX (booktabs) beside the page."""
     page.h2("Leaderboard", anchor="leaderboard")
-    groups = list(stats.groupby(GROUP, dropna=False))
-    for keys, rows in groups:
-        if len(groups) > 1:
-            sweep, scenario, receiver = keys
-            source = summary.loc[_in_group(summary, keys), "source"].iloc[0]
-            page.h3(data_label(scenario, receiver, source) + (f" (sweep {sweep})" if sweep else ""))
-        page.leaderboard(leaderboard(rows))
-    page.p(
-        MEDIAN_DEFINITION + " Sorted by horizontal median; availability = solved / reference epochs; time per "
-        "epoch = the estimator's run time over its reference epochs (a batch estimator's total spread over them)."
-        + (f" {LABELS_MARK} {LABEL_USERS_NOTE}." if oracles else ""),
-        cls="note",
+    boards = leaderboards(summary, stats)
+    for title, table in boards:
+        if len(boards) > 1:
+            page.h3(title)
+        page.leaderboard(table)
+    over = set(stats.get("ci_over", pd.Series(dtype=str)))
+    intervals = " ".join(
+        text
+        for kind, text in (
+            ("seeds", "[low, high] = 95 % bootstrap CI over seeds (3 or more seeds)."),
+            ("epochs", EPOCH_CI_NOTE),
+        )
+        if kind in over
     )
+    note = (
+        f"{MEDIAN_DEFINITION} {intervals} RMSE = root mean square over the solved epochs only (it cannot count "
+        "an unsolved epoch: read it with the availability), mean over seeds. Sorted by horizontal median; "
+        "availability = solved / reference epochs; time per epoch = the estimator's run time over its "
+        "reference epochs (a batch estimator's total spread over them)."
+        + (f" {', '.join(oracles)} ({LABELS_MARK}, below the rule, not ranked) {LABEL_USERS_NOTE}." if oracles else "")
+    )
+    page.p(note + " Also as " + ", ".join(f"<a href='{f}'>{f}</a>" for f in LEADERBOARD_FILES) + ".", cls="note")
+    write_bytes(out / LEADERBOARD_FILES[0], to_csv(boards).encode())
+    write_bytes(out / LEADERBOARD_FILES[1], to_latex(boards, re.sub(r"<[^>]+>", "", note)).encode())
+
+
+#: How a single run's intervals are made, under the leaderboard.
+EPOCH_CI_NOTE = (
+    "With one seed, [low, high] = 95 % circular block bootstrap over the run's reference epochs (blocks as long as "
+    "the errors' autocorrelation time, simbench.analysis.metrics.block_bootstrap): the spread of this run's "
+    "epochs, not of other seeds."
+)
+
+
+def _reference_epoch_indices(scenarios: Mapping[str, Path], summary: pd.DataFrame) -> dict[str, np.ndarray]:
+    """Scenario key to its reference epochs (epochs with truth) in time order, for the cached scenarios
+    that ran one seed of some estimator (where the intervals come from epochs)."""
+    keys = set(summary["scenario_key"].dropna().astype(str)) & set(scenarios)
+    return {
+        key: pd.read_parquet(scenarios[key] / "truth.parquet", columns=["epoch"])["epoch"].to_numpy()
+        for key in sorted(keys)
+    }
 
 
 def _labels(summary: pd.DataFrame) -> pd.Series:
@@ -639,11 +661,6 @@ def _study_times_section(page: _Page, run_dir: Path, summary: pd.DataFrame) -> N
     )
     page.table(times.drop(columns=["results_dir"], errors="ignore"))
     page.table(time_budget(summary).head(20))
-
-
-def _unmeasured_claims_section(page: _Page, claims: pd.DataFrame) -> None:
-    page.h2("Published claims")
-    page.p(_not_measured_line(claims), cls="note")
 
 
 def _in_group(summary: pd.DataFrame, keys: tuple) -> np.ndarray:
@@ -813,6 +830,8 @@ class _Page:
         self.formats: tuple[Format, ...] = tuple(dict.fromkeys(("png", *formats)))
         self.figures: list[FigureFile] = []
         self.open_details = 0
+        self.sections: list[tuple[str, str]] = []  #: (title, anchor) of each h2, for the contents
+        self.contents_at: int | None = None  #: where the contents go in :attr:`html`
 
     def part(self) -> _Page:
         """An empty page with this one's formats, for a section written ahead of its place (:meth:`extend`)."""
@@ -825,6 +844,7 @@ class _Page:
         self.html += part.html
         self.md += part.md
         self.figures += part.figures
+        self.sections += part.sections
 
     @property
     def fmt(self) -> dict[str, Any]:
@@ -836,8 +856,17 @@ class _Page:
         self.md += [f"# {text}", ""]
 
     def h2(self, text: str, anchor: str = "") -> None:
-        self.html.append(f"<h2 id='{anchor}'>{html.escape(text)}</h2>" if anchor else f"<h2>{html.escape(text)}</h2>")
+        """A section heading; it is listed in the contents (:meth:`contents`) under ``anchor`` (default: a slug)."""
+        anchor = anchor or re.sub(r"[^a-z0-9]+", "-", text.lower()).strip("-")
+        taken = {a for _, a in self.sections}
+        anchor = next(a for a in (anchor, *(f"{anchor}-{k}" for k in range(2, 1000))) if a not in taken)
+        self.sections.append((text, anchor))
+        self.html.append(f"<h2 id='{anchor}'>{html.escape(text)}</h2>")
         self.md += [f"## {text}", ""]
+
+    def contents(self) -> None:
+        """Mark where the table of contents goes: it lists every h2 of the finished page (:meth:`write`)."""
+        self.contents_at = len(self.html)
 
     def h3(self, text: str) -> None:
         self.html.append(f"<h3>{html.escape(text)}</h3>")
@@ -850,7 +879,12 @@ class _Page:
     def details_open(self, summary: str, level: int = 3) -> None:
         """Start a collapsed part (``<details>``); Markdown gets a heading instead."""
         self.open_details += 1
-        self.html.append(f"<details><summary>{html.escape(summary)}</summary>")
+        anchor = ""
+        if level == 2:  # a top-level part: listed in the contents like a section
+            anchor = re.sub(r"[^a-z0-9]+", "-", summary.lower()).strip("-")
+            self.sections.append((summary, anchor))
+            anchor = f" id='{anchor}'"
+        self.html.append(f"<details{anchor}><summary>{html.escape(summary)}</summary>")
         self.md += [f"{'#' * level} {summary}", ""]
 
     def details_close(self) -> None:
@@ -863,8 +897,12 @@ class _Page:
         png = figure.path.name
         links = " ".join(f"<a href='{f.name}'>{f.suffix[1:].upper()}</a>" for f in figure.files[1:])
         caption = html.escape(figure.title) + (f" ({links})" if links else "")
+        # shown at its size in inches (CSS pixels are 1/96 in), not stretched to the page: a 300 dpi PNG
+        # has three times the pixels it needs on a screen
+        with Image.open(figure.path) as image:
+            width = round(image.size[0] * CSS_DPI / PNG_DPI)
         self.html.append(
-            f"<figure><img src='{png}' alt='{html.escape(figure.path.stem)}'>"
+            f"<figure><img src='{png}' width='{width}' alt='{html.escape(figure.path.stem)}'>"
             f"<figcaption>{caption}</figcaption></figure>"
         )
         self.md += [f"![{figure.title}]({png})", ""]
@@ -887,13 +925,23 @@ class _Page:
             return f"<td class='{'num lb' if numeric or text == UNDEFINED else 'lb'}'>{html.escape(text)}</td>"
 
         head = "".join(f"<th>{html.escape(str(c))}</th>" for c in table.columns)
-        body = "".join("<tr>" + "".join(cell(v) for v in row) + "</tr>" for row in table.itertuples(index=False))
-        self.html.append(f"<div class='scroll'><table id='leaderboard-table'><tr>{head}</tr>{body}</table></div>")
+        apart = [str(n).endswith(LABELS_MARK) for n in table["estimator"]] if len(table) else []
+        # the first label reader starts below a rule: ranked apart from the estimators
+        first = apart.index(True) if True in apart and not all(apart) else -1
+        body = "".join(
+            ("<tr class='apart'>" if i == first else "<tr>") + "".join(cell(v) for v in row) + "</tr>"
+            for i, row in enumerate(table.itertuples(index=False))
+        )
+        ident = "" if any("id='leaderboard-table'" in h for h in self.html) else " id='leaderboard-table'"
+        self.html.append(f"<div class='scroll'><table{ident}><tr>{head}</tr>{body}</table></div>")
         # the cells are formatted text: tabulate would parse '8.80' back into 8.8
         self.md += [table.to_markdown(index=False, disable_numparse=True) if len(table) else "(none)", ""]
 
     def table(self, df: pd.DataFrame, classes: Any = None) -> None:
-        """A table; a blank (NaN) cell shows :data:`BLANK` and the note under the table says why."""
+        """A table under human column names (:func:`human_name`); a blank (NaN) cell shows :data:`BLANK`
+        and the note under the table says why."""
+        why = {human_name(c): BLANK_REASONS[str(c)] for c in df.columns if str(c) in BLANK_REASONS}
+        df = df.rename(columns=human_name)
         head = "".join(f"<th>{html.escape(str(c))}</th>" for c in df.columns)
         body = []
         for _, row in df.iterrows():
@@ -909,16 +957,20 @@ class _Page:
         self.md += [shown.to_markdown(index=False, floatfmt=".3g") if len(df) else "(none)", ""]
         blank = [str(c) for c in df.columns if df[c].map(_is_blank).any()]
         if blank:
-            reasons = "; ".join(f"{c}: {BLANK_REASONS.get(c, 'not defined for that row')}" for c in blank)
+            reasons = "; ".join(f"{c}: {why.get(c, 'not defined for that row')}" for c in blank)
             self.p(f"{BLANK} = {reasons}.", cls="note")
 
     def write(self, out: Path, started: float) -> Path:
         """Write index.html, README.md and figures.json; the page ends with the build time."""
         self.p(f"Report built in {time.perf_counter() - started:.1f} s.", cls="note")
+        body = list(self.html)
+        if self.contents_at is not None and self.sections:
+            items = "".join(f"<li><a href='#{a}'>{html.escape(t)}</a></li>" for t, a in self.sections)
+            body.insert(self.contents_at, f"<nav class='toc' id='contents'><b>Contents</b><ol>{items}</ol></nav>")
         page = (
             f"<!doctype html><html><head><meta charset='utf-8'><title>simbench report</title>"
             f"<meta name='viewport' content='width=device-width'><style>{_CSS}</style></head>"
-            f"<body>{''.join(self.html)}</body></html>"
+            f"<body>{''.join(body)}</body></html>"
         )
         figures = [
             {
@@ -927,6 +979,7 @@ class _Page:
                 "title": f.title,
                 "series": list(f.series),
                 "legend": list(f.legend),
+                "styles": f.styles,
             }
             for f in self.figures
         ]
@@ -937,6 +990,44 @@ class _Page:
         ):
             write_bytes(out / name, text.encode())
         return out
+
+
+#: Headers of the report's tables for their snake_case columns; a column not here keeps its name (it may be
+#: a world or an estimator, e.g. ``urban_deep``, whose name is its identity).
+COLUMN_NAMES = {
+    "n_seeds": "seeds",
+    "n_failed": "failed seeds",
+    "gnss_model": "gnss_model preset",
+    "horizontal_median_solved": "horizontal median, solved epochs [m]",
+    "horizontal_max": "horizontal max, solved epochs [m]",
+    "horizontal_median_ref": "horizontal median [m]",
+    "horizontal_p95_ref": "horizontal p95 [m]",
+    "error_3d_median_ref": "3-D median [m]",
+    "time_per_obs_s": "run time per observation [s]",
+    "update_median_s": "median update [s]",
+    "time_per_epoch_s": "time per epoch [s]",
+    "ci_low": "CI low",
+    "ci_high": "CI high",
+    "wilcoxon_p": "Wilcoxon p",
+    "gap_m": "gap [m]",
+    "oracle_availability": "oracle availability",
+    "baseline_availability": "baseline availability",
+    "error_3d_median": "3-D median [m]",
+    "error_3d_mean": "3-D mean [m]",
+    "error_3d_max": "3-D max [m]",
+    "median_ref": "median [m]",
+    "published_as": "published as",
+    "wall_s": "wall time [s]",
+    "exit_code": "exit code",
+    "total_s": "total [s]",
+    "n_adaptations": "adaptations",
+    "ks_against": "KS against",
+}
+
+
+def human_name(column: Any) -> str:
+    """A table header for a column: :data:`COLUMN_NAMES`, else its name."""
+    return COLUMN_NAMES.get(str(column), str(column))
 
 
 def _is_blank(value: Any) -> bool:

@@ -2,26 +2,31 @@
 
 Every figure is drawn without a title (the report's HTML carries it as a
 caption, so a figure can go into a paper as it is) and written in each of the
-asked formats (PNG for the page, PDF for a paper). Each curve keeps its
-family's hue and a line style of its own (:mod:`simbench.report.style`); past
-:data:`SMALL_MULTIPLES_ABOVE` curves a figure becomes one panel per family.
+asked formats (PNG at :data:`PNG_DPI` for the page, PDF or SVG with TrueType
+fonts for a paper), at the size of the ``report.style`` preset in use
+(:func:`simbench.report.style.use_style`). Each estimator keeps one colour,
+line style and marker in every figure (:mod:`simbench.report.style`).
 Error distributions are drawn over all reference epochs
 (:func:`simbench.analysis.metrics.reference_ecdf`): a curve ends at its
-estimator's availability, below 1 when it left epochs unsolved.
+estimator's availability, below 1 when it left epochs unsolved. The
+comparison figure (:func:`ecdf_figure`) names every estimator in one legend
+in leaderboard order; :func:`family_ecdf_figure` is the per-family view.
 
-Every figure function returns a :class:`FigureFile`: the files written and
-the series names read back from the drawn figure (legend entries, category
-labels and panel titles), which the report writes beside the figures
-(``figures.json``) so what a figure shows can be checked without pixels.
+Every figure function returns a :class:`FigureFile`: the files written, the
+series names read back from the drawn figure (legend entries, category labels
+and panel titles) and each legend entry's colour, line style and marker,
+which the report writes beside the figures (``figures.json``) so what a figure
+shows can be checked without pixels.
 """
 
 from __future__ import annotations
 
 import io
+import logging
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Literal, cast
+from typing import Any, cast
 
 import matplotlib
 
@@ -30,7 +35,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.ticker import FuncFormatter, LogLocator, MaxNLocator
+from matplotlib.colors import to_hex
+from matplotlib.lines import Line2D
+from matplotlib.ticker import LogFormatterSciNotation, LogLocator, MaxNLocator
 from matplotlib.transforms import Affine2D, Bbox
 from PIL import Image
 
@@ -38,18 +45,20 @@ from simbench.analysis.metrics import reference_ecdf
 from simbench.analysis.validation import ValidationSample, cn0_by_elevation
 from simbench.contract import write_bytes
 from simbench.errors import SimbenchError
-from simbench.report.style import by_family, curve_styles, sig3
+from simbench.report.style import LABELS_MARK, PRESETS, TRUETYPE, by_family, curve_styles, preset, sig3
 from simbench.runs.checks import ReportFormat as Format
 
+# TrueType embedding subsets each font with fontTools, which logs every table it prunes at INFO: under
+# Hydra's INFO root logger, about 70 lines per PDF on the terminal
+logging.getLogger("fontTools").setLevel(logging.WARNING)
+
 METRIC_LABELS = {"horizontal": "horizontal error [m]", "error_3d": "3-D error [m]"}
-#: Legends with more entries go beside the axes instead of over the curves.
-LEGEND_INSIDE_MAX = 6
-#: More curves than this and a figure becomes small multiples, one panel per family.
+#: More curves than this and the trajectory becomes small multiples, one panel per family.
 SMALL_MULTIPLES_ABOVE = 8
 #: What a figure says about curves that end below 1.
 REFERENCE_NOTE = "over all reference epochs: a curve ends at its availability, unsolved epochs counting as missed"
 #: Resolution of the PNG files [dots per inch]; PDF is vector.
-PNG_DPI = 150
+PNG_DPI = 300
 #: Margin around the drawn area of a saved figure [inch].
 PAD_INCHES = 0.05
 #: Room added around a figure's axes before it is drawn (left, bottom, right, top) [inch]: tick labels
@@ -59,8 +68,6 @@ MARGIN_INCHES = (1.0, 0.8, 3.0, 0.4)
 #: there instead of measuring every tick label of the axes to clear them (about a third of a
 #: small-multiples figure's time); no panel has tick labels on top.
 PANEL_TITLE_Y = 1.0
-#: Marks an estimator that reads the true error labels in figure and table names.
-LABELS_MARK = "†"
 
 
 @dataclass(frozen=True)
@@ -78,12 +85,15 @@ class FigureFile:
         or median suffixes), read back from the figure.
     legend : tuple of str
         The legend entries as drawn (with availability and median where the figure gives them).
+    styles : dict
+        Series name to its drawn ``color`` (hex), ``linestyle`` and ``marker`` (:func:`legend_styles`).
     """
 
     files: tuple[Path, ...]
     title: str
     series: tuple[str, ...]
     legend: tuple[str, ...] = ()
+    styles: dict[str, dict[str, str]] = field(default_factory=dict)
 
     @property
     def path(self) -> Path:
@@ -123,20 +133,32 @@ def _references(epochs: pd.DataFrame, n_reference: Mapping[str, int]) -> dict[st
 
 
 def _panels(names: Sequence[str]) -> list[tuple[str, list[str]]]:
-    """One panel for a few curves; one per family (titled by it) beyond :data:`SMALL_MULTIPLES_ABOVE`."""
-    if len(names) <= SMALL_MULTIPLES_ABOVE:
-        return [("", list(names))]
+    """One panel per family (titled by it), families in :data:`~simbench.report.style.FAMILIES` order."""
     return list(by_family({n: estimator_of(n) for n in names}).items())
+
+
+def figsize(width: float, height: float) -> tuple[float, float]:
+    """A figure's size [inch] for the preset in use: ``width`` x ``height`` on the page (``screen``),
+    scaled to a paper's column (:data:`~simbench.report.style.PRESETS`)."""
+    scale = preset().width_in / PRESETS["screen"].width_in
+    return width * scale, height * scale
 
 
 def grid_axes(
     n: int, width: float, height: float, ncols: int = 2, sharex: bool = False, sharey: bool = False
 ) -> tuple[plt.Figure, list[plt.Axes]]:
-    """``n`` axes in rows of ``ncols`` (one column for a single panel), each ``width`` x ``height`` inches."""
+    """``n`` axes in rows of ``ncols`` (one column for a single panel), each ``width`` x ``height`` inches
+    on the page (:func:`figsize`)."""
     cols = 1 if n == 1 else ncols
     rows = int(np.ceil(n / cols))
     fig, axes = plt.subplots(
-        rows, cols, figsize=(width * cols, height * rows), dpi=PNG_DPI, squeeze=False, sharex=sharex, sharey=sharey
+        rows,
+        cols,
+        figsize=figsize(width * cols, height * rows),
+        dpi=PNG_DPI,
+        squeeze=False,
+        sharex=sharex,
+        sharey=sharey,
     )
     # room for each panel's title and tick labels; the saved figure is cropped to what is drawn
     fig.subplots_adjust(hspace=0.45 if rows > 1 else 0.2, wspace=0.3)
@@ -144,6 +166,53 @@ def grid_axes(
     for ax in flat[n:]:
         ax.set_visible(False)
     return fig, flat[:n]
+
+
+@dataclass(frozen=True)
+class Curves:
+    """The ECDFs of a group over its reference epochs: per curve name, per metric, (errors, fractions)."""
+
+    curves: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]]
+    metrics: list[str]
+    order: list[str]  #: leaderboard order: by median of the first metric, then of the second, then name
+
+    @classmethod
+    def of(
+        cls,
+        epochs: pd.DataFrame,
+        metrics: Sequence[str],
+        n_reference: Mapping[str, int],
+        medians: Mapping[str, Mapping[str, float]],
+    ) -> Curves:
+        counts = _references(epochs, n_reference)
+        curves: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]] = {}
+        for name, group in epochs.groupby("estimator", observed=True):
+            for metric in metrics:
+                x, p = reference_ecdf(group[metric].to_numpy(float), counts[str(name)])
+                if x.size:
+                    curves.setdefault(str(name), {})[metric] = (x, p)
+
+        def rank(name: str) -> tuple:
+            # the oracle (labels mark) last, apart, as in the leaderboard: a floor, not a competitor
+            keys = [medians.get(m, {}).get(name, np.inf) for m in metrics]
+            return (name.endswith(LABELS_MARK), *keys, -_solved(curves[name]), name)
+
+        return cls(curves, list(metrics), sorted(curves, key=rank))
+
+    def left(self) -> float:
+        """Left end of the error axes [m]: the decade holding the smallest curve's 1st percentile."""
+        firsts = [x[np.searchsorted(p, 0.01 * p[-1])] for c in self.curves.values() for x, p in c.values() if x.size]
+        positive = [v for v in firsts if v > 0]
+        return 10.0 ** np.floor(np.log10(min(positive))) if positive else 1e-3
+
+    def draw(self, ax: plt.Axes, name: str, metric: str, style: Mapping[str, Any], label: str = "") -> None:
+        """One curve, a dot where it stops (its availability)."""
+        if metric not in self.curves[name]:
+            return
+        x, p = self.curves[name][metric]
+        x = np.maximum(x, self.left())
+        ax.step(np.r_[x[0], x], np.r_[0.0, p], where="post", label=label, **{"lw": preset().font_pt / 7.5, **style})
+        ax.plot(x[-1], p[-1], marker="o", ms=3, color=style["color"])
 
 
 def ecdf_figure(
@@ -155,79 +224,92 @@ def ecdf_figure(
     medians: Mapping[str, Mapping[str, float]] | None = None,
     formats: Sequence[Format] = ("png",),
 ) -> FigureFile:
-    """ECDF of each error metric per estimator over all reference epochs, log-scaled error axes: one
-    column per metric, side by side on one scale, one legend per row.
+    """The comparison figure: ECDF of each error metric over all reference epochs, every estimator in
+    one panel per metric, named in one legend beside them in leaderboard order, log error axes.
 
     Parameters
     ----------
     epochs : pandas.DataFrame
         ``epochs.parquet`` rows (columns ``estimator``, the curve name, and each metric): the solved epochs.
     metrics : str or sequence of str
-        ``horizontal`` and/or ``error_3d``, one column each.
+        ``horizontal`` and/or ``error_3d``, one panel each, side by side on one scale.
     path : path-like
         PNG to write (other formats beside it).
     title : str
         Caption for the report (not drawn).
     n_reference : mapping of curve name to int
         Reference epochs of that curve's jobs in ``epochs`` (the summed ``n_epochs``): the
-        denominator, so a curve ends at the estimator's availability (the same in every column).
+        denominator, so a curve ends at the estimator's availability (the same in every panel).
     medians : mapping of metric to (mapping of curve name to float), optional
-        The medians printed in the legend [m], in the order of ``metrics`` (the report passes its
-        leaderboard's, so both show one number); '—' for inf (availability below 50 %). None: no
-        median in the legend. Curves are sorted by the first metric's median.
+        The leaderboard's medians [m]: they order the legend, and on the page (``screen`` preset)
+        the legend prints them; '—' for inf (availability below 50 %). A paper preset's legend
+        names the estimator and, below 100 %, its availability.
     formats : sequence of str
         File formats to write.
     """
     metrics = [metrics] if isinstance(metrics, str) else list(metrics)
-    counts = _references(epochs, n_reference)
-    styles = estimator_styles(epochs["estimator"])
-    curves: dict[str, dict[str, tuple[np.ndarray, np.ndarray]]] = {}
-    for name, group in epochs.groupby("estimator"):
-        for metric in metrics:
-            x, p = reference_ecdf(group[metric].to_numpy(float), counts[str(name)])
-            if x.size:
-                curves.setdefault(str(name), {})[metric] = (x, p)
+    if preset().name == "single":  # a 3.5 in column holds one panel and its legend: the first metric
+        metrics = metrics[:1]
     given = medians or {}
-    order = sorted(curves, key=lambda n: (given.get(metrics[0], {}).get(n, np.inf), -_solved(curves[n]), n))
-    panels = _panels(order)
-    beside = len(panels) == 1 and len(order) > LEGEND_INSIDE_MAX
-    fig, axes = grid_axes(
-        len(panels) * len(metrics), 4.4 if beside else 3.8, 3.4, ncols=len(metrics), sharex=True, sharey=True
-    )
-    rows = [axes[k * len(metrics) : (k + 1) * len(metrics)] for k in range(len(panels))]
-    for row, (panel, names) in zip(rows, panels):
-        for ax, metric in zip(row, metrics):
-            for other in order if panel else []:  # the other families in grey: every panel on one scale
-                if other not in names and metric in curves[other]:
-                    x, p = curves[other][metric]
-                    ax.step(np.r_[x[0], x], np.r_[0.0, p], where="post", lw=0.6, color="0.85")
-            for name in names:
-                if metric not in curves[name]:
-                    continue
-                x, p = curves[name][metric]
-                x = np.maximum(x, 1e-3)
-                ax.step(
-                    np.r_[x[0], x],
-                    np.r_[0.0, p],
-                    where="post",
-                    lw=1.5,
-                    **styles[name],
-                    label=_ecdf_label(
-                        name, p[-1], None if medians is None else [given.get(m, {}).get(name, np.nan) for m in metrics]
-                    ),
-                )
-                ax.plot(x[-1], p[-1], marker="o", ms=3, color=styles[name]["color"])  # where the curve stops
-            ax.set_xscale("log")
-            plain_log_ticks(ax.xaxis)
-            ax.set_xlabel(METRIC_LABELS.get(metric, metric))
-            ax.set_ylabel("fraction of reference epochs")
-            ax.set_ylim(0, 1.01)
-            ax.grid(True, which="both", alpha=0.3)
-            if panel:
-                ax.set_title(panel, fontsize=9, y=PANEL_TITLE_Y)
-            ax.label_outer()  # shared axes: the outer panels carry the labels
-        _legend(row[-1], len(names), "lower right")  # a row's legend beside it past a few entries
+    data = Curves.of(epochs, metrics, n_reference, given)
+    styles = estimator_styles(data.order)
+    paper = preset().name != "screen"
+    size = (5.2, 4.4) if preset().name == "single" else (3.4, 3.0)  # single: one panel, the column's width
+    fig, axes = grid_axes(len(metrics), *size, ncols=len(metrics), sharex=True, sharey=True)
+    for i, (ax, metric) in enumerate(zip(axes, metrics)):
+        for name in data.order:
+            shown = None if medians is None or paper else [given.get(m, {}).get(name, np.nan) for m in metrics]
+            label = _ecdf_label(name, _solved(data.curves[name]), shown, brief=paper) if i == 0 else ""
+            data.draw(ax, name, metric, styles[name], label)
+        _ecdf_axes(ax, metric, data.left())
+        ax.label_outer()  # shared axes: the outer panels carry the labels
+    handles, labels = axes[0].get_legend_handles_labels()
+    # one legend for the figure, beside the last panel, in leaderboard order
+    axes[-1].legend(handles, labels, loc="upper left", bbox_to_anchor=(1.02, 1.0), frameon=False)
     return save_figure(fig, path, f"{title} ({REFERENCE_NOTE})", formats)
+
+
+def family_ecdf_figure(
+    epochs: pd.DataFrame,
+    metric: str,
+    path: str | Path,
+    title: str,
+    n_reference: Mapping[str, int],
+    medians: Mapping[str, float] | None = None,
+    formats: Sequence[Format] = ("png",),
+) -> FigureFile:
+    """The secondary view: one ECDF panel per family, its members named, the other families in grey.
+
+    Parameters are those of :func:`ecdf_figure` for one ``metric``; ``medians`` only orders the legends.
+    """
+    data = Curves.of(epochs, [metric], n_reference, {metric: medians or {}})
+    styles = estimator_styles(data.order)
+    panels = _panels(data.order)
+    fig, axes = grid_axes(len(panels), 2.6, 2.2, ncols=3, sharex=True, sharey=True)
+    for ax, (panel, members) in zip(axes, panels):
+        for other in data.order:  # every panel on one scale: the other families in grey, unnamed
+            if other not in members:
+                data.draw(ax, other, metric, {"color": "0.85", "linestyle": "-", "lw": 0.6, "marker": ""})
+        for name in (n for n in data.order if n in members):
+            data.draw(ax, name, metric, styles[name], name)
+        _ecdf_axes(ax, metric, data.left())
+        ax.set_title(panel, y=PANEL_TITLE_Y)
+        ax.legend(loc="lower right", frameon=True, fontsize="small")
+        ax.label_outer()
+    for ax in axes[-3:]:  # the last row, and a panel over an empty place, keep their error axis labelled
+        ax.tick_params(labelbottom=True)
+        ax.set_xlabel(METRIC_LABELS.get(metric, metric))
+    return save_figure(fig, path, f"{title} ({REFERENCE_NOTE}; grey: the other families)", formats)
+
+
+def _ecdf_axes(ax: plt.Axes, metric: str, left: float) -> None:
+    ax.set_xscale("log")
+    log_ticks(ax.xaxis)
+    ax.set_xlim(left=left)
+    ax.set_xlabel(METRIC_LABELS.get(metric, metric))
+    ax.set_ylabel("fraction of reference epochs")
+    ax.set_ylim(0, 1.01)
+    ax.grid(True, which="major", alpha=0.3)
 
 
 def _solved(curves: Mapping[str, tuple[np.ndarray, np.ndarray]]) -> float:
@@ -235,34 +317,31 @@ def _solved(curves: Mapping[str, tuple[np.ndarray, np.ndarray]]) -> float:
     return float(next(iter(curves.values()))[1][-1])
 
 
-def _ecdf_label(name: str, availability: float, medians: Sequence[float] | None) -> str:
-    """``dcs (98 % solved, median 2.3 / 3.1 m)``: availability, then the median of each metric."""
+def _ecdf_label(name: str, availability: float, medians: Sequence[float] | None, brief: bool = False) -> str:
+    """``dcs (98 % solved, median 2.3 / 3.1 m)``: availability, then the median of each metric.
+
+    ``brief``: the name alone, with the availability only below 100 % (a paper's legend).
+    """
+    if brief:
+        return name if availability >= 1 else f"{name} ({availability_text(availability)})"
     if medians is None:
         return f"{name} ({availability_text(availability)})"
     return f"{name} ({availability_text(availability)}, median {' / '.join(sig3(m) for m in medians)} m)"
 
 
-def _legend(ax: plt.Axes, entries: int, inside: Literal["lower right", "upper right", "best"]) -> None:
-    """Legend at ``inside`` for a few entries, beside the axes (two columns past 20) for many."""
-    if entries <= LEGEND_INSIDE_MAX:
-        ax.legend(loc=inside, fontsize=7, frameon=True)
-    else:
-        ax.legend(
-            loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False, ncols=1 if entries <= 20 else 2
-        )
+#: Up to this many decades on a log axis are each ticked and labelled (matplotlib skips some on a short axis).
+LOG_DECADES_MAX = 12
 
 
-def plain_log_ticks(axis: Any) -> None:
-    """Tick labels of a log axis as plain numbers (``2``, ``0.5``), not ``2 x 10^0``.
-
-    Every log axis of the report uses it: besides reading better, the default labels are mathtext,
-    whose parser took about half of a small log-scaled figure's drawing time.
-    """
-    axis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
-    # minor ticks (and grid lines) at 2 and 5 x 10^k only: all eight labels would overlap, and each
-    # tick is drawn, so the report spends less time on them
-    axis.set_minor_locator(LogLocator(subs=(2.0, 5.0)))
-    axis.set_minor_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
+def log_ticks(axis: Any) -> None:
+    """A log axis labelled by matplotlib's own locator and formatter: decades as 10^k, and the 2-9 x 10^k
+    ticks labelled only where the axis spans few decades (its ``minor_thresholds``), so labels never run
+    together; minor ticks unlabelled otherwise."""
+    axis.set_major_locator(LogLocator(base=10.0, numticks=LOG_DECADES_MAX))  # every decade, also on a small axis
+    # minor ticks at 2 and 5 x 10^k only: each tick is drawn (most of a small figure's time) and 2, 5 guide the eye
+    axis.set_minor_locator(LogLocator(base=10.0, subs=(2.0, 5.0)))
+    axis.set_major_formatter(LogFormatterSciNotation(base=10.0))
+    axis.set_minor_formatter(LogFormatterSciNotation(base=10.0, labelOnlyBase=False, minor_thresholds=(1, 0.4)))
 
 
 def _log_x_if_wide(ax: plt.Axes, values: np.ndarray) -> None:
@@ -271,7 +350,7 @@ def _log_x_if_wide(ax: plt.Axes, values: np.ndarray) -> None:
     v = v[np.isfinite(v) & (v > 0)]
     if len(v) and v.max() / v.min() > 30:
         ax.set_xscale("log")
-        plain_log_ticks(ax.xaxis)
+        log_ticks(ax.xaxis)
     else:
         ax.set_xlim(left=0)
 
@@ -283,6 +362,38 @@ def legend_texts(fig: plt.Figure) -> tuple[str, ...]:
         if legend is not None:
             texts += [t.get_text() for t in legend.get_texts()]
     return tuple(texts)
+
+
+def style_record(styles: Mapping[str, Mapping[str, Any]]) -> dict[str, dict[str, str]]:
+    """``figures.json``'s record of series styles drawn without a legend (e.g. boxes named on an axis)."""
+    return {
+        name: {
+            "color": to_hex(s["color"]),
+            "linestyle": str(s.get("linestyle", "")),
+            "marker": str(s.get("marker", "")),
+        }
+        for name, s in styles.items()
+    }
+
+
+def legend_styles(fig: plt.Figure) -> dict[str, dict[str, str]]:
+    """Colour (hex), line style and marker of each named legend entry, read from the drawn handles.
+
+    The name is the entry's text before `` (``; the first legend naming a series wins.
+    """
+    out: dict[str, dict[str, str]] = {}
+    for legend in [*fig.legends, *(ax.get_legend() for ax in fig.axes)]:
+        if legend is None:
+            continue
+        for text, handle in zip(legend.get_texts(), legend.legend_handles):
+            name = text.get_text().split(" (")[0].strip()
+            if name and isinstance(handle, Line2D) and name not in out:
+                out[name] = {
+                    "color": to_hex(handle.get_color()),
+                    "linestyle": str(handle.get_linestyle()),
+                    "marker": str(handle.get_marker()),
+                }
+    return out
 
 
 def drawn_series(fig: plt.Figure) -> tuple[str, ...]:
@@ -315,7 +426,7 @@ def save_figure(fig: plt.Figure, path: str | Path, title: str, formats: Sequence
     _add_margin(fig, MARGIN_INCHES)
     canvas = cast(FigureCanvasAgg, fig.canvas)  # matplotlib.use("Agg") above
     canvas.draw()
-    series, legend = drawn_series(fig), legend_texts(fig)
+    series, legend, styles = drawn_series(fig), legend_texts(fig), legend_styles(fig)
     rgba = np.asarray(canvas.buffer_rgba())
     # the drawn area from the pixels: Figure.get_tightbbox would lay out every tick and text again
     # one 32-bit word per RGBA pixel: a quarter of the comparisons, and no reduction over 4-byte rows
@@ -343,12 +454,13 @@ def save_figure(fig: plt.Figure, path: str | Path, title: str, formats: Sequence
         else:
             # what is drawn past the canvas is measured by matplotlib (one more drawing)
             area = box if on_canvas else "tight"
-            fig.savefig(buffer, format=fmt, dpi=PNG_DPI, bbox_inches=area, pad_inches=PAD_INCHES)
+            with matplotlib.rc_context(cast(Any, TRUETYPE)):  # whatever the preset: a vector file never embeds Type 3
+                fig.savefig(buffer, format=fmt, dpi=PNG_DPI, bbox_inches=area, pad_inches=PAD_INCHES)
         target = path.with_suffix(f".{fmt}")
         write_bytes(target, buffer.getvalue())  # atomic: two reports of one run never mix their figures
         files.append(target)
     plt.close(fig)
-    return FigureFile(tuple(files), title, series, legend)
+    return FigureFile(tuple(files), title, series, legend, styles)
 
 
 def _add_margin(fig: plt.Figure, margin: tuple[float, float, float, float]) -> None:
@@ -377,32 +489,34 @@ def box_figure(
     n_reference: Mapping[str, int],
     metric: str = "horizontal",
     formats: Sequence[Format] = ("png",),
+    order: Sequence[str] = (),
 ) -> FigureFile:
     """Box plot of the solved epochs' errors per estimator (dissertation Fig. 5.3.2), log scale.
 
     Each label gives the estimator's availability (solved / ``n_reference`` epochs,
-    as in :func:`ecdf_figure`): the boxes describe only the epochs it solved.
+    as in :func:`ecdf_figure`): the boxes describe only the epochs it solved. Boxes in ``order``
+    (the leaderboard's), names not in it after them by their median.
     """
     counts = _references(epochs, n_reference)
-    order = sorted(
-        epochs["estimator"].unique(), key=lambda n: np.nanmedian(epochs.loc[epochs["estimator"] == n, metric])
-    )
+    present = [str(n) for n in epochs["estimator"].unique()]
+    rest = sorted(set(present) - set(order), key=lambda n: np.nanmedian(epochs.loc[epochs["estimator"] == n, metric]))
+    order = [n for n in order if n in present] + rest
     styles = estimator_styles(order)
     data = [epochs.loc[epochs["estimator"] == n, metric].dropna().to_numpy() for n in order]
     labels = [f"{n}\n{availability_text(len(d) / counts[n])}" for n, d in zip(order, data)]
-    fig, ax = plt.subplots(figsize=(max(4.0, 0.55 * len(order) + 1.5), 3.6), dpi=PNG_DPI)
+    fig, ax = plt.subplots(figsize=figsize(max(4.0, 0.55 * len(order) + 1.5), 3.6), dpi=PNG_DPI)
     boxes = ax.boxplot(data, whis=(5, 95), showfliers=False, medianprops={"color": "black"}, patch_artist=True)
     for patch, name in zip(boxes["boxes"], order):
         patch.set_facecolor(styles[name]["color"])
         patch.set_alpha(0.6)
-    ax.set_xticks(range(1, len(order) + 1), labels, rotation=35, ha="right", fontsize=7)
+    ax.set_xticks(range(1, len(order) + 1), labels, rotation=35, ha="right")
     ax.set_yscale("log")
-    plain_log_ticks(ax.yaxis)
+    log_ticks(ax.yaxis)
     ax.set_ylabel(METRIC_LABELS.get(metric, metric))
     ax.grid(True, axis="y", which="both", alpha=0.3)
     series = tuple(order)
     figure = save_figure(fig, path, f"{title} (solved epochs only; box: quartiles, whiskers: 5-95 %)", formats)
-    return FigureFile(figure.files, figure.title, series, figure.legend)
+    return replace(figure, series=series, styles=style_record(styles))
 
 
 def sensitivity_figure(
@@ -413,7 +527,7 @@ def sensitivity_figure(
     ``curves`` has columns estimator, scale, horizontal_median_ref (over reference epochs; a
     scale whose median is undefined, inf, is left out), ci_low, ci_high.
     """
-    fig, ax = plt.subplots(figsize=(5.6, 3.6), dpi=PNG_DPI)
+    fig, ax = plt.subplots(figsize=figsize(5.6, 3.6), dpi=PNG_DPI)
     styles = estimator_styles(curves["estimator"])
     for name, group in curves.groupby("estimator"):
         group = group[np.isfinite(group["horizontal_median_ref"])].sort_values("scale")
@@ -422,13 +536,12 @@ def sensitivity_figure(
             group["scale"],
             median,
             yerr=[median - group["ci_low"], group["ci_high"] - median],
-            marker="o",
             capsize=3,
             label=name,
             **styles[str(name)],
         )
     ax.set_xscale("log")
-    plain_log_ticks(ax.xaxis)
+    log_ticks(ax.xaxis)
     ax.set_xlabel("a priori covariance scale s")
     ax.set_ylabel("median horizontal error [m]\n(over reference epochs)")
     ax.grid(True, which="both", alpha=0.3)
@@ -447,7 +560,7 @@ def runtime_figure(
     stats = stats.sort_values("time_per_obs_s")
     styles = estimator_styles(stats["estimator"])
     colors = [styles[n]["color"] for n in stats["estimator"]]
-    fig, axes = plt.subplots(1, 2, figsize=(8.0, 0.9 + 0.22 * len(stats)), dpi=PNG_DPI, sharey=True)
+    fig, axes = plt.subplots(1, 2, figsize=figsize(8.0, 0.9 + 0.22 * len(stats)), dpi=PNG_DPI, sharey=True)
     labels = list(stats["estimator"])
     axes[0].barh(labels, stats["time_per_obs_s"] * 1e6, color=colors)
     axes[0].set_xlabel("run time per observation [us]")
@@ -473,7 +586,7 @@ def mixture_evolution_figure(
     {weights, covariances (K, D, D)}; the first two dimensions are the code and phase residuals [m].
     Marker area is proportional to weight.
     """
-    fig, axes = plt.subplots(1, 2, figsize=(8.0, 3.2), dpi=PNG_DPI, sharex=True)
+    fig, axes = plt.subplots(1, 2, figsize=figsize(8.0, 3.2), dpi=PNG_DPI, sharex=True)
     iterations, weights, sigmas = [], [], []
     for record in history:
         mix = record.get("mixture") or {}
@@ -490,7 +603,7 @@ def mixture_evolution_figure(
             ax.scatter(it, sd[:, d], s=20 + 300 * w, alpha=0.6, color="tab:blue", edgecolor="k", lw=0.4)
     for ax, label in zip(axes, ("code residual std [m]", "phase residual std [m]")):
         ax.set_yscale("log")
-        plain_log_ticks(ax.yaxis)
+        log_ticks(ax.yaxis)
         ax.set_xlabel(xlabel)
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.set_ylabel(label)
@@ -512,7 +625,7 @@ def validation_figure(
     The fourth panel holds the legend.
     """
     styles = world_styles(s.name for s in samples)
-    fig, grid = plt.subplots(2, 2, figsize=(10.0, 7.2), dpi=PNG_DPI)
+    fig, grid = plt.subplots(2, 2, figsize=figsize(10.0, 7.2), dpi=PNG_DPI)
     ecdf_ax, cn0_ax, sats_ax, legend_ax = grid.ravel()
     for sample in samples:
         style = {**styles[sample.name], "linewidth": 2.4 if sample.real else 1.4}
@@ -528,7 +641,7 @@ def validation_figure(
             np.arange(len(counts)), counts / max(counts.sum(), 1), marker="o", markersize=4, label=sample.name, **style
         )
     ecdf_ax.set_xscale("log")
-    plain_log_ticks(ecdf_ax.xaxis)
+    log_ticks(ecdf_ax.xaxis)
     # the median satellite of an epoch has residual 0 exactly: those rows sit left of the axis
     ecdf_ax.set_xlim(left=1e-2)
     ecdf_ax.set_xlabel("|code residual| [m] (per-epoch, per-system median clock)")
@@ -544,7 +657,6 @@ def validation_figure(
     legend_ax.legend(
         *sats_ax.get_legend_handles_labels(),
         loc="center",
-        fontsize=9,
         frameon=False,
         ncols=1 if len(samples) <= 12 else 2,
     )

@@ -17,6 +17,7 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any
 
+import numpy as np
 import pandas as pd
 
 from estimators import registered
@@ -27,10 +28,15 @@ from simbench.report.figures import (
     Format,
     box_figure,
     ecdf_figure,
+    family_ecdf_figure,
     runtime_figure,
     sensitivity_figure,
 )
+from simbench.report.leaderboard import ranked
+from simbench.report.style import use_style
 from simbench.report.time_views import (
+    ALTITUDE_SPAN_M,
+    altitude_figure,
     consistency_figure,
     enu_error_figure,
     signal_figure,
@@ -69,6 +75,7 @@ DRAWN_COLUMNS = (
     "t",
     "east",
     "north",
+    "up",
     "e",
     "n",
     "u",
@@ -85,8 +92,9 @@ Item = FigureFile | tuple[str, str]
 class Recorder:
     """The figure part of :class:`_Page` for a worker process: records figures and notes in order."""
 
-    def __init__(self, formats: tuple[Format, ...]) -> None:
+    def __init__(self, formats: tuple[Format, ...], style: str = "screen") -> None:
         self.formats = formats
+        self.style = style
         self.items: list[Item] = []
 
     @property
@@ -100,11 +108,13 @@ class Recorder:
         self.items.append((text, cls))
 
 
-def draw_group(task: tuple[GroupInputs, Path, tuple[Format, ...], Mapping[str, Path]]) -> list[Item]:
-    """Draw one group's figures (:func:`group_figures`); what they give the page, in order."""
-    inputs, out, formats, scenarios = task
-    recorder = Recorder(formats)
-    group_figures(recorder, out, inputs, scenarios)
+def draw_group(task: tuple[GroupInputs, Path, tuple[Format, ...], Mapping[str, Path], str]) -> list[Item]:
+    """Draw one group's figures (:func:`group_figures`) in the ``report.style`` preset the task names;
+    what they give the page, in order."""
+    inputs, out, formats, scenarios, style = task
+    recorder = Recorder(formats, style)
+    with use_style(style):
+        group_figures(recorder, out, inputs, scenarios)
     return recorder.items
 
 
@@ -159,8 +169,10 @@ class GroupDrawing:
         formats: tuple[Format, ...],
         scenarios: Mapping[str, Path],
         draw: bool = True,
+        style: str = "screen",
     ) -> Callable[[], list[list[Item]]]:
-        """Start drawing every group's figures into ``out``; the returned call waits for them.
+        """Start drawing every group's figures into ``out`` in the ``style`` preset; the returned call
+        waits for them.
 
         ``draw=False`` draws nothing: the call gives every group an empty list.
 
@@ -170,7 +182,7 @@ class GroupDrawing:
             Gives, per group in order, what its figures give the page (:func:`draw_group`). Fewer
             than :data:`MIN_PARALLEL_GROUPS` groups, or no workers: drawn in this process by that call.
         """
-        tasks = [(g, out, formats, scenarios) for g in groups]
+        tasks = [(g, out, formats, scenarios, style) for g in groups]
         if not draw:
             return lambda: [[] for _ in tasks]
         if self._pool is None or len(tasks) < MIN_PARALLEL_GROUPS:
@@ -178,14 +190,15 @@ class GroupDrawing:
         # the groups with the most curves first: the last group to finish is then a small one, and no
         # worker idles while another draws a 24-curve sensitivity study
         futures: dict[int, Future[list[Item]]] = {
-            k: self._pool.submit(draw_group, (groups[k].for_drawing(), out, formats, scenarios))
+            k: self._pool.submit(draw_group, (groups[k].for_drawing(), out, formats, scenarios, style))
             for k in sorted(range(len(tasks)), key=lambda k: -_curves(groups[k]))
         }
         return lambda: [futures[k].result() for k in range(len(tasks))]
 
 
 def group_figures(page: Recorder, out: Path, inputs: GroupInputs, scenarios: Mapping[str, Path]) -> None:
-    """A group's figures: ECDFs, box plot, time views, prior-scale sensitivity and run time."""
+    """A group's figures: the comparison ECDF, the per-family ECDFs, box plot, time views, prior-scale
+    sensitivity and run time."""
     tag, name, shown, n_reference, group_stats = (
         inputs.tag,
         inputs.name,
@@ -194,22 +207,42 @@ def group_figures(page: Recorder, out: Path, inputs: GroupInputs, scenarios: Map
         inputs.group_stats,
     )
     metrics = {"horizontal": "horizontal_median_ref", "error_3d": "error_3d_median_ref"}
+    medians = {m: dict(zip(group_stats["name"], group_stats[column])) for m, column in metrics.items()}
+    order = [str(n) for n in ranked(group_stats)["name"]]
     page.figure(
         ecdf_figure(
             shown,
             list(metrics),
             out / f"ecdf_{tag}.png",
-            f"ECDF of the horizontal (left) and 3-D (right) error: {name}; legend: availability, then the "
-            "leaderboard's median horizontal / 3-D error",
+            f"ECDF of the horizontal (left) and 3-D (right) error, every estimator: {name}; legend in leaderboard "
+            "order: availability, then the leaderboard's median horizontal / 3-D error",
             n_reference,
-            {m: dict(zip(group_stats["name"], group_stats[column])) for m, column in metrics.items()},
+            medians,
             page.formats,
         )
     )
     page.figure(
-        box_figure(shown, out / f"box_{tag}.png", f"Horizontal error per estimator: {name}", n_reference, **page.fmt)
+        family_ecdf_figure(
+            shown,
+            "horizontal",
+            out / f"ecdf_family_{tag}.png",
+            f"ECDF of the horizontal error, one panel per family: {name}",
+            n_reference,
+            medians["horizontal"],
+            page.formats,
+        )
     )
-    time_views(page, out, tag, name, shown, scenarios)
+    page.figure(
+        box_figure(
+            shown,
+            out / f"box_{tag}.png",
+            f"Horizontal error per estimator: {name} (leaderboard order)",
+            n_reference,
+            order=order,
+            **page.fmt,
+        )
+    )
+    time_views(page, out, tag, name, shown, scenarios, order)
     sensitivity = sensitivity_curves(group_stats)
     if sensitivity is not None:
         page.figure(
@@ -225,28 +258,69 @@ def group_figures(page: Recorder, out: Path, inputs: GroupInputs, scenarios: Map
         page.figure(runtime_figure(timed, out / f"runtime_{tag}.png", f"Run time: {name}", **page.fmt))
 
 
+def shown_seeds(shown: pd.DataFrame) -> list[tuple[int, str]]:
+    """The seeds whose time views are drawn, each with what it is: the only seed, or the worst and the best
+    (highest and lowest median horizontal error over the solved epochs of every estimator)."""
+    medians = shown.groupby("seed", observed=True)["horizontal"].median().dropna()
+    if len(medians) < 2:
+        return [(int(shown["seed"].min()), "")]
+    return [
+        (int(medians.idxmax()), f"the worst of {len(medians)} seeds"),
+        (int(medians.idxmin()), f"the best of {len(medians)} seeds"),
+    ]
+
+
 def time_views(
-    page: Recorder, out: Path, tag: str, name: str, shown: pd.DataFrame, scenarios: Mapping[str, Path]
+    page: Recorder,
+    out: Path,
+    tag: str,
+    name: str,
+    shown: pd.DataFrame,
+    scenarios: Mapping[str, Path],
+    order: Sequence[str] = (),
 ) -> None:
-    """Trajectory, E/N/U error, signal and consistency against time of the group's first seed."""
-    seed = shown["seed"].min()
-    one = shown[shown["seed"] == seed]
-    key = str(one["scenario_key"].iloc[0])
-    one = one[one["scenario_key"] == key]
-    cache = scenarios.get(key)
-    truth = pd.read_parquet(cache / "truth.parquet", columns=["epoch", "t", "x", "y", "z"]) if cache else None
-    if truth is not None and len(truth):
-        reference = truth[["epoch", "t"]]
-        east, north, _ = local_enu(truth[["x", "y", "z"]].to_numpy(float), truth[["x", "y", "z"]].to_numpy(float)[0]).T
-        track: pd.DataFrame | None = pd.DataFrame({"east": east, "north": north})
-    else:  # not in this run's cache (e.g. a scored solution's run moved): the estimates alone
-        reference, track = one[["epoch", "t"]].drop_duplicates("epoch").sort_values("epoch"), None
-    where = f"{name}, seed {seed}" + ("" if shown["seed"].nunique() == 1 else " (the first seed)")
-    if {"east", "north"} <= set(one.columns) and one["east"].notna().any():
-        page.figure(trajectory_figure(one, track, out / f"trajectory_{tag}.png", f"Trajectory: {where}", **page.fmt))
-    page.figure(
-        enu_error_figure(one, reference, out / f"enu_time_{tag}.png", f"Error against time: {where}", **page.fmt)
-    )
+    """Trajectory (with altitude for a flight) and E/N/U error against time of the worst and the best seed
+    (:func:`shown_seeds`); satellites and consistency of the worst."""
+    for k, (seed, which) in enumerate(shown_seeds(shown)):
+        one = shown[shown["seed"] == seed]
+        key = str(one["scenario_key"].iloc[0])
+        one = one[one["scenario_key"] == key]
+        cache = scenarios.get(key)
+        truth = pd.read_parquet(cache / "truth.parquet", columns=["epoch", "t", "x", "y", "z"]) if cache else None
+        if truth is not None and len(truth):
+            xyz = truth[["x", "y", "z"]].to_numpy(float)
+            east, north, up = local_enu(xyz, xyz[0]).T
+            reference = truth[["epoch", "t"]].assign(east=east, north=north, up=up)
+        else:  # not in this run's cache (e.g. a scored solution's run moved): the estimates alone
+            reference = one[["epoch", "t"]].drop_duplicates("epoch").sort_values("epoch")
+        where = f"{name}, seed {seed}" + (f" ({which})" if which else "")
+        suffix = tag if k == 0 else f"{tag}_best"
+        track = reference if "east" in reference else None
+        if {"east", "north"} <= set(one.columns) and one["east"].notna().any():
+            page.figure(
+                trajectory_figure(
+                    one, track, out / f"trajectory_{suffix}.png", f"Trajectory: {where}", order=order, **page.fmt
+                )
+            )
+        if track is not None and "up" in one and np.ptp(track["up"].to_numpy(float)) > ALTITUDE_SPAN_M:
+            page.figure(
+                altitude_figure(
+                    one, track, out / f"altitude_{suffix}.png", f"Altitude: {where}", order=order, **page.fmt
+                )
+            )
+        page.figure(
+            enu_error_figure(
+                one, reference, out / f"enu_time_{suffix}.png", f"Error against time: {where}", order=order, **page.fmt
+            )
+        )
+        if k == 0:
+            _signal_and_consistency(page, out, tag, where, one, reference, cache)
+
+
+def _signal_and_consistency(
+    page: Recorder, out: Path, tag: str, where: str, one: pd.DataFrame, reference: pd.DataFrame, cache: Path | None
+) -> None:
+    """Satellites, C/N0 and availability against time, and the covariance consistency, of one seed."""
     if cache is not None:
         observations = pd.read_parquet(cache / "observations.parquet", columns=["epoch", "sat", "cn0_l1"])
         page.figure(
@@ -259,7 +333,7 @@ def time_views(
                 **page.fmt,
             )
         )
-    with_cov = one["nees"].notna().groupby(one["estimator"]).any() if "nees" in one else pd.Series(dtype=bool)
+    with_cov = one["nees"].notna().groupby(one["estimator"], observed=True).any() if "nees" in one else pd.Series()
     covered = sorted(with_cov[with_cov].index)
     if covered:
         page.figure(

@@ -9,11 +9,13 @@ straight segment across. Curves are styled as in :mod:`simbench.report.figures`.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
+from matplotlib.collections import LineCollection
 from matplotlib.colors import LogNorm
 from matplotlib.ticker import MaxNLocator
 from scipy import stats
@@ -21,23 +23,21 @@ from scipy import stats
 from simbench.report.figures import (
     PANEL_TITLE_Y,
     PNG_DPI,
-    SMALL_MULTIPLES_ABOVE,
     FigureFile,
     Format,
-    estimator_of,
     estimator_styles,
+    figsize,
     grid_axes,
-    plain_log_ticks,
+    log_ticks,
     save_figure,
+    style_record,
 )
-from simbench.report.style import by_family
+from simbench.report.style import REFERENCE_COLOR, line_only
 
 #: Degrees of freedom of the position NEES (east, north, up).
 NEES_DOF = 3
 #: Two-sided probability of the chi-square band a consistent estimator's NEES stays in.
 NEES_BAND = 0.95
-#: Panels per row of the small multiples.
-COLUMNS = 3
 
 
 def nees_band(dof: int = NEES_DOF, probability: float = NEES_BAND) -> tuple[float, float]:
@@ -57,69 +57,133 @@ def trajectory_figure(
     path: str | Path,
     title: str,
     formats: Sequence[Format] = ("png",),
+    order: Sequence[str] = (),
 ) -> FigureFile:
-    """Reference and estimated trajectories in local east/north.
-
-    Up to :data:`~simbench.report.figures.SMALL_MULTIPLES_ABOVE` estimators: one panel each, its
-    estimates coloured by horizontal error; beyond, one panel per family, each estimator a line in
-    its own style (colouring by error cannot tell overlapping estimators apart).
+    """Reference and estimated trajectories in local east/north, one small panel per estimator, each
+    estimate's line coloured by its horizontal error on one log scale; an unsolved epoch breaks the line.
 
     Parameters
     ----------
     epochs : pandas.DataFrame
-        One seed's ``epochs.parquet`` rows: ``estimator`` (curve name), ``east``, ``north``, ``horizontal`` [m].
+        One seed's ``epochs.parquet`` rows: ``estimator`` (curve name), ``epoch``, ``east``, ``north``,
+        ``horizontal`` [m].
     reference : pandas.DataFrame or None
-        The reference trajectory: ``east``, ``north`` [m] in the same local frame; None when the
-        scenario is not in the run's cache (then only the estimates are drawn).
+        The reference epochs: ``epoch``, ``east``, ``north`` [m] in the same local frame; None when the
+        scenario is not in the run's cache (then only the estimates are drawn, and only solved epochs
+        that follow each other are joined).
     path : path-like
         PNG to write (other formats beside it).
     title : str
         Caption for the report (not drawn).
     formats : sequence of str
+    order : sequence of str
+        Panel order (the leaderboard's); names not in it follow, sorted.
     """
-    names = sorted(epochs["estimator"].unique())
-    by_error = len(names) <= SMALL_MULTIPLES_ABOVE
-    panels = [(n, [n]) for n in names] if by_error else list(by_family({n: estimator_of(n) for n in names}).items())
-    fig, axes = grid_axes(len(panels), 3.2, 3.0, ncols=COLUMNS, sharex=True, sharey=True)
+    present = set(epochs["estimator"].unique())
+    names = [n for n in order if n in present] + sorted(present - set(order))
+    fig, axes = grid_axes(len(names), 1.9, 1.9, ncols=TRAJECTORY_COLUMNS, sharex=True, sharey=True)
     errors = epochs["horizontal"].to_numpy(float)
     positive = errors[np.isfinite(errors) & (errors > 0)]
     norm = LogNorm(vmin=max(positive.min(), 1e-2), vmax=max(positive.max(), 1e-1)) if positive.size else None
-    styles = estimator_styles(names)
-    scatter = None
-    for ax, (panel, members) in zip(axes, panels):
+    epochs_of = reference[["epoch"]] if reference is not None else None
+    lines = None
+    for ax, name in zip(axes, names):
         if reference is not None:
-            ax.plot(reference["east"], reference["north"], color="black", lw=0.8, label="reference")
-        for name in members:
-            rows = epochs[epochs["estimator"] == name].sort_values("epoch")
-            if by_error:
-                scatter = ax.scatter(
-                    rows["east"], rows["north"], c=rows["horizontal"], s=3, cmap="viridis", norm=norm, linewidths=0
-                )
-            else:
-                ax.plot(rows["east"], rows["north"], lw=0.8, label=name, **styles[name])
-        ax.set_title(panel, fontsize=8, y=PANEL_TITLE_Y)
-        if not by_error:
-            ax.legend(fontsize=6, loc="best")
+            ax.plot(reference["east"], reference["north"], color=REFERENCE_COLOR, lw=0.6)
+        rows = epochs[epochs["estimator"] == name].sort_values("epoch")
+        lines = ax.add_collection(error_segments(rows, epochs_of, norm))
+        ax.set_title(name, y=PANEL_TITLE_Y, fontsize="small")
         ax.set_aspect("equal", adjustable="box")
         ax.grid(True, alpha=0.3)
-        ax.tick_params(labelsize=7)
-        ax.set_xlabel("east [m]", fontsize=7)
-        ax.set_ylabel("north [m]", fontsize=7)
+        ax.set_xlabel("east [m]")
+        ax.set_ylabel("north [m]")
         ax.label_outer()  # shared axes: the outer panels carry the labels
-    if scatter is not None:
-        bar = fig.colorbar(scatter, ax=axes, shrink=0.8, label="horizontal error [m]")
-        plain_log_ticks(bar.ax.yaxis)
-    how = "estimates coloured by horizontal error" if by_error else "one panel per family"
+    for ax in axes:
+        ax.autoscale_view()
+    for ax in axes[-TRAJECTORY_COLUMNS:]:  # the last row, and a panel over an empty place, keep east labelled
+        ax.tick_params(labelbottom=True)
+        ax.set_xlabel("east [m]")
+    if lines is not None and norm is not None:
+        bar = fig.colorbar(lines, ax=axes, shrink=0.6, label="horizontal error [m]")
+        log_ticks(bar.ax.yaxis)
     return save_figure(
-        fig, path, f"{title} (black: reference; local east/north at the first reference point; {how})", formats
+        fig,
+        path,
+        f"{title} (black: reference; local east/north at the first reference point; each estimate coloured "
+        "by its horizontal error; gaps: epochs not solved)",
+        formats,
     )
 
 
-def enu_error_figure(
-    epochs: pd.DataFrame, reference: pd.DataFrame, path: str | Path, title: str, formats: Sequence[Format] = ("png",)
+#: Panels per row of the trajectory's small multiples.
+TRAJECTORY_COLUMNS = 6
+
+
+def error_segments(rows: pd.DataFrame, reference: pd.DataFrame | None, norm: LogNorm | None) -> LineCollection:
+    """One estimator's track as segments between solved epochs that follow each other, coloured by the
+    horizontal error of the later one: no segment crosses an unsolved epoch."""
+    if reference is not None:
+        rows = reference.merge(rows[["epoch", "east", "north", "horizontal"]], on="epoch", how="left")
+        follows = np.ones(max(len(rows) - 1, 0), bool)
+    else:  # without the reference epochs, a jump in the epoch index is a gap
+        follows = np.diff(rows["epoch"].to_numpy()) == 1
+    xy = rows[["east", "north"]].to_numpy(float)
+    ends = np.stack([xy[:-1], xy[1:]], axis=1)
+    keep = follows & np.isfinite(ends).all(axis=(1, 2))
+    lines = LineCollection(list(ends[keep]), cmap="viridis", norm=norm, linewidths=1.0)
+    lines.set_array(rows["horizontal"].to_numpy(float)[1:][keep])
+    return lines
+
+
+def altitude_figure(
+    epochs: pd.DataFrame,
+    reference: pd.DataFrame,
+    path: str | Path,
+    title: str,
+    formats: Sequence[Format] = ("png",),
+    order: Sequence[str] = (),
 ) -> FigureFile:
-    """East, north and up error against time: three stacked panels, one line per estimator; unsolved
-    epochs are gaps.
+    """Altitude (local up) against time: the reference and every estimate (legend in ``order``, the
+    leaderboard's), unsolved epochs as gaps.
+
+    Parameters
+    ----------
+    epochs : pandas.DataFrame
+        One seed's rows: ``estimator``, ``epoch``, ``up`` [m].
+    reference : pandas.DataFrame
+        The reference epochs: ``epoch``, ``t`` [s] and ``up`` [m] in the same local frame.
+    """
+    present = set(epochs["estimator"].unique())
+    names = [n for n in order if n in present] + sorted(present - set(order))
+    styles = estimator_styles(names)
+    fig, ax = plt.subplots(figsize=figsize(7.0, 3.0), dpi=PNG_DPI)
+    ax.plot(reference["t"], reference["up"], color=REFERENCE_COLOR, lw=1.4, label="reference")
+    for name in names:
+        rows = _on_reference(epochs[epochs["estimator"] == name], reference, ["up"])
+        ax.plot(rows["t"], rows["up"], lw=0.8, label=name, **line_only(styles[name]))
+    ax.set_xlabel("GPS time since the first epoch [s]")
+    ax.set_ylabel("up (local, from the first reference point) [m]")
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False, ncols=1 if len(names) <= 20 else 2)
+    return save_figure(fig, path, f"{title} (black: reference; gaps: epochs not solved)", formats)
+
+
+#: A reference whose local up spans more than this gets an altitude view [m]: a flight, not a drive.
+ALTITUDE_SPAN_M = 30.0
+
+
+def enu_error_figure(
+    epochs: pd.DataFrame,
+    reference: pd.DataFrame,
+    path: str | Path,
+    title: str,
+    formats: Sequence[Format] = ("png",),
+    order: Sequence[str] = (),
+) -> FigureFile:
+    """East, north and up error against time: three stacked panels, one line per estimator, the legend
+    in ``order`` (the leaderboard's); unsolved epochs are gaps. Each panel's scale holds the
+    :data:`ENU_CLIP_PERCENTILE` % of every estimator's errors nearest zero, so one estimator's spikes
+    do not flatten the others (the caption says how many epochs lie beyond).
 
     Parameters
     ----------
@@ -128,23 +192,40 @@ def enu_error_figure(
     reference : pandas.DataFrame
         The scenario's reference epochs: ``epoch`` and ``t`` (GPS time since the first epoch [s]).
     """
-    names = sorted(epochs["estimator"].unique())
+    present = set(epochs["estimator"].unique())
+    names = [n for n in order if n in present] + sorted(present - set(order))
     styles = estimator_styles(names)
-    fig, axes = plt.subplots(3, 1, figsize=(7.5, 5.4), dpi=PNG_DPI, sharex=True)
-    for name in names:
-        rows = _on_reference(epochs[epochs["estimator"] == name], reference, ["e", "n", "u"])
-        for ax, column in zip(axes, ("e", "n", "u")):
-            ax.plot(rows["t"], rows[column], lw=0.8, label=name, **styles[name])
-    for ax, label in zip(axes, ("east", "north", "up")):
-        ax.axhline(0.0, color="black", lw=0.5)
-        ax.set_ylabel(f"{label} error [m]", fontsize=8)
+    fig, axes = plt.subplots(3, 1, figsize=figsize(7.5, 5.4), dpi=PNG_DPI, sharex=True)
+    beyond = 0
+    for ax, column, label in zip(axes, ("e", "n", "u"), ("east", "north", "up")):
+        for name in reversed(names):  # the leaderboard's first drawn last, on top
+            rows = _on_reference(epochs[epochs["estimator"] == name], reference, [column])
+            ax.plot(rows["t"], rows[column], lw=0.8, label=name, **line_only(styles[name]))
+        values = np.abs(epochs[column].to_numpy(float))
+        values = values[np.isfinite(values)]
+        if values.size:
+            limit = 1.1 * max(float(np.percentile(values, ENU_CLIP_PERCENTILE)), 1e-2)
+            ax.set_ylim(-limit, limit)
+            beyond += int((values > limit).sum())
+        ax.axhline(0.0, color=REFERENCE_COLOR, lw=0.5)
+        ax.set_ylabel(f"{label} error [m]")
         ax.grid(True, alpha=0.3)
-        ax.tick_params(labelsize=7)
-    axes[-1].set_xlabel("GPS time since the first epoch [s]", fontsize=8)
+    axes[-1].set_xlabel("GPS time since the first epoch [s]")
+    handles, labels = axes[0].get_legend_handles_labels()
     axes[0].legend(
-        loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=7, frameon=False, ncols=1 if len(names) <= 20 else 2
+        handles[::-1],
+        labels[::-1],
+        loc="upper left",
+        bbox_to_anchor=(1.01, 1.0),
+        frameon=False,
+        ncols=1 + len(names) // 21,
     )
-    return save_figure(fig, path, f"{title} (gaps: epochs not solved)", formats)
+    clipped = f"; {beyond} epoch errors beyond the scale, cut off" if beyond else ""
+    return save_figure(fig, path, f"{title} (gaps: epochs not solved{clipped})", formats)
+
+
+#: The E/N/U error panels' scale holds this percentile of all estimators' absolute errors [%].
+ENU_CLIP_PERCENTILE = 99.0
 
 
 def signal_figure(
@@ -171,17 +252,17 @@ def signal_figure(
     fig, (sats, cn0, solved) = plt.subplots(
         3,
         1,
-        figsize=(7.0, 3.6 + 0.16 * len(names)),
+        figsize=figsize(7.0, 3.6 + 0.16 * len(names)),
         dpi=PNG_DPI,
         sharex=True,
         height_ratios=[1.0, 1.0, 0.3 + 0.08 * len(names)],
     )
     sats.step(signal["t"], signal["n_sats"], where="mid", lw=0.8, color="black")
-    sats.set_ylabel("satellites\ntracked", fontsize=7)
+    sats.set_ylabel("satellites\ntracked")
     sats.yaxis.set_major_locator(MaxNLocator(integer=True))
     cn0.fill_between(signal["t"], signal["cn0_p10"], signal["cn0_p90"], color="tab:blue", alpha=0.2, lw=0)
     cn0.plot(signal["t"], signal["cn0_p50"], lw=0.8, color="tab:blue")
-    cn0.set_ylabel("C/N0 [dB-Hz]\n(median, 10-90 %)", fontsize=7)
+    cn0.set_ylabel("C/N0 [dB-Hz]\n(median, 10-90 %)")
     styles = estimator_styles(names)
     t = reference["t"].to_numpy(float)
     step = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
@@ -192,17 +273,17 @@ def signal_figure(
         edges = np.flatnonzero(np.diff(np.r_[0, done.astype(np.int8), 0]))
         runs = [(t[a] - step / 2, t[b - 1] - t[a] + step) for a, b in zip(edges[::2], edges[1::2])]
         solved.broken_barh(runs, (row - 0.4, 0.8), color=styles[name]["color"])
-    solved.set_yticks(range(len(names)), names, fontsize=7)
+    solved.set_yticks(range(len(names)), names)
     solved.set_ylim(-0.6, len(names) - 0.4)
     solved.invert_yaxis()
-    solved.set_xlabel("GPS time since the first epoch [s]", fontsize=7)
+    solved.set_xlabel("GPS time since the first epoch [s]")
     for ax in (sats, cn0, solved):
         ax.grid(True, axis="x", alpha=0.3)
         ax.tick_params(labelsize=7)
     figure = save_figure(
         fig, path, f"{title} (satellites tracked, C/N0, and the epochs each estimator solved)", formats
     )
-    return FigureFile(figure.files, figure.title, tuple(names), figure.legend)
+    return replace(figure, series=tuple(names), styles=style_record({n: styles[n] for n in names}))
 
 
 def signal_per_epoch(observations: pd.DataFrame, reference: pd.DataFrame) -> pd.DataFrame:
@@ -252,23 +333,24 @@ def consistency_figure(
     """
     names = sorted(epochs["estimator"].unique())
     low, high = nees_band()
-    fig, ax = plt.subplots(figsize=(7.0, 3.2), dpi=PNG_DPI)
+    fig, ax = plt.subplots(figsize=figsize(7.0, 3.2), dpi=PNG_DPI)
     styles = estimator_styles(names)
     for name in names:
         rows = _on_reference(epochs[epochs["estimator"] == name], reference, ["nees"])
         values = rows["nees"].to_numpy(float)
         finite = values[np.isfinite(values)]
         inside = float(np.mean((finite >= low) & (finite <= high))) if finite.size else np.nan
-        ax.plot(rows["t"], values, lw=0.8, label=f"{name} ({inside:.0%} inside)".replace("%", " %"), **styles[name])
+        label = f"{name} ({inside:.0%} inside)".replace("%", " %")
+        ax.plot(rows["t"], values, lw=0.8, label=label, **line_only(styles[name]))
     ax.axhspan(low, high, color="tab:green", alpha=0.12, lw=0)
     for bound in (low, high):
         ax.axhline(bound, color="tab:green", lw=0.8, ls="--")
     ax.set_yscale("log")
-    plain_log_ticks(ax.yaxis)
+    log_ticks(ax.yaxis)
     ax.set_xlabel("GPS time since the first epoch [s]")
     ax.set_ylabel(f"position NEES (chi-square, {NEES_DOF} dof)")
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, loc="upper right")
+    ax.legend(loc="upper right")
     return save_figure(
         fig,
         path,

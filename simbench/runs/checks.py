@@ -29,6 +29,9 @@ from simbench.typed import to_typed
 ReportFormat = Literal["png", "pdf", "svg"]
 #: Every :data:`ReportFormat`, the values ``report.formats`` may list.
 REPORT_FORMATS: tuple[ReportFormat, ...] = ("png", "pdf", "svg")
+#: The figure size presets ``report.style`` may name (simbench.report.style.PRESETS): the page, a paper's
+#: single (3.5 in) or double (7 in) column.
+REPORT_STYLES = ("screen", "single", "double")
 
 
 def check_run(cfg: DictConfig) -> None:
@@ -49,6 +52,7 @@ def check_run(cfg: DictConfig) -> None:
     """
     check_results_dir(str(cfg.results_dir))
     check_report_formats(OmegaConf.select(cfg, "report.formats", default=None))
+    check_report_style(OmegaConf.select(cfg, "report.style", default=None))
     check_seed(OmegaConf.select(cfg, "seed", default=0))
     progress = OmegaConf.select(cfg, "progress", default=True)
     if not isinstance(progress, bool):
@@ -110,6 +114,15 @@ def check_report_formats(formats: Sequence[str] | str | None) -> None:
     unknown = [str(f) for f in formats if f not in REPORT_FORMATS]
     if unknown:
         raise SimbenchError("report.formats", f"unknown {', '.join(unknown)}", f"choose from {allowed}")
+
+
+def check_report_style(style: str | None) -> None:
+    """Raise a one-line :class:`SimbenchError` unless ``style`` (``report.style``; None: absent) is one of
+    :data:`REPORT_STYLES`."""
+    if style is not None and style not in REPORT_STYLES:
+        raise SimbenchError(
+            "report.style", f"is '{style}', not one of {', '.join(REPORT_STYLES)}", "e.g. report.style=double"
+        )
 
 
 def check_results_dir(path: str) -> None:
