@@ -210,32 +210,102 @@ class EkfPpp(Estimator):
         -------
         EkfTrack
         """
-        cfg: EkfPppConfig = self.config
-        assert obs.system_index is not None  # prepare_ppp always sets it
-        n_slots = len(obs.sat_names) if obs.n_arcs else 0
-        # slant-ionosphere slots follow the bias slots, one per satellite, reset with the arc
-        n_iono = n_slots if cfg.estimate_iono and obs.broadcast_ionosphere else 0
-        iono0 = N_BASE_STATES + n_slots
-        # one receiver clock offset per further GNSS system (inter-system bias, random walk), last
-        isb0 = N_BASE_STATES + n_slots + n_iono
-        # constant velocity: ECEF velocity and clock drift after everything else
-        cv = cfg.motion_model == MotionModel.constant_velocity
-        vel0 = isb0 + obs.n_isb
-        drift = vel0 + 3
-        nx = vel0 + (4 if cv else 0)
-        doppler = cv and obs.range_rate is not None and bool(np.isfinite(obs.range_rate).any())
-        odometry = obs.odometry if cv and cfg.use_odometry else None
-        kf = ExtendedKalmanFilter(dim_x=nx, dim_z=1)
+        f = EkfPass(self.config, obs, wet if wet is not None else wet_delay_choice(obs, self.config))
+        n = obs.n_epochs
+        pos_out, pos_cov = np.empty((n, 3)), np.empty((n, 3, 3))
+        vel_out = np.empty((n, 3)) if f.layout.cv else None
+        update_s = np.empty(n)
+        t_prev = obs.epoch_t[0]
+        for k, rows in obs.iter_epochs():
+            tic = time.perf_counter()
+            f.predict(k, rows, obs.epoch_t[k] - t_prev)
+            t_prev = obs.epoch_t[k]
+            epoch = f.epoch_rows(rows)
+            f.update_code(epoch)
+            f.update_phase(epoch)
+            f.update_doppler(rows)
+            if anchor is not None:
+                f.guard(anchor.pos[k], anchor.pos_cov[k])
+            pos_out[k], pos_cov[k] = f.kf.x[_POS], f.kf.P[_POS, _POS]
+            if vel_out is not None:  # constant velocity
+                vel_out[k] = f.kf.x[f.layout.vel0 : f.layout.drift]
+            update_s[k] = time.perf_counter() - tic
+        return EkfTrack(pos_out, pos_cov, vel_out, update_s, f.diagnostics())
 
-        # ---- initialisation from a single point solution at the first epoch, or the nearest
-        # trusted one among the first few (an NLOS-ridden fix, or fewer than 4 satellites), or
-        # among all when none of those is
-        all_k = obs.row_epoch
+
+@dataclass(frozen=True)
+class StateLayout:
+    """Where each state sits in the filter's vector: the base states (:data:`N_BASE_STATES`), one phase
+    bias slot per satellite, a slant-ionosphere slot per satellite (when estimated), one clock offset
+    per further GNSS system, then (constant velocity) ECEF velocity and clock drift."""
+
+    n_slots: int  #: bias slots (one per satellite when there is phase)
+    n_iono: int  #: slant-ionosphere slots
+    iono0: int  #: first ionosphere slot
+    isb0: int  #: first inter-system clock offset
+    vel0: int  #: first velocity state
+    drift: int  #: clock drift state
+    nx: int  #: state dimension
+    cv: bool  #: constant-velocity motion model
+
+    @classmethod
+    def of(cls, obs: PppObservations, cfg: EkfPppConfig) -> StateLayout:
+        n_slots = len(obs.sat_names) if obs.n_arcs else 0
+        n_iono = n_slots if cfg.estimate_iono and obs.broadcast_ionosphere else 0
+        isb0 = N_BASE_STATES + n_slots + n_iono
+        vel0 = isb0 + obs.n_isb
+        cv = cfg.motion_model == MotionModel.constant_velocity
+        return cls(n_slots, n_iono, N_BASE_STATES + n_slots, isb0, vel0, vel0 + 3, vel0 + (4 if cv else 0), cv)
+
+
+@dataclass(frozen=True)
+class EpochRows:
+    """One epoch's rows as the measurement updates use them (after new arcs got their slots)."""
+
+    rows: slice
+    hydro: np.ndarray  #: hydrostatic delay per row [m]
+    m_w: np.ndarray  #: wet mapping function per row
+    isb_rows: np.ndarray  #: rows of a further system
+    isb_cols: np.ndarray  #: their clock-offset state
+    slots: np.ndarray  #: bias slot per row (phase rows)
+    has_phase: np.ndarray  #: rows with phase, bool
+    fresh: np.ndarray  #: rows whose arc starts here, bool
+
+
+class EkfPass:
+    """One pass of the filter over prepared observations, in filterpy's steps: :meth:`predict`, then the
+    code, phase and Doppler updates of an epoch, and the phase guard (:meth:`EkfPpp.run` sequences them).
+
+    Parameters
+    ----------
+    cfg : EkfPppConfig
+    obs : PppObservations
+    wet : WetDelayChoice
+        The resolved ``wet_delay``: ``model`` holds the modelled wet delay, which nothing then moves.
+    """
+
+    def __init__(self, cfg: EkfPppConfig, obs: PppObservations, wet: WetDelayChoice) -> None:
+        assert obs.system_index is not None  # prepare_ppp always sets it
+        self.cfg, self.obs, self.wet = cfg, obs, wet
+        self.layout = lay = StateLayout.of(obs, cfg)
+        self.doppler = lay.cv and obs.range_rate is not None and bool(np.isfinite(obs.range_rate).any())
+        self.odometry = obs.odometry if lay.cv and cfg.use_odometry else None
+        self.kf = ExtendedKalmanFilter(dim_x=lay.nx, dim_z=1)
+        self.slot_arc = np.full(lay.n_slots, -1, np.int64)  # arc currently held by each slot
+        self.arc_bias = np.full(obs.n_arcs, np.nan)  # final bias estimate of each arc [m]
+        self.n_doppler = self.n_odometry = self.n_resets = self.n_fallbacks = 0
+        self.estimate_zwd = wet.mode == WetDelayMode.estimate
+        self._initialise()
+
+    def _first_fix(self) -> tuple[Any, slice]:
+        """A single point solution at the first epoch, or the nearest trusted one among the first few (an
+        NLOS-ridden fix, or fewer than 4 satellites), or among all when none of those is; and its rows."""
+        obs = self.obs
+        assert obs.system_index is not None
         for rows in (slice(0, int(obs.epoch_stop[min(obs.n_epochs, _INIT_EPOCHS) - 1])), slice(None)):
-            row_k = all_k[rows]
             try:
                 fix = solve_epochs(
-                    row_k,
+                    obs.row_epoch[rows],
                     obs.sat_pos[rows],
                     obs.code[rows],
                     sigma=obs.sigma_code[rows],
@@ -244,16 +314,24 @@ class EkfPpp(Estimator):
                     system_index=obs.system_index[rows],
                     fill_untrusted=True,
                 )
-                break
+                return fix, rows
             except SimbenchError:  # no trusted fix among the first epochs: search them all
                 if rows == slice(None):
                     raise
-        pos0, clock0 = fix.pos[0], float(fix.clock_m[0, 0])
+        raise AssertionError("unreachable")  # the last attempt returns or raises
+
+    def _initialise(self) -> None:
+        """State and covariance at the first epoch, from the first fix."""
+        cfg, obs, lay = self.cfg, self.obs, self.layout
+        assert obs.system_index is not None
+        fix, rows = self._first_fix()
+        row_k = obs.row_epoch[rows]
+        pos0 = fix.pos[0]
         lat0, _, h0 = geodetic_from_ecef(pos0)
-        x = np.zeros(nx)
-        x[_POS], x[_CLK] = pos0, clock0
-        x[isb0:vel0] = system_clock_offsets(fix, row_k, obs.system_index[rows])
-        if doppler:
+        x = np.zeros(lay.nx)
+        x[_POS], x[_CLK] = pos0, float(fix.clock_m[0, 0])
+        x[lay.isb0 : lay.vel0] = system_clock_offsets(fix, row_k, obs.system_index[rows])
+        if self.doppler:
             assert obs.range_rate is not None and obs.sat_vel is not None  # Doppler rows come with both
             # the drift of a receiver clock can be anything up to km/s: start at the first Doppler fix
             _, drift_fix = doppler_velocities(
@@ -265,225 +343,170 @@ class EkfPpp(Estimator):
                 cfg.doppler_sigma_mps * obs.sigma_scale[rows],
             )
             known = np.isfinite(drift_fix)
-            x[drift] = drift_fix[np.argmax(known)] if known.any() else 0.0
-        p_diag = np.full(nx, cfg.ambiguity_sigma_m**2)
+            x[lay.drift] = drift_fix[np.argmax(known)] if known.any() else 0.0
+        p_diag = np.full(lay.nx, cfg.ambiguity_sigma_m**2)
         p_diag[_POS] = cfg.pos_sigma_m**2
         p_diag[_CLK] = cfg.clock_sigma_m**2
-        # wet_delay resolved to model: the state holds the modelled wet delay, which nothing then moves
-        wet = wet if wet is not None else wet_delay_choice(obs, cfg)
-        estimate_zwd = wet.mode == WetDelayMode.estimate
-        p_diag[_ZWD] = cfg.zwd_sigma_m**2 if estimate_zwd else 0.0
-        x[_ZWD] = zenith_wet_delay_m(wet.mode, float(lat0), float(h0), obs.doy)
-        p_diag[iono0:] = cfg.iono_sigma_m**2
-        p_diag[isb0:vel0] = cfg.isb_sigma_m**2
-        if cv:
-            p_diag[vel0:drift] = cfg.vel_sigma_mps**2
-            p_diag[drift] = cfg.drift_sigma_mps**2
-        kf.x = x
-        kf.P = np.diag(p_diag)
+        p_diag[_ZWD] = cfg.zwd_sigma_m**2 if self.estimate_zwd else 0.0
+        x[_ZWD] = zenith_wet_delay_m(self.wet.mode, float(lat0), float(h0), obs.doy)
+        p_diag[lay.iono0 :] = cfg.iono_sigma_m**2
+        p_diag[lay.isb0 : lay.vel0] = cfg.isb_sigma_m**2
+        if lay.cv:
+            p_diag[lay.vel0 : lay.drift] = cfg.vel_sigma_mps**2
+            p_diag[lay.drift] = cfg.drift_sigma_mps**2
+        self.kf.x = x
+        self.kf.P = np.diag(p_diag)
 
-        slot_arc = np.full(n_slots, -1, np.int64)  # arc currently held by each slot
-        amb_var = cfg.ambiguity_sigma_m**2
-        q_pos, q_clk = cfg.pos_rw_m_rts**2, cfg.clock_noise_m_rts**2
-        q_zwd = cfg.zwd_rw_m_rts**2 if estimate_zwd else 0.0
-        q_iono, iono_var = cfg.iono_rw_m_rts**2, cfg.iono_sigma_m**2
-        iono_diag = np.arange(iono0, isb0)
-        isb_diag = np.arange(isb0, vel0)
-        q_isb = cfg.isb_rw_m_rts**2
-        white_clock = cfg.clock_model == ClockModel.white
+    def predict(self, k: int, rows: slice, dt: float) -> None:
+        """Time update over ``dt`` seconds to epoch ``k`` (identity transition; constant velocity:
+        position += velocity dt, with epoch ``k``'s mean wheel odometry applied at mid-interval)."""
+        cfg, lay, kf = self.cfg, self.layout, self.kf
         diag = np.arange(3)
-        vel_diag = vel0 + diag
-        q_acc, q_drift = cfg.accel_sigma_mps2_rts**2, cfg.drift_rw_mps_rts**2
-        rw_clock_drift = cv and not white_clock
-
-        n = obs.n_epochs
-        pos_out = np.empty((n, 3))
-        pos_cov = np.empty((n, 3, 3))
-        vel_out = np.empty((n, 3)) if cv else None
-        n_doppler = n_odometry = 0
-        update_s = np.empty(n)
-        n_resets = n_fallbacks = 0
-        arc_bias = np.full(obs.n_arcs, np.nan)  # final bias estimate of each arc [m]
-        arc_sat = np.empty(obs.n_arcs, dtype=object)
-        arc_sat[obs.arc[obs.has_phase]] = obs.sat[obs.has_phase]
-        t_prev = obs.epoch_t[0]
-        for k, rows in obs.iter_epochs():
-            tic = time.perf_counter()
-            # ---- time update (identity transition; constant velocity: position += velocity dt)
-            dt = obs.epoch_t[k] - t_prev
-            t_prev = obs.epoch_t[k]
-            if dt > 0 and cv:
-                if odometry is not None and np.isfinite(odometry[k, 0]):
-                    # the mean speed since the previous epoch is the speed at mid-interval (for a
-                    # steady acceleration): update there, halfway through the exact time update
-                    _advance(kf, diag, vel_diag, dt / 2.0, q_acc)
-                    with_doppler = obs.range_rate is not None and bool(np.isfinite(obs.range_rate[rows]).any())
-                    n_odometry += self._odometry_update(kf, odometry[k], vel0, with_doppler)
-                    _advance(kf, diag, vel_diag, dt / 2.0, q_acc)
-                else:
-                    _advance(kf, diag, vel_diag, dt, q_acc)
-                kf.P[drift, drift] += q_drift * dt
-                if rw_clock_drift:
-                    _advance(kf, np.array([_CLK]), np.array([drift]), dt, q_drift)
-            P = kf.P  # after the odometry update, which replaces the array
-            if dt > 0:
-                if not cv:
-                    P[diag, diag] += q_pos * dt
-                P[_ZWD, _ZWD] += q_zwd * dt
-                P[iono_diag, iono_diag] += q_iono * dt
-                P[isb_diag, isb_diag] += q_isb * dt
-                if white_clock:
-                    P[_CLK, :] = 0.0
-                    P[:, _CLK] = 0.0
-                    P[_CLK, _CLK] = q_clk * dt
-                else:
-                    P[_CLK, _CLK] += q_clk * dt
-
-            sat_pos, el = obs.sat_pos[rows], obs.el[rows]
-            lat, _, h = geodetic_from_ecef(kf.x[_POS])
-            hydro, m_w = troposphere_terms(el, lat, h, obs.doy)  # once per epoch (insensitive to metres)
-            m = len(el)
-            H = np.zeros((m, nx))
-            rng_m = np.arange(m)
-            if obs.n_isb:
-                sys_k = obs.system_index[rows]
-                other = np.flatnonzero(sys_k > 0)
-                H[other, isb0 + sys_k[other] - 1] = 1.0
-
-            if n_slots:
-                # ---- new arcs get fresh bias and ionosphere slots, no correlations; the bias mean is
-                # set after the code update (below)
-                slots = obs.sat_index[rows]
-                arcs = obs.arc[rows]
-                has_phase = arcs >= 0
-                fresh = has_phase & (slot_arc[slots] != arcs)
-                if fresh.any():
-                    idx = N_BASE_STATES + slots[fresh]
-                    ended = slot_arc[slots[fresh]]
-                    arc_bias[ended[ended >= 0]] = kf.x[idx[ended >= 0]]
-                    _reset(kf, idx, 0.0, amb_var)
-                    if n_iono:
-                        _reset(kf, iono0 + slots[fresh], 0.0, iono_var)
-                    slot_arc[slots[fresh]] = arcs[fresh]
-                    n_resets += int(fresh.sum())
-
-            # ---- code update
-            pred, H5 = predict_given_troposphere(sat_pos, kf.x[_POS], kf.x[_CLK], kf.x[_ZWD], hydro, m_w)
-            H[:, :N_BASE_STATES] = H5
-            if n_iono:
-                # the slant ionosphere of a row without phase is not separable from its code
-                H[rng_m[has_phase], iono0 + slots[has_phase]] = 1.0
-                pred = pred + np.where(has_phase, kf.x[iono0 + slots], 0.0)
-            if obs.n_isb:
-                pred[other] += kf.x[isb0 + sys_k[other] - 1]
-            if white_clock:
-                # a white clock keeps nothing from the last epoch: centre it on this epoch's code, so a
-                # receiver that holds its clock within a millisecond by jumps (u-blox: 300-2100 km, a
-                # thousand sigma of the clock's 2 km) leaks no metres into the position
-                shift = float(np.median(obs.code[rows] - pred))
-                kf.x[_CLK] += shift
-                pred += shift
-            kf.update(obs.code[rows], _const(H), _const(pred), R=np.diag(obs.sigma_code[rows] ** 2))
-
-            if n_slots and has_phase.any():
-                # ---- phase update of the rows with phase, relinearised at the code-updated state
-                pred, H5 = predict_given_troposphere(sat_pos, kf.x[_POS], kf.x[_CLK], kf.x[_ZWD], hydro, m_w)
-                H[:, :N_BASE_STATES] = H5
-                H[rng_m, N_BASE_STATES + slots] = 1.0
-                pred = pred + kf.x[N_BASE_STATES + slots]
-                if n_iono:
-                    H[rng_m, iono0 + slots] = -1.0
-                    pred = pred - kf.x[iono0 + slots]
-                if obs.n_isb:
-                    pred[other] += kf.x[isb0 + sys_k[other] - 1]
-                # a new arc's bias starts at its phase minus the code-updated prediction, so its first
-                # phase moves nothing (a diffuse prior, whatever the clock or the position did since
-                # the last epoch); before the code update a 60-100 m clock change sat in the new bias
-                new_bias = obs.phase[rows][fresh] - pred[fresh]
-                kf.x[N_BASE_STATES + slots[fresh]] = new_bias
-                pred[fresh] += new_bias
-                kf.update(
-                    obs.phase[rows][has_phase],
-                    _const(H[has_phase]),
-                    _const(pred[has_phase]),
-                    R=np.diag(obs.sigma_phase[rows][has_phase] ** 2),
+        white_clock = cfg.clock_model == ClockModel.white
+        if dt > 0 and lay.cv:
+            q_acc, q_drift = cfg.accel_sigma_mps2_rts**2, cfg.drift_rw_mps_rts**2
+            vel_diag = lay.vel0 + diag
+            if self.odometry is not None and np.isfinite(self.odometry[k, 0]):
+                # the mean speed since the previous epoch is the speed at mid-interval (for a
+                # steady acceleration): update there, halfway through the exact time update
+                _advance(kf, diag, vel_diag, dt / 2.0, q_acc)
+                rr = self.obs.range_rate
+                self.n_odometry += self.update_odometry(
+                    self.odometry[k], with_doppler=rr is not None and bool(np.isfinite(rr[rows]).any())
                 )
+                _advance(kf, diag, vel_diag, dt / 2.0, q_acc)
+            else:
+                _advance(kf, diag, vel_diag, dt, q_acc)
+            kf.P[lay.drift, lay.drift] += q_drift * dt
+            if not white_clock:
+                _advance(kf, np.array([_CLK]), np.array([lay.drift]), dt, q_drift)
+        P = kf.P  # after the odometry update, which replaces the array
+        if dt > 0:
+            if not lay.cv:
+                P[diag, diag] += cfg.pos_rw_m_rts**2 * dt
+            P[_ZWD, _ZWD] += (cfg.zwd_rw_m_rts**2 if self.estimate_zwd else 0.0) * dt
+            iono_diag, isb_diag = np.arange(lay.iono0, lay.isb0), np.arange(lay.isb0, lay.vel0)
+            P[iono_diag, iono_diag] += cfg.iono_rw_m_rts**2 * dt
+            P[isb_diag, isb_diag] += cfg.isb_rw_m_rts**2 * dt
+            if white_clock:
+                P[_CLK, :] = 0.0
+                P[:, _CLK] = 0.0
+                P[_CLK, _CLK] = cfg.clock_noise_m_rts**2 * dt
+            else:
+                P[_CLK, _CLK] += cfg.clock_noise_m_rts**2 * dt
 
-            if doppler:
-                n_doppler += self._doppler_update(kf, obs, rows, vel0, drift)
+    def epoch_rows(self, rows: slice) -> EpochRows:
+        """The epoch's troposphere terms at the predicted position (once per epoch: insensitive to
+        metres) and its arcs; new arcs get fresh bias and ionosphere slots, no correlations (the bias
+        mean is set after the code update, :meth:`update_phase`)."""
+        obs, lay, kf = self.obs, self.layout, self.kf
+        assert obs.system_index is not None
+        lat, _, h = geodetic_from_ecef(kf.x[_POS])
+        hydro, m_w = troposphere_terms(obs.el[rows], lat, h, obs.doy)
+        sys_k = obs.system_index[rows]
+        isb_rows = np.flatnonzero(sys_k > 0) if obs.n_isb else np.zeros(0, np.int64)
+        isb_cols = lay.isb0 + sys_k[isb_rows] - 1
+        none = np.zeros(len(sys_k), bool)
+        if not lay.n_slots:
+            return EpochRows(rows, hydro, m_w, isb_rows, isb_cols, np.zeros(0, np.int64), none, none)
+        slots, arcs = obs.sat_index[rows], obs.arc[rows]
+        has_phase = arcs >= 0
+        fresh = has_phase & (self.slot_arc[slots] != arcs)
+        if fresh.any():
+            idx = N_BASE_STATES + slots[fresh]
+            ended = self.slot_arc[slots[fresh]]
+            self.arc_bias[ended[ended >= 0]] = kf.x[idx[ended >= 0]]
+            _reset(kf, idx, 0.0, self.cfg.ambiguity_sigma_m**2)
+            if lay.n_iono:
+                _reset(kf, lay.iono0 + slots[fresh], 0.0, self.cfg.iono_sigma_m**2)
+            self.slot_arc[slots[fresh]] = arcs[fresh]
+            self.n_resets += int(fresh.sum())
+        return EpochRows(rows, hydro, m_w, isb_rows, isb_cols, slots, has_phase, fresh)
 
-            if anchor is not None:
-                d = kf.x[_POS] - anchor.pos[k]
-                if float(d @ np.linalg.solve(anchor.pos_cov[k], d)) > GUARD_CHI2:
-                    # the phase holds a position the code refutes (an NLOS phase baked into the
-                    # arcs' biases): fall back to the code filter and restart every arc
-                    kf.x[_POS] = anchor.pos[k]
-                    kf.P[_POS, :] = 0.0
-                    kf.P[:, _POS] = 0.0
-                    kf.P[_POS, _POS] = anchor.pos_cov[k]
-                    slot_arc[:] = -1
-                    n_fallbacks += 1
-            pos_out[k] = kf.x[_POS]
-            pos_cov[k] = kf.P[_POS, _POS]
-            if vel_out is not None:  # constant velocity
-                vel_out[k] = kf.x[vel0:drift]
-            update_s[k] = time.perf_counter() - tic
+    def _predicted_ranges(self, e: EpochRows) -> tuple[np.ndarray, np.ndarray]:
+        """Each row's predicted code range at the current state and its Jacobian (base states and
+        inter-system offsets; the caller adds slots)."""
+        kf = self.kf
+        pred, H5 = predict_given_troposphere(
+            self.obs.sat_pos[e.rows], kf.x[_POS], kf.x[_CLK], kf.x[_ZWD], e.hydro, e.m_w
+        )
+        H = np.zeros((len(pred), self.layout.nx))
+        H[:, :N_BASE_STATES] = H5
+        H[e.isb_rows, e.isb_cols] = 1.0
+        return pred, H
 
-        held = slot_arc >= 0
-        arc_bias[slot_arc[held]] = kf.x[N_BASE_STATES + np.flatnonzero(held)]
-        diagnostics = {
-            "n_epochs": int(n),
-            "n_observations": int(obs.n_obs),
-            "n_satellites": len(obs.sat_names),
-            "n_arcs": int(obs.n_arcs),
-            "n_ambiguity_resets": n_resets,
-            "n_phase_fallbacks": n_fallbacks,
-            **obs.model_info(),
-            **wet.info(),
-            "iono_states": bool(n_iono),
-            "inter_system_bias_m": {s: float(kf.x[isb0 + k]) for k, s in enumerate(obs.systems[1:])},
-            "arc_sat": [str(v) for v in arc_sat] if n_slots else [],
-            "arc_bias_m": [float(v) for v in arc_bias] if n_slots else [],
-            "final_clock_m": float(kf.x[_CLK]),
-            "final_zwd_m": float(kf.x[_ZWD]),
-            "final_pos_sigma_m": [float(s) for s in np.sqrt(np.diag(kf.P)[_POS])],
-            "motion_model": MotionModel(cfg.motion_model).value,
-            "n_doppler_updates": n_doppler,
-            "n_odometry_updates": n_odometry,
-            "config": asdict(cfg),
-        }
-        if cv:
-            diagnostics["final_clock_drift_mps"] = float(kf.x[drift])
-        return EkfTrack(pos_out, pos_cov, vel_out, update_s, diagnostics)
+    def update_code(self, e: EpochRows) -> None:
+        """Code update of every row of the epoch."""
+        obs, lay, kf = self.obs, self.layout, self.kf
+        pred, H = self._predicted_ranges(e)
+        if lay.n_iono:
+            # the slant ionosphere of a row without phase is not separable from its code
+            H[np.flatnonzero(e.has_phase), lay.iono0 + e.slots[e.has_phase]] = 1.0
+            pred = pred + np.where(e.has_phase, kf.x[lay.iono0 + e.slots], 0.0)
+        pred[e.isb_rows] += kf.x[e.isb_cols]
+        if self.cfg.clock_model == ClockModel.white:
+            # a white clock keeps nothing from the last epoch: centre it on this epoch's code, so a
+            # receiver that holds its clock within a millisecond by jumps (u-blox: 300-2100 km, a
+            # thousand sigma of the clock's 2 km) leaks no metres into the position
+            shift = float(np.median(obs.code[e.rows] - pred))
+            kf.x[_CLK] += shift
+            pred += shift
+        kf.update(obs.code[e.rows], _const(H), _const(pred), R=np.diag(obs.sigma_code[e.rows] ** 2))
 
-    def _doppler_update(
-        self, kf: ExtendedKalmanFilter, obs: PppObservations, rows: slice, vel0: int, drift: int
-    ) -> int:
-        """Range-rate update with the epoch's Doppler rows; returns the number of rows used."""
-        assert obs.range_rate is not None and obs.sat_vel is not None  # called with Doppler rows only
+    def update_phase(self, e: EpochRows) -> None:
+        """Phase update of the rows with phase, relinearised at the code-updated state."""
+        if not (self.layout.n_slots and e.has_phase.any()):
+            return
+        obs, lay, kf = self.obs, self.layout, self.kf
+        pred, H = self._predicted_ranges(e)
+        every = np.arange(len(pred))
+        H[every, N_BASE_STATES + e.slots] = 1.0
+        pred = pred + kf.x[N_BASE_STATES + e.slots]
+        if lay.n_iono:
+            H[every, lay.iono0 + e.slots] = -1.0
+            pred = pred - kf.x[lay.iono0 + e.slots]
+        pred[e.isb_rows] += kf.x[e.isb_cols]
+        # a new arc's bias starts at its phase minus the code-updated prediction, so its first
+        # phase moves nothing (a diffuse prior, whatever the clock or the position did since
+        # the last epoch); before the code update a 60-100 m clock change sat in the new bias
+        new_bias = obs.phase[e.rows][e.fresh] - pred[e.fresh]
+        kf.x[N_BASE_STATES + e.slots[e.fresh]] = new_bias
+        pred[e.fresh] += new_bias
+        use = e.has_phase
+        kf.update(
+            obs.phase[e.rows][use], _const(H[use]), _const(pred[use]), R=np.diag(obs.sigma_phase[e.rows][use] ** 2)
+        )
+
+    def update_doppler(self, rows: slice) -> None:
+        """Range-rate update with the epoch's Doppler rows (constant velocity with Doppler only)."""
+        if not self.doppler:
+            return
+        obs, lay, kf = self.obs, self.layout, self.kf
+        assert obs.range_rate is not None and obs.sat_vel is not None  # self.doppler: both there
         rr = obs.range_rate[rows]
         use = np.isfinite(rr)
         if not use.any():
-            return 0
-        pos, vel = kf.x[_POS], kf.x[vel0:drift]
+            return
+        pos, vel = kf.x[_POS], kf.x[lay.vel0 : lay.drift]
         rdot, d_pos, d_vel = range_rate(obs.sat_pos[rows][use], obs.sat_vel[rows][use], pos, vel)
         H = np.zeros((int(use.sum()), kf.dim_x))
-        H[:, _POS], H[:, vel0:drift], H[:, drift] = d_pos, d_vel, 1.0
-        sigma = self.config.doppler_sigma_mps * obs.sigma_scale[rows][use]
-        kf.update(rr[use], _const(H), _const(rdot + kf.x[drift]), R=np.diag(sigma**2))
-        return int(use.sum())
+        H[:, _POS], H[:, lay.vel0 : lay.drift], H[:, lay.drift] = d_pos, d_vel, 1.0
+        sigma = self.cfg.doppler_sigma_mps * obs.sigma_scale[rows][use]
+        kf.update(rr[use], _const(H), _const(rdot + kf.x[lay.drift]), R=np.diag(sigma**2))
+        self.n_doppler += int(use.sum())
 
-    def _odometry_update(self, kf: ExtendedKalmanFilter, sample: np.ndarray, vel0: int, with_doppler: bool) -> int:
-        """Wheel-speed update of the velocity (one epoch's mean odometry ``sample``:
-        speed, yaw rate and their variances); the non-holonomic row only ``with_doppler`` (the
+    def update_odometry(self, sample: np.ndarray, with_doppler: bool) -> int:
+        """Wheel-speed update of the velocity (one epoch's mean odometry ``sample``, the columns of
+        :data:`~estimators.measurement.EPOCH_ODOMETRY`); the non-holonomic row only ``with_doppler`` (the
         epoch has range rates, which measure the direction it is taken along); returns 1 when an
         update was made."""
+        kf, vel0 = self.kf, self.layout.vel0
         speed, _, var_speed, _, right, down, var_right, var_down = sample
         east, north, up = enu_basis(kf.x[_POS])
         vel = kf.x[vel0 : vel0 + 3]
         sig_s = float(np.sqrt(max(var_speed, MIN_ODOMETRY_VARIANCE)))
         # the reported vertical velocity, else none beyond the road grade (loosely at rest, see the config)
-        vertical = self.config.vertical_velocity(speed, sig_s, down, var_down)
+        vertical = self.cfg.vertical_velocity(speed, sig_s, down, var_down)
         if abs(speed) < STANDSTILL_MPS:
             # wheels at rest: no horizontal velocity
             rows, z = np.vstack([east, north, up]), np.array([0.0, 0.0, vertical.value])
@@ -496,13 +519,59 @@ class EkfPpp(Estimator):
                 along = horizontal / moving
                 rows, z, sigma = np.vstack([rows, along]), np.r_[z, abs(speed)], np.r_[sigma, sig_s]
                 if with_doppler:
-                    left = self.config.left_velocity(right, var_right)
+                    left = self.cfg.left_velocity(right, var_right)
                     rows = np.vstack([rows, np.cross(up, along)])
                     z, sigma = np.r_[z, left.value], np.r_[sigma, left.sigma]
         H = np.zeros((len(rows), kf.dim_x))
         H[:, vel0 : vel0 + 3] = rows
         kf.update(z, _const(H), _const(H @ kf.x), R=np.diag(sigma**2))
         return 1
+
+    def guard(self, anchor_pos: np.ndarray, anchor_cov: np.ndarray) -> None:
+        """The phase guard: where the position departs from the code filter's (``anchor_pos``,
+        ``anchor_cov``) beyond :data:`GUARD_CHI2`, the phase holds a position the code refutes (an NLOS
+        phase baked into the arcs' biases): fall back to the code filter and restart every arc."""
+        kf = self.kf
+        d = kf.x[_POS] - anchor_pos
+        if float(d @ np.linalg.solve(anchor_cov, d)) > GUARD_CHI2:
+            kf.x[_POS] = anchor_pos
+            kf.P[_POS, :] = 0.0
+            kf.P[:, _POS] = 0.0
+            kf.P[_POS, _POS] = anchor_cov
+            self.slot_arc[:] = -1
+            self.n_fallbacks += 1
+
+    def diagnostics(self) -> dict[str, Any]:
+        """Counts and final state values of the pass (after its last epoch)."""
+        cfg, obs, lay, kf = self.cfg, self.obs, self.layout, self.kf
+        held = self.slot_arc >= 0
+        self.arc_bias[self.slot_arc[held]] = kf.x[N_BASE_STATES + np.flatnonzero(held)]
+        arc_sat = np.empty(obs.n_arcs, dtype=object)
+        arc_sat[obs.arc[obs.has_phase]] = obs.sat[obs.has_phase]
+        diagnostics = {
+            "n_epochs": int(obs.n_epochs),
+            "n_observations": int(obs.n_obs),
+            "n_satellites": len(obs.sat_names),
+            "n_arcs": int(obs.n_arcs),
+            "n_ambiguity_resets": self.n_resets,
+            "n_phase_fallbacks": self.n_fallbacks,
+            **obs.model_info(),
+            **self.wet.info(),
+            "iono_states": bool(lay.n_iono),
+            "inter_system_bias_m": {s: float(kf.x[lay.isb0 + k]) for k, s in enumerate(obs.systems[1:])},
+            "arc_sat": [str(v) for v in arc_sat] if lay.n_slots else [],
+            "arc_bias_m": [float(v) for v in self.arc_bias] if lay.n_slots else [],
+            "final_clock_m": float(kf.x[_CLK]),
+            "final_zwd_m": float(kf.x[_ZWD]),
+            "final_pos_sigma_m": [float(s) for s in np.sqrt(np.diag(kf.P)[_POS])],
+            "motion_model": MotionModel(cfg.motion_model).value,
+            "n_doppler_updates": self.n_doppler,
+            "n_odometry_updates": self.n_odometry,
+            "config": asdict(cfg),
+        }
+        if lay.cv:
+            diagnostics["final_clock_drift_mps"] = float(kf.x[lay.drift])
+        return diagnostics
 
 
 def code_only(obs: PppObservations) -> PppObservations:
