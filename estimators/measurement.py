@@ -43,6 +43,7 @@ from simbench.gnss.arcs import CODE_PHASE_MAX_RATE_MPS, CodePhaseCheck, arc_ids,
 from simbench.gnss.geometry import sagnac_range_gradient
 from simbench.gnss.measured_ionosphere import (
     BROADCAST_RELATIVE_ERROR,
+    MeasuredIonosphere,
     geometry_free_delay,
     levelled_phase_delay,
     measured_ionosphere,
@@ -453,25 +454,7 @@ def prepare_ppp(
         bad sigmas, or no epoch with enough satellites.
     """
     obs = data.observations
-    missing = [c for c in _REQUIRED if c not in obs.columns]
-    if ionosphere == IonosphereMode.free:
-        missing += [c for c in _REQUIRED_L2 if c not in obs.columns]
-    if missing:
-        raise SimbenchError(
-            "observations",
-            f"missing columns {missing}",
-            "give an observation table with the columns of simbench.contract.OBSERVATION_COLUMNS",
-        )
-    for name, value in (("code_sigma_m", code_sigma_m), ("phase_sigma_m", phase_sigma_m)):
-        if not value > 0:
-            raise SimbenchError(name, f"must be positive, got {value}", "give a standard deviation in metres")
-    if min_satellites < 1:
-        raise SimbenchError(
-            "min_satellites",
-            f"must be at least 1, got {min_satellites}",
-            "give 4 for snapshot-solvable epochs only, or 1 to keep every epoch with a satellite",
-        )
-
+    _check_prepare_inputs(obs, ionosphere, code_sigma_m, phase_sigma_m, min_satellites)
     require_phase = measurements == MeasurementMode.code_phase
     if require_phase and len(obs) and not np.isfinite(obs["phase_l1"].to_numpy(float)).any():
         raise SimbenchError(
@@ -482,13 +465,9 @@ def prepare_ppp(
     valid = np.isfinite(obs[list(_CODE_COLUMNS)].to_numpy(float)).all(axis=1)
     second = _second_frequency(obs)
     above = obs["el"].to_numpy(float) > elevation_mask_deg
-    choice = ionosphere_choice(obs, ionosphere, elevation_mask_deg)
-    expected: dict[str, tuple[float, float]] = {}
-    declined: set[str] = set()
-    if ionosphere == IonosphereMode.auto and choice != IonosphereMode.broadcast:
-        expected = pair_against_broadcast(data, valid & above, code_sigma_m, sigma_model, cn0_ref_dbhz)
-        declined = {s for s, (pairs, broadcast) in expected.items() if not pairs < broadcast}
-        choice = _without_declined(choice, expected, declined, id(data.observations))
+    choice, expected, declined = _ionosphere_decision(
+        data, ionosphere, valid & above, elevation_mask_deg, code_sigma_m, sigma_model, cn0_ref_dbhz
+    )
     free = choice == IonosphereMode.free
     n_dropped = int((valid & above & ~second).sum()) if free else 0
     if free:
@@ -507,83 +486,27 @@ def prepare_ppp(
     if require_phase:
         obs, arc = obs.loc[arc >= 0], arc[arc >= 0]
 
-    el = obs["el"].to_numpy(float) * DEG
-    keep = el > elevation_mask_deg * DEG
-    epoch = obs["epoch"].to_numpy(np.int64)
-    if len(epoch):
-        counts = np.bincount(epoch[keep], minlength=int(epoch.max()) + 1)
-        keep &= counts[epoch] >= min_satellites
-    if not keep.any():
-        raise SimbenchError(
-            "observations",
-            f"no epoch has {min_satellites} satellites above the {elevation_mask_deg} deg mask",
-            "lower elevation_mask_deg, or check the scenario (open sky, duration)",
-        )
-
-    sat = obs["sat"].to_numpy()[keep]
-    epoch = epoch[keep]
-    order = np.lexsort((sat, epoch))
-    sel = np.flatnonzero(keep)[order]
-    sub = obs.iloc[sel]
-    sat, epoch, el, arc = sat[order], epoch[order], el[keep][order], arc[keep][order]
+    sub, sat, epoch, el, arc = _selected_rows(obs, arc, elevation_mask_deg, min_satellites)
     t = sub["t"].to_numpy(float)
     az = sub["az"].to_numpy(float) * DEG
     sat_pos = sub[["sat_x", "sat_y", "sat_z"]].to_numpy(float)
-    sat_clock = sub["sat_clock"].to_numpy(float)
-    range_rate = np.full(len(sub), np.nan)
-    sat_vel = np.full((len(sub), 3), np.nan)
-    if {"doppler_l1", "sat_vx", "sat_vy", "sat_vz", "sat_clock_drift"} <= set(sub.columns):
-        sat_vel = sub[["sat_vx", "sat_vy", "sat_vz"]].to_numpy(float)
-        range_rate = -l1_wavelength_m(sub["sat"].to_numpy()) * sub["doppler_l1"].to_numpy(float) + sub[
-            "sat_clock_drift"
-        ].to_numpy(float)
-        range_rate[~np.isfinite(sat_vel).all(axis=1)] = np.nan
+    range_rate, sat_vel = _range_rates(sub)
     doy = day_of_year(data.nav.gps_week, data.nav.start_sow_s)
-
-    if free:
-        gamma = sub["f1_f2_ratio"].to_numpy(float) ** 2
-        # sat_clock is the first frequency's single-frequency clock (group delay removed); the
-        # combination needs the clock of the broadcast reference: + dcb / (gamma - 1)
-        sat_clock = sat_clock + _sat_dcb(sub) / (gamma - 1.0)
-        code = if_combination(sub["code_l1"].to_numpy(float), sub["code_l2"].to_numpy(float), gamma) + sat_clock
-        phase = if_combination(sub["phase_l1"].to_numpy(float), sub["phase_l2"].to_numpy(float), gamma) + sat_clock
-    else:
-        code = sub["code_l1"].to_numpy(float) + sat_clock
-        phase = sub["phase_l1"].to_numpy(float) + sat_clock
-    phase = np.where(arc >= 0, phase, np.nan)
+    code, phase = _ranges(sub, free, arc)
 
     epoch_ids, epoch_start, n_per = np.unique(epoch, return_index=True, return_counts=True)
     epoch_stop = epoch_start + n_per
     cn0 = _cn0(sub)
     sigma_scale = sigma_factor(el, cn0, sigma_model, cn0_ref_dbhz)
     _say_missing_cn0(cn0, sigma_model, variance_components, id(data.observations))
-
-    sat_names, sat_index = np.unique(sat, return_inverse=True)
-    letters = np.array([str(s)[:1] for s in sat_names])
-    systems = tuple(sorted(set(letters.tolist()), key=lambda c: (c != "G", c)))
-    system_index = np.array([systems.index(c) for c in letters], np.int64)[sat_index]
+    sat_names, sat_index, systems, system_index = _systems_of(sat)
 
     n_measured, iono_fits = 0, {}
     if not free and not data.nav.iono_corrected:
         rough = _rough_positions(sat_pos, code, sigma_scale, el, doy, t, epoch_start, epoch_stop, system_index)
         iono = _klobuchar_delay(data.nav, t, rough, el, az, sat)
         if choice == IonosphereMode.measured:
-            pair = _second_frequency(sub)
-            gamma = sub["f1_f2_ratio"].to_numpy(float) ** 2
-            gf = geometry_free_delay(
-                sub["code_l1"].to_numpy(float), sub["code_l2"].to_numpy(float), gamma, _sat_dcb(sub)
-            )
-            # a table may carry a second code without its phase (the contract's L2 phase columns are optional here)
-            phase_l2 = sub["phase_l2"].to_numpy(float) if "phase_l2" in sub.columns else np.nan
-            phase_pair = (sub["phase_l1"].to_numpy(float) - phase_l2) / (gamma - 1.0)
-            lost = sub["lli_l1"].fillna(False).to_numpy(bool)
-            if "lli_l2" in sub.columns:
-                lost = lost | sub["lli_l2"].fillna(False).to_numpy(bool)
-            code_pair = np.where(pair, gf, np.nan)
-            levelled, stretch = levelled_phase_delay(code_pair, np.where(pair, phase_pair, np.nan), sat, t, lost)
-            found = measured_ionosphere(
-                iono, code_pair, sat, t, levelled_m=levelled, stretch=stretch, exclude=tuple(sorted(declined))
-            )
+            found, stretch = _measured_delays(sub, iono, sat, t, declined)
             if not found.fits and ionosphere == IonosphereMode.auto:
                 # no system's second frequency measures the delay better than the broadcast model
                 choice = IonosphereMode.broadcast
@@ -596,14 +519,9 @@ def prepare_ppp(
                 phase = np.where(arc >= 0, phase, np.nan)
         code = code - iono
         phase = phase + iono
-    sigma_code = code_sigma_m * sigma_scale
-    factors: dict[str, float] = {}
-    if variance_components != VarianceComponents.none:
-        group, names = _variance_groups(variance_components, systems, system_index, cn0)
-        k = np.repeat(np.arange(len(epoch_start)), n_per)
-        per_group = variance_factors(k, sat_pos, code, sigma_code, group, system_index=system_index, el=el, doy=doy)
-        sigma_code = sigma_code * per_group[group]
-        factors = {name: round(float(f), 3) for name, f in zip(names, per_group) if name}
+    sigma_code, factors = _scaled_code_sigmas(
+        variance_components, code_sigma_m * sigma_scale, systems, system_index, cn0, n_per, sat_pos, code, el, doy
+    )
     _, renumbered = np.unique(arc[arc >= 0], return_inverse=True)  # monotone: keeps the start order
     arc[arc >= 0] = renumbered
     return PppObservations(
@@ -642,6 +560,162 @@ def prepare_ppp(
         variance_factors=factors,
         phase_check=_phase_check_info(checked),
     )
+
+
+def _check_prepare_inputs(
+    obs: pd.DataFrame, ionosphere: IonosphereMode, code_sigma_m: float, phase_sigma_m: float, min_satellites: int
+) -> None:
+    """:func:`prepare_ppp`'s one-line refusals of its inputs: missing columns, sigmas, ``min_satellites``."""
+    missing = [c for c in _REQUIRED if c not in obs.columns]
+    if ionosphere == IonosphereMode.free:
+        missing += [c for c in _REQUIRED_L2 if c not in obs.columns]
+    if missing:
+        raise SimbenchError(
+            "observations",
+            f"missing columns {missing}",
+            "give an observation table with the columns of simbench.contract.OBSERVATION_COLUMNS",
+        )
+    for name, value in (("code_sigma_m", code_sigma_m), ("phase_sigma_m", phase_sigma_m)):
+        if not value > 0:
+            raise SimbenchError(name, f"must be positive, got {value}", "give a standard deviation in metres")
+    if min_satellites < 1:
+        raise SimbenchError(
+            "min_satellites",
+            f"must be at least 1, got {min_satellites}",
+            "give 4 for snapshot-solvable epochs only, or 1 to keep every epoch with a satellite",
+        )
+
+
+def _ionosphere_decision(
+    data: ReceiverData,
+    ionosphere: IonosphereMode,
+    usable: np.ndarray,
+    elevation_mask_deg: float,
+    code_sigma_m: float,
+    sigma_model: SigmaModel,
+    cn0_ref_dbhz: float,
+) -> tuple[IonosphereMode, dict[str, tuple[float, float]], set[str]]:
+    """The ionosphere mode for these data (:func:`ionosphere_choice`); under ``auto``, the expected errors of
+    each system's code pairs against the broadcast model (:func:`pair_against_broadcast`) and the systems
+    that keep the broadcast delay. ``usable``: rows with every code column, above the mask."""
+    choice = ionosphere_choice(data.observations, ionosphere, elevation_mask_deg)
+    expected: dict[str, tuple[float, float]] = {}
+    declined: set[str] = set()
+    if ionosphere == IonosphereMode.auto and choice != IonosphereMode.broadcast:
+        expected = pair_against_broadcast(data, usable, code_sigma_m, sigma_model, cn0_ref_dbhz)
+        declined = {s for s, (pairs, broadcast) in expected.items() if not pairs < broadcast}
+        choice = _without_declined(choice, expected, declined, id(data.observations))
+    return choice, expected, declined
+
+
+def _selected_rows(
+    obs: pd.DataFrame, arc: np.ndarray, elevation_mask_deg: float, min_satellites: int
+) -> tuple[pd.DataFrame, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The rows above the mask in epochs of at least ``min_satellites`` of them, sorted by epoch and
+    satellite: the table, and its satellites, epochs, elevations [rad] and arcs."""
+    el = obs["el"].to_numpy(float) * DEG
+    keep = el > elevation_mask_deg * DEG
+    epoch = obs["epoch"].to_numpy(np.int64)
+    if len(epoch):
+        counts = np.bincount(epoch[keep], minlength=int(epoch.max()) + 1)
+        keep &= counts[epoch] >= min_satellites
+    if not keep.any():
+        raise SimbenchError(
+            "observations",
+            f"no epoch has {min_satellites} satellites above the {elevation_mask_deg} deg mask",
+            "lower elevation_mask_deg, or check the scenario (open sky, duration)",
+        )
+    sat = obs["sat"].to_numpy()[keep]
+    epoch = epoch[keep]
+    order = np.lexsort((sat, epoch))
+    sub = obs.iloc[np.flatnonzero(keep)[order]]
+    return sub, sat[order], epoch[order], el[keep][order], arc[keep][order]
+
+
+def _range_rates(sub: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
+    """Each row's measured range rate ``-lambda D`` plus the satellite clock drift [m/s] and the satellite
+    velocity [m/s] (NaN without a Doppler or a satellite velocity)."""
+    range_rate = np.full(len(sub), np.nan)
+    sat_vel = np.full((len(sub), 3), np.nan)
+    if {"doppler_l1", "sat_vx", "sat_vy", "sat_vz", "sat_clock_drift"} <= set(sub.columns):
+        sat_vel = sub[["sat_vx", "sat_vy", "sat_vz"]].to_numpy(float)
+        range_rate = -l1_wavelength_m(sub["sat"].to_numpy()) * sub["doppler_l1"].to_numpy(float) + sub[
+            "sat_clock_drift"
+        ].to_numpy(float)
+        range_rate[~np.isfinite(sat_vel).all(axis=1)] = np.nan
+    return range_rate, sat_vel
+
+
+def _ranges(sub: pd.DataFrame, free: bool, arc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Code and phase [m] with the satellite clock added: the first frequency, or the ionosphere-free
+    combination (``free``); phase NaN outside an arc."""
+    sat_clock = sub["sat_clock"].to_numpy(float)
+    if free:
+        gamma = sub["f1_f2_ratio"].to_numpy(float) ** 2
+        # sat_clock is the first frequency's single-frequency clock (group delay removed); the
+        # combination needs the clock of the broadcast reference: + dcb / (gamma - 1)
+        sat_clock = sat_clock + _sat_dcb(sub) / (gamma - 1.0)
+        code = if_combination(sub["code_l1"].to_numpy(float), sub["code_l2"].to_numpy(float), gamma) + sat_clock
+        phase = if_combination(sub["phase_l1"].to_numpy(float), sub["phase_l2"].to_numpy(float), gamma) + sat_clock
+    else:
+        code = sub["code_l1"].to_numpy(float) + sat_clock
+        phase = sub["phase_l1"].to_numpy(float) + sat_clock
+    return code, np.where(arc >= 0, phase, np.nan)
+
+
+def _systems_of(sat: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple[str, ...], np.ndarray]:
+    """Satellite names, each row's index into them, the systems (GPS first) and each row's system index."""
+    sat_names, sat_index = np.unique(sat, return_inverse=True)
+    letters = np.array([str(s)[:1] for s in sat_names])
+    systems = tuple(sorted(set(letters.tolist()), key=lambda c: (c != "G", c)))
+    system_index = np.array([systems.index(c) for c in letters], np.int64)[sat_index]
+    return sat_names, sat_index, systems, system_index
+
+
+def _measured_delays(
+    sub: pd.DataFrame, broadcast_m: np.ndarray, sat: np.ndarray, t: np.ndarray, declined: set[str]
+) -> tuple[MeasuredIonosphere, np.ndarray]:
+    """Each row's delay measured by its code pair, levelled by its phase pair, and the broadcast delay
+    ``broadcast_m`` fitted to those elsewhere (:func:`simbench.gnss.measured_ionosphere.measured_ionosphere`,
+    ``declined`` systems left out); and each row's levelled stretch."""
+    pair = _second_frequency(sub)
+    gamma = sub["f1_f2_ratio"].to_numpy(float) ** 2
+    gf = geometry_free_delay(sub["code_l1"].to_numpy(float), sub["code_l2"].to_numpy(float), gamma, _sat_dcb(sub))
+    # a table may carry a second code without its phase (the contract's L2 phase columns are optional here)
+    phase_l2 = sub["phase_l2"].to_numpy(float) if "phase_l2" in sub.columns else np.nan
+    phase_pair = (sub["phase_l1"].to_numpy(float) - phase_l2) / (gamma - 1.0)
+    lost = sub["lli_l1"].fillna(False).to_numpy(bool)
+    if "lli_l2" in sub.columns:
+        lost = lost | sub["lli_l2"].fillna(False).to_numpy(bool)
+    code_pair = np.where(pair, gf, np.nan)
+    levelled, stretch = levelled_phase_delay(code_pair, np.where(pair, phase_pair, np.nan), sat, t, lost)
+    found = measured_ionosphere(
+        broadcast_m, code_pair, sat, t, levelled_m=levelled, stretch=stretch, exclude=tuple(sorted(declined))
+    )
+    return found, stretch
+
+
+def _scaled_code_sigmas(
+    variance_components: VarianceComponents,
+    sigma_code: np.ndarray,
+    systems: tuple[str, ...],
+    system_index: np.ndarray,
+    cn0: np.ndarray,
+    n_per: np.ndarray,
+    sat_pos: np.ndarray,
+    code: np.ndarray,
+    el: np.ndarray,
+    doy: float,
+) -> tuple[np.ndarray, dict[str, float]]:
+    """Each row's code sigma scaled by its group's factor estimated from the log (:func:`variance_factors`),
+    and the factors by group name; ``none`` keeps the a-priori sigmas."""
+    if variance_components == VarianceComponents.none:
+        return sigma_code, {}
+    group, names = _variance_groups(variance_components, systems, system_index, cn0)
+    k = np.repeat(np.arange(len(n_per)), n_per)
+    per_group = variance_factors(k, sat_pos, code, sigma_code, group, system_index=system_index, el=el, doy=doy)
+    factors = {name: round(float(f), 3) for name, f in zip(names, per_group) if name}
+    return sigma_code * per_group[group], factors
 
 
 def _rounded_pairs(pairs: dict[str, tuple[float, float]]) -> dict[str, list[float]]:
