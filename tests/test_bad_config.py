@@ -9,9 +9,10 @@ failed row (after every job ran), 2 for a refused config.
 
 from __future__ import annotations
 
-import os
+import errno
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import pandas as pd
@@ -189,16 +190,22 @@ def test_results_dir_that_is_a_file_or_under_one(tmp_path: Path) -> None:
         assert message.startswith("results_dir:") and "is a file" in message
 
 
-@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into a read-only folder")
-def test_read_only_results_dir(tmp_path: Path) -> None:
+def test_read_only_results_dir(tmp_path: Path, monkeypatch) -> None:
+    """A folder no file can be made in (read-only, immutable, or not ours). CI runs as root, which
+    writes through chmod, so the refusal of the temporary file is simulated: before, this test was
+    skipped there."""
     folder = tmp_path / "locked"
     folder.mkdir()
-    folder.chmod(0o555)
-    try:
-        message = one_line_error(_check, [*TINY, f"results_dir={folder / 'run'}"])
-    finally:
-        folder.chmod(0o755)
-    assert message.startswith("results_dir:") and "cannot write" in message
+    make = tempfile.TemporaryFile
+
+    def refuse(*args, **kwargs):
+        if Path(kwargs.get("dir") or ".") == folder:
+            raise PermissionError(errno.EACCES, "Permission denied", str(folder))
+        return make(*args, **kwargs)
+
+    monkeypatch.setattr(tempfile, "TemporaryFile", refuse)
+    message = one_line_error(_check, [*TINY, f"results_dir={folder / 'run'}"])
+    assert message.startswith("results_dir:") and "cannot write" in message and "Permission denied" in message
 
 
 def test_good_configs_pass(tmp_path: Path) -> None:
