@@ -53,11 +53,17 @@ from estimators import register
 from estimators.base import Estimator, solution_frame
 from estimators.gauss_newton import GaussNewton
 from estimators.measurement import PppObservations, prepare_ppp
-from estimators.ppp_config import GnssModelConfig
 from estimators.ppp_graph import PppGraph, PppGraphConfig, solve
+from estimators.robust_models import (
+    DcsFields,
+    MaxMixtureFields,
+    max_mixture_outliers,
+    validate_dcs,
+    validate_max_mixture,
+)
 from estimators.whitened_rows import DcsKernel, WhitenedRows
 from simbench.contract import ReceiverData
-from simbench.errors import SimbenchError, require_at_least, require_positive
+from simbench.errors import require_at_least, require_positive
 
 __all__ = [
     "BatchConfig",
@@ -222,17 +228,13 @@ class L2Batch(BatchGraphEstimator):
 
 
 @dataclass
-class DcsConfig(BatchConfig):
+class DcsConfig(BatchConfig, DcsFields):
     """Batch dynamic covariance scaling."""
-
-    kernel_width: float = 2.5  #: DCS kernel width (phi) [whitened units]
 
     def validate(self, where: str) -> None:
         """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
         super().validate(where)
-        require_positive(
-            f"{where}.kernel_width", self.kernel_width, "give the DCS kernel width in whitened units (default 2.5)"
-        )
+        validate_dcs(self.kernel_width, where)
 
 
 @register
@@ -283,16 +285,6 @@ class DcsBatch(BatchGraphEstimator):
 
 
 @dataclass
-class MaxMixtureFields:
-    """The static inlier/outlier model of batch and incremental MM."""
-
-    #: outlier covariance = inlier covariance times this (a composed run takes it from its ``gnss_model``
-    #: preset; ``dissertation``: the batch code's 1e6, the incremental code's 10)
-    outlier_scale: float = GnssModelConfig.outlier_scale
-    outlier_weight: float = 0.5  #: prior weight of the outlier component (equal weights)
-
-
-@dataclass
 class MmConfig(BatchConfig, MaxMixtureFields):
     """Batch max-mixtures with a static inlier/outlier model."""
 
@@ -300,36 +292,6 @@ class MmConfig(BatchConfig, MaxMixtureFields):
         """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
         super().validate(where)
         validate_max_mixture(self.outlier_scale, self.outlier_weight, where)
-
-
-def validate_max_mixture(outlier_scale: float, outlier_weight: float, where: str) -> None:
-    """One-line :class:`SimbenchError` for a two-component model that is not one (batch and incremental MM)."""
-    if not outlier_scale > 1:
-        raise SimbenchError(
-            f"{where}.outlier_scale",
-            f"must exceed 1, got {outlier_scale}",
-            "give the outlier/inlier covariance ratio, e.g. 1e6 (batch) or 10 (incremental)",
-        )
-    if not 0 < outlier_weight < 1:
-        raise SimbenchError(
-            f"{where}.outlier_weight",
-            f"must be within (0, 1), got {outlier_weight}",
-            "give the outlier component's prior weight, e.g. the default 0.5",
-        )
-
-
-def max_mixture_outliers(whitened: np.ndarray, outlier_scale: float, outlier_weight: float) -> np.ndarray:
-    """Most likely component per measurement (eq. 3.20): True where the outlier wins.
-
-    Inlier ``N(0, 1)`` with weight ``1 - w``, outlier ``N(0, s)`` with weight ``w``
-    in whitened units; the outlier wins where
-    ``w/sqrt(s) exp(-r^2/(2s)) > (1-w) exp(-r^2/2)``, i.e.
-    ``r^2 (1 - 1/s) > log s + 2 log((1-w)/w)``.
-    """
-    threshold = (np.log(outlier_scale) + 2.0 * np.log((1.0 - outlier_weight) / outlier_weight)) / (
-        1.0 - 1.0 / outlier_scale
-    )
-    return whitened**2 > threshold
 
 
 @register

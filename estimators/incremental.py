@@ -58,7 +58,6 @@ import pandas as pd
 
 from estimators import register
 from estimators.base import Estimator, solution_frame
-from estimators.batch_robust import MaxMixtureFields, max_mixture_outliers, validate_max_mixture
 from estimators.fixed_lag import FixedLagSmoother, LagSchedule, restart_stale_arcs
 from estimators.measurement import predict_given_troposphere, prepare_ppp
 from estimators.ppp_graph import (
@@ -75,6 +74,13 @@ from estimators.ppp_graph import (
     sysclock_key,
     vel_key,
     zwd_key,
+)
+from estimators.robust_models import (
+    DcsFields,
+    MaxMixtureFields,
+    max_mixture_outliers,
+    validate_dcs,
+    validate_max_mixture,
 )
 from simbench.contract import ReceiverData
 from simbench.core.constants import C_LIGHT
@@ -380,17 +386,13 @@ class Isam2Ppp(IncrementalGraphEstimator):
 
 
 @dataclass
-class Isam2DcsConfig(IncrementalConfig):
-    """Incremental dynamic covariance scaling."""
-
-    kernel_width: float = 2.5  #: DCS kernel width (phi) [whitened units], as batch DCS's
+class Isam2DcsConfig(IncrementalConfig, DcsFields):
+    """Incremental dynamic covariance scaling (the kernel width as batch DCS's)."""
 
     def validate(self, where: str) -> None:
         """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
         super().validate(where)
-        require_positive(
-            f"{where}.kernel_width", self.kernel_width, "give the DCS kernel width in whitened units (default 2.5)"
-        )
+        validate_dcs(self.kernel_width, where)
 
 
 @register

@@ -11,13 +11,7 @@ from conftest import dissertation
 
 import simbench
 from estimators import whitened_rows
-from estimators.batch_robust import (
-    DcsBatch,
-    DcsConfig,
-    L2Batch,
-    MmBatch,
-    max_mixture_outliers,
-)
+from estimators.batch_robust import DcsBatch, DcsConfig, L2Batch, MmBatch
 from estimators.bce import FEATURES, Bce, BceAd, BceAdConfig, BceConfig
 from estimators.clustering import fit_dpgmm, mcfs_scores, select_features
 from estimators.ekf_ppp import EkfPpp, EkfPppConfig
@@ -26,6 +20,7 @@ from estimators.measurement import prepare_ppp
 from estimators.oracle import Oracle
 from estimators.ppp_config import IonosphereMode, VarianceComponents, WetDelayMode
 from estimators.ppp_graph import PppGraph, PppGraphConfig, solve
+from estimators.robust_models import max_mixture_outliers
 from estimators.whitened_rows import DcsKernel, WhitenedRows
 from simbench.analysis.metrics import enu_errors
 from simbench.contract import Scenario
