@@ -1107,7 +1107,102 @@ def rinex_scenario(
     so one pipeline serves every format. The parameters after ``obs`` are :func:`load_rinex`'s;
     ``obs.path`` stands for the observation file (the default name is its stem).
     """
-    obs_path = obs.path
+    paths, settings = _navigation_plan(nav_path, nav_bds_path, nav_glo_path, nav_gal_path)
+    used = [s for s in dict.fromkeys(systems) if s in obs.signals]
+    loaded = {s: _load_ephemeris(paths[s], settings[s], s) for s in used}
+    ephs = {s: eph for s, (eph, _) in loaded.items()}
+    st = satellite_states(obs, ephs, served_rows(obs, ephs, settings, paths))
+    keep = np.isfinite(st["x"])
+    all_letters = np.array([s[:1] for s in obs.sat.tolist()])
+    used, notes = _usable_systems(obs, systems, used, keep, all_letters, paths)
+
+    t_rel_epoch = (obs.epoch_t_int - obs.epoch_t_int[0]) + (obs.epoch_t_frac - obs.epoch_t_frac[0])
+    grid = epoch_grid_of(t_rel_epoch, obs.interval_s)
+    re = obs.row_epoch[keep]
+    sat_pos = np.stack([st[k][keep] for k in "xyz"], axis=1)
+    letters = all_letters[keep]
+    system_index = np.searchsorted(np.array(sorted(used)), letters)
+    x0 = obs.approx_position if obs.approx_position is not None and np.any(obs.approx_position) else None
+    corrected = obs.code[keep] + st["clock"][keep]
+    rough = rough_fix(re, sat_pos, corrected, n_epochs=obs.epoch_t_int.size, system_index=system_index, x0=x0)
+    second = _second_signal_rows(obs, keep, letters, ephs)
+    observations = observation_table(
+        {
+            "epoch": grid.index[re],
+            "t": t_rel_epoch[re],
+            "sat": obs.sat[keep],
+            "code_l1": obs.code[keep],
+            "phase_l1": obs.phase_cycles[keep] * (C_LIGHT / second.freq),
+            "doppler_l1": obs.doppler_hz[keep],
+            "cn0_l1": obs.cn0_dbhz[keep],
+            "lli_l1": obs.lli[keep],
+            "code_l2": np.where(second.has_l2, second.code, np.nan),
+            "phase_l2": np.where(second.has_l2, second.phase_cycles * (C_LIGHT / second.freq2), np.nan),
+            "lli_l2": second.lli & second.has_l2,
+            "f1_f2_ratio": np.where(second.has_l2, second.freq / second.freq2, np.nan),
+            "sat_x": sat_pos[:, 0],
+            "sat_y": sat_pos[:, 1],
+            "sat_z": sat_pos[:, 2],
+            "sat_vx": st["vx"][keep],
+            "sat_vy": st["vy"][keep],
+            "sat_vz": st["vz"][keep],
+            "sat_clock": st["clock"][keep],
+            "sat_clock_drift": st["drift"][keep],
+            "el": np.degrees(rough.el),
+            "az": np.degrees(rough.az),
+        }
+    )
+    if second.has_l2.any():
+        delays = {s: d for s, (_, d) in loaded.items()}
+        _add_second_group_delays(observations, obs, keep, letters, second, ephs, delays, grid.index[re])
+
+    t0_gps = float(obs.epoch_t_int[0]) + obs.epoch_t_frac[0]
+    week_hint = int(obs.epoch_t_int[0] // SECONDS_PER_WEEK)
+    ref = read_reference(truth_path, week_hint=week_hint) if truth_path else None
+    truth = log_truth(grid, t0_gps, ref, truth_max_gap_s, observations["epoch"].to_numpy(), rough)
+    nav = _nav_info(obs, ephs, t0_gps, bool(second.has_l2.any()))
+    second_used = {s: sorted(set(second.signal[(letters == s) & second.has_l2].tolist())) for s in used}
+    used_text = "".join(used)
+    meta = {
+        "name": name or Path(obs.path).stem,
+        "seed": 0,
+        "source": "rinex",
+        "files": {
+            "obs": str(Path(obs.path)),
+            "nav": ", ".join(paths["G"]),
+            "nav_bds": ", ".join(paths["C"]),
+            "nav_glo": ", ".join(paths["R"]),
+            "nav_gal": ", ".join(paths["E"]),
+            "truth": str(truth_path or ""),
+        },
+        "rinex_version": obs.version,
+        "systems": used_text,
+        "systems_asked": "".join(dict.fromkeys(systems)),
+        "systems_used": used_text,
+        "system_notes": notes,
+        "unread_systems": obs.unread_systems,
+        "signals": {s: obs.signals[s] for s in used},
+        "second_signals": {s: codes for s, codes in second_used.items() if codes},
+        "rows_without_ephemeris_or_code": int((~keep).sum()),
+        "epochs_with_truth": len(truth),
+        "epochs": grid.n,
+        "static_truth": bool(ref is not None and ref.static),
+        "corrections": "raw observables; Klobuchar (NavInfo) and Saastamoinen applied by the estimator model; "
+        "sat_dcb: broadcast group delays of the second signals",
+    }
+    # absolute paths: tools run in their own working directory, and a cached scenario outlives the cwd
+    rinex = RinexFiles(
+        obs=os.path.abspath(obs.path),
+        nav=tuple(dict.fromkeys(os.path.abspath(f) for s in used for f in paths[s])),
+        systems=used_text,
+    )
+    return log_scenario(observations, truth, nav, meta, rinex=rinex)
+
+
+def _navigation_plan(
+    nav_path: NavPaths, nav_bds_path: NavPaths | None, nav_glo_path: NavPaths | None, nav_gal_path: NavPaths | None
+) -> tuple[dict[str, tuple[str, ...]], dict[str, str]]:
+    """The navigation files read for each system (its own, else ``nav``), and the setting that named them."""
     own = {
         "G": nav_paths(nav_path),
         "C": nav_paths(nav_bds_path),
@@ -1115,19 +1210,25 @@ def rinex_scenario(
         "E": nav_paths(nav_gal_path),
         "J": (),
     }
-    # the navigation files actually read for each system, and the setting that named them
     paths = {s: own[s] or own["G"] for s in own}
     settings = {s: f"scenario.{NAV_SETTINGS[s]}" if own[s] else "scenario.nav" for s in own}
-    used = [s for s in dict.fromkeys(systems) if s in obs.signals]
-    loaded = {s: _load_ephemeris(paths[s], settings[s], s) for s in used}
-    ephs = {s: eph for s, (eph, _) in loaded.items()}
-    st = satellite_states(obs, ephs, served_rows(obs, ephs, settings, paths))
-    keep = np.isfinite(st["x"])
-    n_dropped = int((~keep).sum())
-    all_letters = np.array([s[:1] for s in obs.sat.tolist()])
+    return paths, settings
+
+
+def _usable_systems(
+    obs: RinexObs,
+    systems: str,
+    used: list[str],
+    keep: np.ndarray,
+    letters: np.ndarray,
+    paths: dict[str, tuple[str, ...]],
+) -> tuple[list[str], list[str]]:
+    """The systems of ``used`` with at least one row that has a satellite state (``keep``), and the notes
+    on those left out (each said once as a warning); a one-line error when none is left."""
+    used = list(used)
     notes = list(obs.system_notes)
     for s in list(used):
-        if not keep[all_letters == s].any():
+        if not keep[letters == s].any():
             used.remove(s)
             notes.append(f"no {SYSTEM_NAMES[s]} row has a broadcast ephemeris in {list(paths[s])}")
     if not used:
@@ -1140,16 +1241,26 @@ def rinex_scenario(
     notes = [f"asked {asked}, used {used_text}: {note}" for note in notes]
     for note in notes:
         warn("scenario.systems", note, "the run goes on without that system")
+    return used, notes
 
-    t_rel_epoch = (obs.epoch_t_int - obs.epoch_t_int[0]) + (obs.epoch_t_frac - obs.epoch_t_frac[0])
-    grid = epoch_grid_of(t_rel_epoch, obs.interval_s)
-    re = obs.row_epoch[keep]
-    sat_pos = np.stack([st[k][keep] for k in "xyz"], axis=1)
-    corrected = obs.code[keep] + st["clock"][keep]
-    letters = all_letters[keep]
-    system_index = np.searchsorted(np.array(sorted(used)), letters)
-    x0 = obs.approx_position if obs.approx_position is not None and np.any(obs.approx_position) else None
-    rough = rough_fix(re, sat_pos, corrected, n_epochs=obs.epoch_t_int.size, system_index=system_index, x0=x0)
+
+@dataclass(frozen=True)
+class SecondSignal:
+    """The kept rows' carriers and second-frequency observables."""
+
+    freq: np.ndarray  #: first carrier [Hz] (GLONASS: each satellite's FDMA channel)
+    freq2: np.ndarray  #: second carrier [Hz], NaN without one
+    code: np.ndarray  #: second code [m], NaN without one
+    phase_cycles: np.ndarray  #: second phase [cycles]
+    lli: np.ndarray  #: second signal's loss of lock, bool
+    signal: np.ndarray  #: second signal's RINEX code ('' without one)
+    has_l2: np.ndarray  #: a usable second code and carrier, bool
+
+
+def _second_signal_rows(
+    obs: RinexObs, keep: np.ndarray, letters: np.ndarray, ephs: dict[str, Ephemeris]
+) -> SecondSignal:
+    """Carriers and second-frequency observables of the rows ``keep`` (of systems ``letters``)."""
     no_l2 = np.full(obs.sat.size, np.nan)
     code_l2 = (obs.code_l2 if obs.code_l2 is not None else no_l2)[keep]
     phase_l2 = (obs.phase_l2_cycles if obs.phase_l2_cycles is not None else no_l2)[keep]
@@ -1164,93 +1275,42 @@ def rinex_scenario(
     freq2 = np.array([second_frequency(s, c) for s, c in zip(letters.tolist(), signal_l2.tolist())])
     freq2[is_r] = np.where(signal_l2[is_r] != "", freq[is_r] * GLO_F2_OVER_F1, np.nan)
     has_l2 = np.isfinite(code_l2) & np.isfinite(freq2)
-    observations = observation_table(
-        {
-            "epoch": grid.index[re],
-            "t": t_rel_epoch[re],
-            "sat": obs.sat[keep],
-            "code_l1": obs.code[keep],
-            "phase_l1": obs.phase_cycles[keep] * (C_LIGHT / freq),
-            "doppler_l1": obs.doppler_hz[keep],
-            "cn0_l1": obs.cn0_dbhz[keep],
-            "lli_l1": obs.lli[keep],
-            "code_l2": np.where(has_l2, code_l2, np.nan),
-            "phase_l2": np.where(has_l2, phase_l2 * (C_LIGHT / freq2), np.nan),
-            "lli_l2": lli_l2 & has_l2,
-            "f1_f2_ratio": np.where(has_l2, freq / freq2, np.nan),
-            "sat_x": sat_pos[:, 0],
-            "sat_y": sat_pos[:, 1],
-            "sat_z": sat_pos[:, 2],
-            "sat_vx": st["vx"][keep],
-            "sat_vy": st["vy"][keep],
-            "sat_vz": st["vz"][keep],
-            "sat_clock": st["clock"][keep],
-            "sat_clock_drift": st["drift"][keep],
-            "el": np.degrees(rough.el),
-            "az": np.degrees(rough.az),
-        }
-    )
-    if has_l2.any():
-        dcb = second_group_delays(
-            obs.sat[keep], np.where(has_l2, signal_l2, ""), freq / freq2, ephs, {s: d for s, (_, d) in loaded.items()}
-        )
-        # observation_table sorted the rows: align by (epoch, satellite), unique per row
-        by_row = pd.Series(dcb, index=pd.MultiIndex.from_arrays([grid.index[re], obs.sat[keep]]))
-        observations["sat_dcb"] = by_row.reindex(pd.MultiIndex.from_frame(observations[["epoch", "sat"]])).to_numpy()
-        first = np.array([obs.signals[s] for s in letters.tolist()])
-        sigma = second_group_delay_sigmas(obs.sat[keep], first, np.where(has_l2, signal_l2, ""))
-        rows = pd.MultiIndex.from_frame(observations[["epoch", "sat"]])
-        observations["sat_dcb_sigma"] = pd.Series(sigma, index=by_row.index).reindex(rows).to_numpy()
+    return SecondSignal(freq, freq2, code_l2, phase_l2, lli_l2, signal_l2, has_l2)
 
-    t0_gps = float(obs.epoch_t_int[0]) + obs.epoch_t_frac[0]
-    week_hint = int(obs.epoch_t_int[0] // SECONDS_PER_WEEK)
-    ref = read_reference(truth_path, week_hint=week_hint) if truth_path else None
-    truth = log_truth(grid, t0_gps, ref, truth_max_gap_s, observations["epoch"].to_numpy(), rough)
 
+def _add_second_group_delays(
+    observations: pd.DataFrame,
+    obs: RinexObs,
+    keep: np.ndarray,
+    letters: np.ndarray,
+    second: SecondSignal,
+    ephs: dict[str, Ephemeris],
+    delays: dict[str, GroupDelays],
+    epoch: np.ndarray,
+) -> None:
+    """Add ``sat_dcb`` (the broadcast group delays of the second signals) and ``sat_dcb_sigma`` to the
+    observation table, whose rows :func:`observation_table` sorted: aligned by (epoch, satellite)."""
+    signal = np.where(second.has_l2, second.signal, "")
+    dcb = second_group_delays(obs.sat[keep], signal, second.freq / second.freq2, ephs, delays)
+    by_row = pd.Series(dcb, index=pd.MultiIndex.from_arrays([epoch, obs.sat[keep]]))
+    rows = pd.MultiIndex.from_frame(observations[["epoch", "sat"]])
+    observations["sat_dcb"] = by_row.reindex(rows).to_numpy()
+    first = np.array([obs.signals[s] for s in letters.tolist()])
+    sigma = second_group_delay_sigmas(obs.sat[keep], first, signal)
+    observations["sat_dcb_sigma"] = pd.Series(sigma, index=by_row.index).reindex(rows).to_numpy()
+
+
+def _nav_info(obs: RinexObs, ephs: dict[str, Ephemeris], t0_gps: float, dual_frequency: bool) -> NavInfo:
+    """What the receiver decodes besides the observables: the GPS Klobuchar coefficients serve every
+    system (the BDS ones are not in NavInfo's model)."""
     week = int(obs.epoch_t_int[0] // SECONDS_PER_WEEK)
-    # GPS Klobuchar for every system (the BDS coefficients are not in NavInfo's model)
     klob = ephs.get("G")
     alpha = klob.iono_alpha if klob is not None and klob.iono_alpha is not None else np.zeros(4)
     beta = klob.iono_beta if klob is not None and klob.iono_beta is not None else np.zeros(4)
-    nav = NavInfo(
+    return NavInfo(
         gps_week=week,
         start_sow_s=t0_gps - week * SECONDS_PER_WEEK,
         iono_alpha=tuple(map(float, alpha)),
         iono_beta=tuple(map(float, beta)),
-        dual_frequency=bool(has_l2.any()),
+        dual_frequency=dual_frequency,
     )
-    second_used = {s: sorted(set(signal_l2[(letters == s) & has_l2].tolist())) for s in used}
-    meta = {
-        "name": name or Path(obs_path).stem,
-        "seed": 0,
-        "source": "rinex",
-        "files": {
-            "obs": str(Path(obs_path)),
-            "nav": ", ".join(paths["G"]),
-            "nav_bds": ", ".join(paths["C"]),
-            "nav_glo": ", ".join(paths["R"]),
-            "nav_gal": ", ".join(paths["E"]),
-            "truth": str(truth_path or ""),
-        },
-        "rinex_version": obs.version,
-        "systems": used_text,
-        "systems_asked": asked,
-        "systems_used": used_text,
-        "system_notes": notes,
-        "unread_systems": obs.unread_systems,
-        "signals": {s: obs.signals[s] for s in used},
-        "second_signals": {s: codes for s, codes in second_used.items() if codes},
-        "rows_without_ephemeris_or_code": n_dropped,
-        "epochs_with_truth": len(truth),
-        "epochs": grid.n,
-        "static_truth": bool(ref is not None and ref.static),
-        "corrections": "raw observables; Klobuchar (NavInfo) and Saastamoinen applied by the estimator model; "
-        "sat_dcb: broadcast group delays of the second signals",
-    }
-    # absolute paths: tools run in their own working directory, and a cached scenario outlives the cwd
-    rinex = RinexFiles(
-        obs=os.path.abspath(obs_path),
-        nav=tuple(dict.fromkeys(os.path.abspath(f) for s in used for f in paths[s])),
-        systems=used_text,
-    )
-    return log_scenario(observations, truth, nav, meta, rinex=rinex)
