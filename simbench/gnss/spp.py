@@ -185,30 +185,12 @@ def solve_epochs(
     if x0 is not None:
         pos[:] = np.broadcast_to(np.asarray(x0, dtype=float), (nk, 3))
     clock = np.zeros((nk, n_sys))
-    p = 3 + n_sys
-    A = np.zeros((len(rows), p))
+    A = np.zeros((len(rows), 3 + n_sys))
     A[np.arange(len(rows)), 3 + sy] = 1.0
-    step = np.full(nk, np.inf)
-    robust = np.ones(len(rows))
+    fit = _Fit(e, s, c, wr, sy, el_r, doy, A, starts, present)
     passes = 1 + (max(int(reweightings), 0) if huber_k is not None else 0)
-    for done in range(passes):
-        for _ in range(iterations):
-            res = c - _predicted(s, pos, clock, e, sy, el_r, doy, A)
-            N = _normal_matrices(A, wr * robust, starts)
-            b = np.add.reduceat(A * (wr * robust * res)[:, None], starts, axis=0)
-            # an absent system's clock column is zero and stays 0; a degenerate geometry must not
-            # stop the other epochs
-            dx = pinv_solve(N, b)
-            dx[~solvable[present]] = 0.0
-            pos[present] += dx[:, :3]
-            clock[present] += dx[:, 3:]
-            step[present] = np.linalg.norm(dx[:, :3], axis=1)
-            if not np.any(step[present] >= tol_m):
-                break
-        if huber_k is not None and done < passes - 1:
-            z = np.abs(c - _predicted(s, pos, clock, e, sy, el_r, doy, A)) * np.sqrt(wr)
-            robust = np.minimum(1.0, huber_k / np.maximum(z, 1e-12))
-    res = c - _predicted(s, pos, clock, e, sy, el_r, doy, A)
+    robust, step = fit.iterate(pos, clock, solvable, passes, iterations, tol_m, huber_k)
+    res = c - fit.predicted(pos, clock)
     rms = np.full(nk, np.nan)
     rms[present] = np.sqrt(np.add.reduceat(res * res, starts) / n_rows_present)
     # redundancy numbers 1 - w_i a_i^T N^-1 a_i of the final weighted fit
@@ -235,8 +217,68 @@ def solve_epochs(
     if not fill_untrusted:
         pos[~trusted] = np.nan
         clock[~trusted] = np.nan
-        return SppSolution(pos=pos, clock_m=clock, trusted=trusted, rms_m=rms, n_rows=n_rows, **per_row)
+    else:
+        _fill_untrusted(pos, clock, trusted, fit)
+    return SppSolution(pos=pos, clock_m=clock, trusted=trusted, rms_m=rms, n_rows=n_rows, **per_row)
 
+
+@dataclass(frozen=True)
+class _Fit:
+    """The rows of :func:`solve_epochs`, sorted by epoch, and how they are predicted and solved."""
+
+    e: np.ndarray  #: epoch of each row
+    s: np.ndarray  #: satellite position [m]
+    c: np.ndarray  #: corrected code [m]
+    w: np.ndarray  #: weight 1/sigma^2
+    sy: np.ndarray  #: system index
+    el: np.ndarray | None  #: elevation [rad] (with ``doy``: hydrostatic troposphere)
+    doy: float | None
+    A: np.ndarray  #: design matrix (position columns filled per iteration, clock columns fixed)
+    starts: np.ndarray  #: first row of each present epoch
+    present: np.ndarray  #: epochs with rows
+
+    def predicted(self, pos: np.ndarray, clock: np.ndarray) -> np.ndarray:
+        """Predicted code of every row at ``pos``/``clock`` (fills the design matrix's position columns)."""
+        return _predicted(self.s, pos, clock, self.e, self.sy, self.el, self.doy, self.A)
+
+    def iterate(
+        self,
+        pos: np.ndarray,
+        clock: np.ndarray,
+        solvable: np.ndarray,
+        passes: int,
+        iterations: int,
+        tol_m: float,
+        huber_k: float | None,
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Gauss-Newton on every epoch at once (``pos``, ``clock`` updated in place), ``passes`` times with
+        Huber reweighting between passes; returns the rows' final robust weights and each epoch's last step."""
+        present = self.present
+        step = np.full(len(pos), np.inf)
+        robust = np.ones(len(self.c))
+        for done in range(passes):
+            for _ in range(iterations):
+                res = self.c - self.predicted(pos, clock)
+                N = _normal_matrices(self.A, self.w * robust, self.starts)
+                b = np.add.reduceat(self.A * (self.w * robust * res)[:, None], self.starts, axis=0)
+                # an absent system's clock column is zero and stays 0; a degenerate geometry must not
+                # stop the other epochs
+                dx = pinv_solve(N, b)
+                dx[~solvable[present]] = 0.0
+                pos[present] += dx[:, :3]
+                clock[present] += dx[:, 3:]
+                step[present] = np.linalg.norm(dx[:, :3], axis=1)
+                if not np.any(step[present] >= tol_m):
+                    break
+            if huber_k is not None and done < passes - 1:
+                z = np.abs(self.c - self.predicted(pos, clock)) * np.sqrt(self.w)
+                robust = np.minimum(1.0, huber_k / np.maximum(z, 1e-12))
+        return robust, step
+
+
+def _fill_untrusted(pos: np.ndarray, clock: np.ndarray, trusted: np.ndarray, fit: _Fit) -> None:
+    """Give every untrusted epoch the position of the nearest trusted one (the later one on a tie) and the
+    clocks that fit it there (mean residual per epoch and system), in place."""
     good = np.flatnonzero(trusted)
     if good.size == 0:
         raise SimbenchError(
@@ -245,21 +287,22 @@ def solve_epochs(
             "check that the navigation data belong to the observations and the code is in metres",
         )
     bad = ~trusted
-    if bad.any():
-        k = np.arange(nk)
-        after = good[np.clip(np.searchsorted(good, k), 0, good.size - 1)]
-        before = good[np.clip(np.searchsorted(good, k) - 1, 0, good.size - 1)]
-        nearest = np.where(np.abs(before - k) < np.abs(after - k), before, after)
-        pos[bad] = pos[nearest[bad]]
-        # the clocks that fit the borrowed position: mean residual per epoch and system
-        hydro = _hydrostatic(pos, e, el_r, doy) if el_r is not None and doy is not None else np.zeros(len(rows))
-        res = c - sagnac_range_gradient(s, pos[e])[0] - hydro
-        flat = e * n_sys + sy
-        total = np.bincount(flat, res, nk * n_sys).reshape(nk, n_sys)
-        count = np.bincount(flat, minlength=nk * n_sys).reshape(nk, n_sys)
-        refit = np.divide(total, count, out=np.zeros_like(total), where=count > 0)
-        clock[bad] = refit[bad]
-    return SppSolution(pos=pos, clock_m=clock, trusted=trusted, rms_m=rms, n_rows=n_rows, **per_row)
+    if not bad.any():
+        return
+    nk, n_sys = clock.shape
+    k = np.arange(nk)
+    after = good[np.clip(np.searchsorted(good, k), 0, good.size - 1)]
+    before = good[np.clip(np.searchsorted(good, k) - 1, 0, good.size - 1)]
+    nearest = np.where(np.abs(before - k) < np.abs(after - k), before, after)
+    pos[bad] = pos[nearest[bad]]
+    e = fit.e
+    hydro = _hydrostatic(pos, e, fit.el, fit.doy) if fit.el is not None and fit.doy is not None else np.zeros(len(e))
+    res = fit.c - sagnac_range_gradient(fit.s, pos[e])[0] - hydro
+    flat = e * n_sys + fit.sy
+    total = np.bincount(flat, res, nk * n_sys).reshape(nk, n_sys)
+    count = np.bincount(flat, minlength=nk * n_sys).reshape(nk, n_sys)
+    refit = np.divide(total, count, out=np.zeros_like(total), where=count > 0)
+    clock[bad] = refit[bad]
 
 
 def position_gains(
