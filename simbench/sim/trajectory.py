@@ -477,125 +477,161 @@ def urban_drive(
         For non-positive sizes, speeds or rates, or a turn radius too large for the blocks.
     """
     u: UrbanDriveConfig = cfg.urban_drive
-    where = "scenario.trajectory.urban_drive"
     t = _time_grid(duration_s, rate_hz)
+    _check_urban_drive(u, nlos)
+    corner = _Corner.of(u)
+    grid = _StreetGrid(u.n_blocks_east, u.n_blocks_north, u.block_length_m, nlos, rng)
+    geo, kps = _route(u, corner, grid, duration_s, rng)
+    kp = np.array(kps)
+    phases = _plan_speed(kp[:, 0], kp[:, 1], kp[:, 2], kp[:-1, 3], u.max_accel_mps2)
+    s, v, a = _eval_speed(*phases, t)
+    z, heading, kappa, _, prim, _ = _eval_path(geo, np.minimum(s, geo.total))
+    street = grid.street(z, geo.tag[prim])
+    zero = np.zeros_like(t)
+    return _assemble_local(cfg, t, z, zero, heading, v, a, kappa, zero, zero, zero, zero, zero, zero, street)
+
+
+_URBAN_DRIVE = "scenario.trajectory.urban_drive"
+
+
+def _check_urban_drive(u: UrbanDriveConfig, nlos: NlosConfig) -> None:
+    """One-line :class:`SimbenchError` for sizes, speeds or durations a street grid cannot have."""
     for name in ("block_length_m", "cruise_speed_mps", "turn_speed_mps", "max_accel_mps2", "turn_radius_m"):
-        _positive(getattr(u, name), f"{where}.{name}", "see conf/scenario/ for typical values")
+        _positive(getattr(u, name), f"{_URBAN_DRIVE}.{name}", "see conf/scenario/ for typical values")
     if u.n_blocks_east < 1 or u.n_blocks_north < 1:
         raise SimbenchError(
-            f"{where}.n_blocks_east",
+            f"{_URBAN_DRIVE}.n_blocks_east",
             "the grid needs at least one block each way",
             "set n_blocks_east and n_blocks_north >= 1",
         )
     if min(u.stop_duration_s) < 0.0 or u.start_static_s < 0.0:
         raise SimbenchError(
-            f"{where}.stop_duration_s",
+            f"{_URBAN_DRIVE}.stop_duration_s",
             "durations must be non-negative",
             "give e.g. stop_duration_s=[5, 30] and start_static_s=30",
         )
     _check_buildings(nlos)
 
-    L, R = u.block_length_m, u.turn_radius_m
-    clothoid = 2.0 * R * _URBAN_CLOTHOID_TURN_RAD
-    corner = _PathBuilder(0j, 0.0)
-    corner.turn(math.pi / 2, R, clothoid, 0, 0)
-    tangent = corner.z.real  # vertex to turn start; equals corner.z.imag by symmetry
-    turn_len = corner.s
-    if 2.0 * tangent >= L:
-        raise SimbenchError(
-            f"{where}.turn_radius_m",
-            f"corners of radius {R} m need blocks longer than {2 * tangent:.1f} m",
-            "reduce turn_radius_m or increase block_length_m",
-        )
-    v_cruise = u.cruise_speed_mps
-    v_turn = min(u.turn_speed_mps, v_cruise)
 
-    # Buildings per block side. Side 0 is on the left when driving towards +east (E-W
-    # streets) or +north (N-S streets).
-    ne, nn = u.n_blocks_east, u.n_blocks_north
-    sides = {}
-    for kind, shape in (("ew", (ne, nn + 1, 2)), ("ns", (ne + 1, nn, 2))):
-        sides[kind] = block_sides(nlos, shape, rng)
+@dataclass(frozen=True)
+class _Corner:
+    """A 90 degree corner of clothoid - arc - clothoid: its clothoid length, the distance from the
+    intersection to where it starts, and its length along the path [m]."""
 
-    def edge(i: int, j: int, d: int) -> tuple[float, float, float, float]:
+    clothoid: float
+    tangent: float
+    length: float
+
+    @classmethod
+    def of(cls, u: UrbanDriveConfig) -> _Corner:
+        R = u.turn_radius_m
+        clothoid = 2.0 * R * _URBAN_CLOTHOID_TURN_RAD
+        path = _PathBuilder(0j, 0.0)
+        path.turn(math.pi / 2, R, clothoid, 0, 0)
+        tangent = path.z.real  # vertex to turn start; equals path.z.imag by symmetry
+        if 2.0 * tangent >= u.block_length_m:
+            raise SimbenchError(
+                f"{_URBAN_DRIVE}.turn_radius_m",
+                f"corners of radius {R} m need blocks longer than {2 * tangent:.1f} m",
+                "reduce turn_radius_m or increase block_length_m",
+            )
+        return cls(clothoid, tangent, path.s)
+
+
+class _StreetGrid:
+    """The street grid: intersections (i north, j east), its blocks' sides (buildings drawn per side) and
+    the edges a route has driven along (each with its axis, direction and sides)."""
+
+    def __init__(self, ne: int, nn: int, block_m: float, nlos: NlosConfig, rng: np.random.Generator) -> None:
+        self.ne, self.nn, self.L = ne, nn, block_m
+        # Side 0 is on the left when driving towards +east (E-W streets) or +north (N-S streets).
+        self.sides = {
+            kind: block_sides(nlos, shape, rng) for kind, shape in (("ew", (ne, nn + 1, 2)), ("ns", (ne + 1, nn, 2)))
+        }
+        self.edges: list[tuple[complex, complex, float, float, float, float]] = []  # axis start, direction, sides
+
+    def node(self, i: int, j: int) -> complex:
+        return complex((j - self.nn / 2) * self.L, (i - self.ne / 2) * self.L)
+
+    def inside(self, i: int, j: int) -> bool:
+        return 0 <= i <= self.ne and 0 <= j <= self.nn
+
+    def sides_of(self, i: int, j: int, d: int) -> tuple[float, float, float, float]:
         """(left distance, right distance, left height, right height) leaving node (i, j) along d."""
         kind, ii, jj = {0: ("ns", i, j), 1: ("ew", i, j), 2: ("ns", i, j - 1), 3: ("ew", i - 1, j)}[d]
-        dist, height = sides[kind]
+        dist, height = self.sides[kind]
         if kind == "ns":  # side 0 is west: left when driving north
             left, right = (0, 1) if d == 0 else (1, 0)
         else:  # side 0 is north: left when driving east
             left, right = (0, 1) if d == 1 else (1, 0)
         return dist[ii, jj, left], dist[ii, jj, right], height[ii, jj, left], height[ii, jj, right]
 
-    def node(i: int, j: int) -> complex:
-        return complex((j - nn / 2) * L, (i - ne / 2) * L)
+    def new_edge(self, i: int, j: int, d: int) -> int:
+        """Record the edge leaving node (i, j) along d; its tag."""
+        self.edges.append((self.node(i, j), complex(_DIRS[d]), *self.sides_of(i, j, d)))
+        return len(self.edges) - 1
 
-    def inside(i: int, j: int) -> bool:
-        return 0 <= i <= ne and 0 <= j <= nn
+    def street(self, z: np.ndarray, tag: np.ndarray) -> StreetGeometry:
+        """Street geometry at positions ``z`` from the block side of edge ``tag`` (corners switch half-way);
+        the crossing street's facades are taken at the same setback as this block side's."""
+        e = np.array([(a0.real, a0.imag, dr.real, dr.imag, *rest) for a0, dr, *rest in self.edges])[tag]
+        rel = (z - (e[:, 0] + 1j * e[:, 1])) * (e[:, 2] - 1j * e[:, 3])  # along + i right-of-axis
+        to_crossing = np.minimum(np.abs(rel.real), np.abs(self.L - rel.real))
+        dl, dr, hl, hr = e[:, 4], e[:, 5], e[:, 6], e[:, 7]
+        return StreetGeometry(
+            road_heading_rad=np.arctan2(e[:, 3], e[:, 2]) % (2 * np.pi),
+            wall_left_m=np.maximum(dl + rel.imag, _MIN_WALL_DISTANCE_M),
+            wall_right_m=np.maximum(dr - rel.imag, _MIN_WALL_DISTANCE_M),
+            height_left_m=np.where(to_crossing < dl, 0.0, hl),
+            height_right_m=np.where(to_crossing < dr, 0.0, hr),
+        )
 
+
+def _route(
+    u: UrbanDriveConfig, corner: _Corner, grid: _StreetGrid, duration_s: float, rng: np.random.Generator
+) -> tuple[_Path, list[tuple[float, float, float, float]]]:
+    """A random route through ``grid``: the built path and its speed keypoints (arc length, speed cap,
+    standstill, cap on the following section). At every intersection the car goes straight or turns
+    (uniformly among the choices that stay inside), stopping with ``stop_probability``."""
+    L, tangent = u.block_length_m, corner.tangent
+    v_cruise = u.cruise_speed_mps
+    v_turn = min(u.turn_speed_mps, v_cruise)
     # Start in the middle of a random block, facing a random way along it.
     while True:
-        i, j, d = int(rng.integers(ne + 1)), int(rng.integers(nn + 1)), int(rng.integers(4))
-        if inside(i + _DI[d], j + _DJ[d]):
+        i, j, d = int(rng.integers(grid.ne + 1)), int(rng.integers(grid.nn + 1)), int(rng.integers(4))
+        if grid.inside(i + _DI[d], j + _DJ[d]):
             break
-    edges: list[tuple[complex, complex, float, float, float, float]] = []  # axis start, direction, sides
-
-    def new_edge(i: int, j: int, d: int) -> int:
-        edges.append((node(i, j), complex(_DIRS[d]), *edge(i, j, d)))
-        return len(edges) - 1
-
-    tag = new_edge(i, j, d)
-    path = _PathBuilder(node(i, j) + 0.5 * L * _DIRS[d], d * math.pi / 2)
+    tag = grid.new_edge(i, j, d)
+    path = _PathBuilder(grid.node(i, j) + 0.5 * L * _DIRS[d], d * math.pi / 2)
     i, j = i + _DI[d], j + _DJ[d]
-    # keypoints: arc length, speed cap, standstill, cap on the following section
     kps: list[tuple[float, float, float, float]] = [(0.0, 0.0, u.start_static_s, v_cruise)]
     # the car cannot cover more than cruise * duration, and blocks are at least L - 2 tangent long
     n_nodes = int(math.ceil(v_cruise * duration_s / (L - 2.0 * tangent))) + 2
     for _ in range(n_nodes):
-        options = [dd for dd in (d, (d + 1) % 4, (d - 1) % 4) if inside(i + _DI[dd], j + _DJ[dd])]
+        options = [dd for dd in (d, (d + 1) % 4, (d - 1) % 4) if grid.inside(i + _DI[dd], j + _DJ[dd])]
         d_new = options[int(rng.integers(len(options)))]
         stop = bool(rng.random() < u.stop_probability)
         stop_s = float(rng.uniform(*u.stop_duration_s))
-        vertex = node(i, j)
+        vertex = grid.node(i, j)
         to_vertex = abs(vertex - path.z)
         s_stop = path.s + to_vertex - tangent
         if d_new == d:
             path.add(to_vertex, 0.0, tag)
             if stop:
                 kps.append((s_stop, 0.0, stop_s, v_cruise))
-            tag = new_edge(i, j, d_new)
+            tag = grid.new_edge(i, j, d_new)
         else:
             path.add(to_vertex - tangent, 0.0, tag)
             kps.append((s_stop, 0.0 if stop else v_turn, stop_s if stop else 0.0, v_turn))
-            tag_out = new_edge(i, j, d_new)
-            path.turn(math.pi / 2 if d_new == (d + 1) % 4 else -math.pi / 2, R, clothoid, tag, tag_out)
-            kps.append((s_stop + turn_len, v_turn, 0.0, v_cruise))
+            tag_out = grid.new_edge(i, j, d_new)
+            turn = math.pi / 2 if d_new == (d + 1) % 4 else -math.pi / 2
+            path.turn(turn, u.turn_radius_m, corner.clothoid, tag, tag_out)
+            kps.append((s_stop + corner.length, v_turn, 0.0, v_cruise))
             tag = tag_out
         d, i, j = d_new, i + _DI[d_new], j + _DJ[d_new]
-    path.add(abs(node(i, j) - path.z) - tangent, 0.0, tag)
+    path.add(abs(grid.node(i, j) - path.z) - tangent, 0.0, tag)
     kps.append((path.s, 0.0, 0.0, v_cruise))
-    geo = path.build()
-
-    kp = np.array(kps)
-    phases = _plan_speed(kp[:, 0], kp[:, 1], kp[:, 2], kp[:-1, 3], u.max_accel_mps2)
-    s, v, a = _eval_speed(*phases, t)
-    z, heading, kappa, _, prim, _ = _eval_path(geo, np.minimum(s, geo.total))
-
-    # Street geometry from the block side the car is on (corners switch half-way).
-    e = np.array([(a0.real, a0.imag, dr.real, dr.imag, *rest) for a0, dr, *rest in edges])[geo.tag[prim]]
-    rel = (z - (e[:, 0] + 1j * e[:, 1])) * (e[:, 2] - 1j * e[:, 3])  # along + i right-of-axis
-    to_crossing = np.minimum(np.abs(rel.real), np.abs(L - rel.real))
-    dl, dr, hl, hr = e[:, 4], e[:, 5], e[:, 6], e[:, 7]
-    # The crossing street's facades are taken at the same setback as this block side's.
-    street = StreetGeometry(
-        road_heading_rad=np.arctan2(e[:, 3], e[:, 2]) % (2 * np.pi),
-        wall_left_m=np.maximum(dl + rel.imag, _MIN_WALL_DISTANCE_M),
-        wall_right_m=np.maximum(dr - rel.imag, _MIN_WALL_DISTANCE_M),
-        height_left_m=np.where(to_crossing < dl, 0.0, hl),
-        height_right_m=np.where(to_crossing < dr, 0.0, hr),
-    )
-    zero = np.zeros_like(t)
-    return _assemble_local(cfg, t, z, zero, heading, v, a, kappa, zero, zero, zero, zero, zero, zero, street)
+    return path.build(), kps
 
 
 def block_sides(nlos: NlosConfig, shape: tuple[int, ...], rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
