@@ -193,43 +193,76 @@ def read_librsf(path: str | os.PathLike[str]) -> LibrsfLog:
     if not_number.size:
         i, j = not_number[0]
         raise _rsf_error(p, f"field {j + 2} ('{raw.iat[i, j + 1]}') is not a finite number", int(line_no[i]))
-    n_values = present.sum(axis=1)
+    lines = _RsfLines(p, kind, num, present.sum(axis=1), line_no)
+    ranges, t0 = _range_table(lines)
+    odometry = _odometry_table(lines, t0)
+    gi = lines.rows("point")
+    if (lines.n_values[gi] < 4).any():
+        raise _rsf_error(
+            p, "point3 needs at least 4 values after the keyword (t X Y Z)", lines.first_bad(gi, lines.n_values[gi] < 4)
+        )
+    reference = pd.DataFrame(num[gi][:, :4], columns=["t", "x", "y", "z"])
+    reference["t"] -= t0
+    return LibrsfLog(t0=t0, ranges=ranges, odometry=odometry, reference=reference, path=p)
 
-    def first_bad(rows: np.ndarray, bad: np.ndarray) -> int:
-        return int(line_no[rows[np.flatnonzero(bad)[0]]])
 
-    ri = np.flatnonzero(kind == "range")
+@dataclass(frozen=True)
+class _RsfLines:
+    """The lines of a libRSF file as numbers, with what their errors name."""
+
+    path: str
+    kind: np.ndarray  #: 'range', 'odom' or 'point' per line
+    num: np.ndarray  #: the values after the keyword, NaN where absent
+    n_values: np.ndarray  #: how many values each line has
+    line_no: np.ndarray  #: the file's line number of each line
+
+    def rows(self, kind: str) -> np.ndarray:
+        return np.flatnonzero(self.kind == kind)
+
+    def first_bad(self, rows: np.ndarray, bad: np.ndarray) -> int:
+        """The file's line number of the first of ``rows`` where ``bad``."""
+        return int(self.line_no[rows[np.flatnonzero(bad)[0]]])
+
+
+def _range_table(lines: _RsfLines) -> tuple[pd.DataFrame, float]:
+    """The ``pseudorange3`` lines as a table (time since the first of them) and that first time [s]."""
+    p = lines.path
+    ri = lines.rows("range")
     if ri.size == 0:
         raise _rsf_error(p, "contains no pseudorange3 lines")
-    nr = n_values[ri]
+    nr = lines.n_values[ri]
     if not np.isin(nr, (9, 10)).all():
         k = int(nr[~np.isin(nr, (9, 10))][0])
         raise _rsf_error(
             p,
             f"pseudorange3 has {k} values after the keyword; expected 9 (t rho var x y z id el "
             "cn0) or 10 (... id system el cn0)",
-            first_bad(ri, ~np.isin(nr, (9, 10))),
+            lines.first_bad(ri, ~np.isin(nr, (9, 10))),
         )
     if (nr != nr[0]).any():
         raise _rsf_error(
             p,
             f"pseudorange3 has {int(nr[nr != nr[0]][0])} values after the keyword, the first "
             f"pseudorange3 line {int(nr[0])}; one file has one layout",
-            first_bad(ri, nr != nr[0]),
+            lines.first_bad(ri, nr != nr[0]),
         )
-    r = num[ri]
+    r = lines.num[ri]
     with_system = nr == 10
     t0 = float(r[:, 0].min())
     sat_id = r[:, 6]
     bad_id = (sat_id != np.round(sat_id)) | (sat_id < 1)
     if bad_id.any():
         raise _rsf_error(
-            p, f"field 8 (satellite ID) is {sat_id[bad_id][0]:g}; expected a positive integer", first_bad(ri, bad_id)
+            p,
+            f"field 8 (satellite ID) is {sat_id[bad_id][0]:g}; expected a positive integer",
+            lines.first_bad(ri, bad_id),
         )
     bad_var = ~(r[:, 2] > 0.0)
     if bad_var.any():
         raise _rsf_error(
-            p, f"field 4 (pseudorange variance) is {r[:, 2][bad_var][0]:g}; variances are > 0", first_bad(ri, bad_var)
+            p,
+            f"field 4 (pseudorange variance) is {r[:, 2][bad_var][0]:g}; variances are > 0",
+            lines.first_bad(ri, bad_var),
         )
     flags = np.where(with_system, r[:, 7], 1.0)
     bad_flag = ~np.isin(flags, list(SYSTEM_LETTERS))
@@ -238,7 +271,7 @@ def read_librsf(path: str | os.PathLike[str]) -> LibrsfLog:
             p,
             f"field 9 (satellite system) is {flags[bad_flag][0]:g}; expected 1 GPS, 2 SBAS, "
             "4 GLONASS, 8 Galileo, 16 QZSS or 32 BeiDou",
-            first_bad(ri, bad_flag),
+            lines.first_bad(ri, bad_flag),
         )
     letters = np.array([SYSTEM_LETTERS[int(f)] for f in flags.tolist()])
     prn = sat_id.astype(np.int64)
@@ -259,39 +292,34 @@ def read_librsf(path: str | os.PathLike[str]) -> LibrsfLog:
             "cn0": cn0,
         }
     )
+    return ranges, t0
 
-    oi = np.flatnonzero(kind == "odom")
-    if (n_values[oi] != 13).any():
-        bad = n_values[oi] != 13
+
+def _odometry_table(lines: _RsfLines, t0: float) -> pd.DataFrame:
+    """The ``odom3`` lines as the odometry table (:data:`simbench.contract.ODOMETRY_COLUMNS`), by time."""
+    oi = lines.rows("odom")
+    if (lines.n_values[oi] != 13).any():
+        bad = lines.n_values[oi] != 13
         raise _rsf_error(
-            p,
-            f"odom3 has {int(n_values[oi][bad][0])} values after the keyword; expected 13 "
+            lines.path,
+            f"odom3 has {int(lines.n_values[oi][bad][0])} values after the keyword; expected 13 "
             "(t, velocity xyz, turn rate xyz, their 6 variances)",
-            first_bad(oi, bad),
+            lines.first_bad(oi, bad),
         )
-    o = num[oi][:, :13]
+    o = lines.num[oi][:, :13]
     # the speed (field 9) and yaw rate (field 14) variances weight the odometry: zero is refused there too
     bad_odo = (o[:, 7:13] < 0.0) | (np.isin(np.arange(7, 13), (7, 12)) & (o[:, 7:13] <= 0.0))
     if bad_odo.any():
         row = np.flatnonzero(bad_odo.any(axis=1))
         j = int(np.flatnonzero(bad_odo[row[0]])[0])
         raise _rsf_error(
-            p,
+            lines.path,
             f"odom3 variance field {j + 9} is {o[row[0], 7 + j]:g}; variances are >= 0, the speed (9) and "
             "yaw rate (14) ones > 0",
-            int(line_no[oi[row[0]]]),
+            int(lines.line_no[oi[row[0]]]),
         )
     odometry = pd.DataFrame(odometry_columns(o, t0), columns=list(ODOMETRY_COLUMNS))
-    odometry = odometry.sort_values("t", kind="stable").reset_index(drop=True)
-
-    gi = np.flatnonzero(kind == "point")
-    if (n_values[gi] < 4).any():
-        raise _rsf_error(
-            p, "point3 needs at least 4 values after the keyword (t X Y Z)", first_bad(gi, n_values[gi] < 4)
-        )
-    reference = pd.DataFrame(num[gi][:, :4], columns=["t", "x", "y", "z"])
-    reference["t"] -= t0
-    return LibrsfLog(t0=t0, ranges=ranges, odometry=odometry, reference=reference, path=p)
+    return odometry.sort_values("t", kind="stable").reset_index(drop=True)
 
 
 def odometry_columns(o: np.ndarray, t0: float) -> dict[str, np.ndarray]:
