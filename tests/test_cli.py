@@ -207,22 +207,25 @@ def test_compact_summary_sorts_by_median_and_fits_100_columns() -> None:
             {"estimator": "dcs", "overrides": "{}"},
             {"estimator": "l2", "overrides": "{}"},
             {"estimator": "ekf_ins", "overrides": "{}", "status": "failed", "message": "x" * 200},
+            {"estimator": "oracle", "overrides": "{}"},
         ]
     ).assign(
         status=lambda f: f.get("status", pd.Series("ok", index=f.index)).fillna("ok"),
         gnss_model="urban",
-        availability=[1.0, 1.0, 0.4, 0.0],
-        horizontal_median_ref=[3.0, 2.0, np.inf, np.nan],
-        horizontal_p95_ref=[4.0, 3.0, np.inf, np.nan],
-        error_3d_median_ref=[5.0, 4.0, np.inf, np.nan],
-        total_s=[1.0, 2.0, 0.5, np.nan],
+        availability=[1.0, 1.0, 0.4, 0.0, 1.0],
+        horizontal_median_ref=[3.0, 2.0, np.inf, np.nan, 0.5],
+        horizontal_p95_ref=[4.0, 3.0, np.inf, np.nan, 1.0],
+        error_3d_median_ref=[5.0, 4.0, np.inf, np.nan, 1.0],
+        total_s=[1.0, 2.0, 0.5, np.nan, 1.0],
         n_epochs=100,
+        uses_labels=[False, False, False, False, True],
     )
     lines = compact_summary(rows).splitlines()
-    names = [ln.split()[0] for ln in lines[2:6]]
+    names = [ln.split()[0] for ln in lines[2:7]]
     assert names[0] == "dcs" and names[1].startswith("dcs[prior_scale=10.0,") and names[1].endswith("…")
-    assert names[2:] == ["l2", "ekf_ins"] and "—" in lines[4]  # undefined medians, then no ok row at all
-    assert lines[6].startswith("ekf_ins: failed: xxx") and len(lines) == 7
+    # undefined medians, then no ok row at all; the oracle, best of all, ranked apart as a floor
+    assert names[2:] == ["l2", "ekf_ins", "oracle†"] and "—" in lines[4]
+    assert lines[7].startswith("ekf_ins: failed: xxx") and len(lines) == 8
     assert max(map(len, lines)) <= SUMMARY_WIDTH and "20.0" in lines[2]  # 2 s over 100 epochs = 20 ms
 
 

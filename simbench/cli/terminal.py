@@ -9,7 +9,7 @@ from tabulate import tabulate
 
 from simbench.analysis.tables import with_variant_columns
 from simbench.analysis.variants import display_names
-from simbench.report.style import sig3
+from simbench.report.style import LABELS_MARK, sig3
 
 #: Widest summary line [characters]: it fits a terminal of 100 columns.
 SUMMARY_WIDTH = 100
@@ -29,7 +29,8 @@ def compact_summary(summary: pd.DataFrame) -> str:
     Returns
     -------
     str
-        A table at most :data:`SUMMARY_WIDTH` characters wide: estimator, rows ok / run (:func:`ok_count`),
+        A table at most :data:`SUMMARY_WIDTH` characters wide, the oracle (an estimator that reads the
+        labels, marked :data:`~simbench.report.style.LABELS_MARK`) last: estimator, rows ok / run (:func:`ok_count`),
         availability [%], horizontal median and p95 and 3-D median over reference epochs [m]
         (— when the availability does not reach the percentile) and time per epoch [ms]; under the
         table, one line per variant with a row that is not ok: its status and message.
@@ -48,9 +49,12 @@ def compact_summary(summary: pd.DataFrame) -> str:
 
         per_epoch = ok["total_s"].to_numpy(float) / np.maximum(ok["n_epochs"].to_numpy(float), 1)
         problem = group.loc[~group["ok"], "message"].fillna("").astype(str)
+        # an estimator that reads the true error labels (the oracle) is a floor, not a contender: marked, last
+        floor = bool(group["uses_labels"].any()) if "uses_labels" in group else False
+        name = f"{name}{LABELS_MARK}" if floor else str(name)
         out.append(
             {
-                "estimator": str(name) if len(str(name)) <= NAME_WIDTH else str(name)[: NAME_WIDTH - 1] + "…",
+                "estimator": name if len(name) <= NAME_WIDTH else name[: NAME_WIDTH - 1] + "…",
                 "ok": ok_count(group),
                 "avail [%]": sig3(100 * mean("availability")),
                 "h med [m]": sig3(mean("horizontal_median_ref")),
@@ -59,12 +63,13 @@ def compact_summary(summary: pd.DataFrame) -> str:
                 "ms/epoch": sig3(1e3 * float(per_epoch.mean())) if len(per_epoch) else "",
                 "_note": (group.loc[~group["ok"], "status"].iloc[0] + ": " + problem.iloc[0]) if len(problem) else "",
                 "_key": mean("horizontal_median_ref"),
+                "_floor": floor,
             }
         )
-    table = pd.DataFrame(out).sort_values(["_key", "estimator"], na_position="last")
+    table = pd.DataFrame(out).sort_values(["_floor", "_key", "estimator"], na_position="last")
     align = ["left", "right", "right", "right", "right", "right", "right"]
     text = tabulate(
-        table.drop(columns=["_key", "_note"]),
+        table.drop(columns=["_key", "_note", "_floor"]),
         headers="keys",
         tablefmt="simple",
         showindex=False,
