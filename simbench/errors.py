@@ -10,8 +10,10 @@ which the CLI prints as ``warning: ...``.
 
 from __future__ import annotations
 
+import difflib
 import traceback
 import warnings
+from collections.abc import Iterable
 
 
 class SimbenchError(ValueError):
@@ -66,3 +68,9 @@ def one_line(exc: BaseException) -> str:
     where = traceback.extract_tb(exc.__traceback__)[-1] if exc.__traceback__ else None
     loc = f" (at {where.filename.rsplit('/', 1)[-1]}:{where.lineno})" if where else ""
     return f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}{loc}"
+
+
+def did_you_mean(name: str, known: Iterable[str]) -> str:
+    """`` (did you mean 'dcs'?)`` for the closest known name, or ``''`` when none is close."""
+    close = difflib.get_close_matches(name, list(known), n=1, cutoff=0.6)
+    return f" (did you mean '{close[0]}'?)" if close else ""

@@ -18,8 +18,7 @@ from hydra.errors import HydraException
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from simbench.cli.text import did_you_mean
-from simbench.errors import SimbenchError
+from simbench.errors import SimbenchError, did_you_mean
 
 __all__ = ["check_subcommand", "check_no_sweep", "run_hydra", "hydra_error", "unresolved"]
 

@@ -25,10 +25,16 @@ from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf, open_dict
 
 from simbench.cli.command_line import check_no_sweep, check_subcommand, run_hydra, unresolved
-from simbench.cli.text import did_you_mean, one_line_warnings
+from simbench.cli.text import one_line_warnings
 from simbench.entry_points import ALL_ESTIMATORS
-from simbench.errors import SimbenchError
-from simbench.runs.groups import CONF_DIR, available, config_groups, group_choices, recorded_built_in_estimators
+from simbench.errors import SimbenchError, did_you_mean
+from simbench.runs.groups import (
+    CONF_DIR,
+    available,
+    check_group_choices,
+    config_groups,
+    recorded_built_in_estimators,
+)
 from simbench.runs.run_dirs import unique_run_dir
 
 if TYPE_CHECKING:
@@ -163,22 +169,10 @@ def suggest_names(overrides: Iterable[str]) -> None:
     SimbenchError
         Naming the unknown name, the suggestion and the known names.
     """
-    groups = config_groups()
     for item in overrides:
-        key, sep, value = item.partition("=")
-        group = key.lstrip("+~")
-        if sep and group in groups:
-            known = available(group)
-            for name in group_choices(value) or []:
-                if name not in known and group == "estimator":
-                    known = all_estimator_options()
-                if name not in known:
-                    raise SimbenchError(
-                        group,
-                        f"unknown {group} '{name}'{did_you_mean(name, known)}",
-                        f"choose from {', '.join(known)}",
-                    )
-        parts = group.split(".")
+        check_group_choices([item], every_estimator=all_estimator_options)
+        key, sep, _ = item.partition("=")
+        parts = key.lstrip("+~").split(".")
         if sep and len(parts) > 2 and parts[0] == "estimator":
             known = [name for name in available("estimator") if name != ALL_ESTIMATORS]
             if parts[1] not in known:

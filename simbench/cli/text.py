@@ -5,11 +5,10 @@ and docstrings as plain text for a subcommand's ``--help``."""
 from __future__ import annotations
 
 import argparse
-import difflib
 import re
 import sys
 import warnings
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from typing import NoReturn, TextIO
 
 from simbench.errors import SimbenchWarning
@@ -34,12 +33,6 @@ def plain_text(doc: str) -> str:
 
     text = LITERAL.sub(r"\1", SPHINX_ROLE.sub(role, doc))
     return re.sub(r"(\S)::$", r"\1:", re.sub(r"\s::$", ":", text, flags=re.M), flags=re.M)
-
-
-def did_you_mean(name: str, known: Iterable[str]) -> str:
-    """`` (did you mean 'dcs'?)`` for the closest known name, or ``''`` when none is close."""
-    close = difflib.get_close_matches(name, list(known), n=1, cutoff=0.6)
-    return f" (did you mean '{close[0]}'?)" if close else ""
 
 
 def one_line_warnings(emit: Callable[[str], object] | None = None) -> None:

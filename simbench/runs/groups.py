@@ -10,7 +10,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import re
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
@@ -18,7 +18,7 @@ import yaml
 from omegaconf import OmegaConf
 
 from simbench.entry_points import ALL_ESTIMATORS, ESTIMATOR_GROUP, SOURCE_GROUP, entry_point_names
-from simbench.errors import SimbenchError
+from simbench.errors import SimbenchError, did_you_mean
 
 #: The repository's top-level ``conf/`` directory.
 CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
@@ -104,15 +104,22 @@ def group_choices(value: str) -> list[str] | None:
     return [name for name in names if name]
 
 
-def check_group_choices(overrides: Iterable[str], registered: Iterable[str] = ()) -> None:
-    """Reject an unknown option of a config group (``estimator=[nosuch]``) in one line.
+def check_group_choices(
+    overrides: Iterable[str],
+    registered: Iterable[str] = (),
+    every_estimator: Callable[[], list[str]] | None = None,
+) -> None:
+    """Reject an unknown option of a config group (``estimator=[nosuch]``) in one line, with the closest
+    known one (``did you mean 'dcs'?``).
 
-    ``registered``: the estimators a caller that imported them has (:func:`available`).
+    ``registered``: the estimators a caller that imported them has (:func:`available`);
+    ``every_estimator``: asked for the certain list before an estimator name is refused (the command
+    line's names come from a record that may be stale).
 
     Raises
     ------
     SimbenchError
-        Naming the group, the unknown option and the known ones.
+        Naming the group, the unknown option, the suggestion and the known ones.
     """
     groups = config_groups()
     for item in overrides:
@@ -122,8 +129,12 @@ def check_group_choices(overrides: Iterable[str], registered: Iterable[str] = ()
             continue
         known = available(group, registered)
         for name in group_choices(value) or []:
+            if name not in known and group == "estimator" and every_estimator is not None:
+                known = every_estimator()
             if name not in known:
-                raise SimbenchError(group, f"unknown {group} '{name}'", f"choose from {', '.join(known)}")
+                raise SimbenchError(
+                    group, f"unknown {group} '{name}'{did_you_mean(name, known)}", f"choose from {', '.join(known)}"
+                )
 
 
 def config_groups_help() -> str:
