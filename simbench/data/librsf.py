@@ -322,14 +322,18 @@ def _odometry_table(lines: _RsfLines, t0: float) -> pd.DataFrame:
     return odometry.sort_values("t", kind="stable").reset_index(drop=True)
 
 
+#: libRSF's vehicle frame (x forward, y left, z up) to the contract's (x forward, y right, z down) and back:
+#: the y and z components of a velocity or turn rate change sign.
+LIBRSF_AXES = np.array([1.0, -1.0, -1.0])
+
+
 def odometry_columns(o: np.ndarray, t0: float) -> dict[str, np.ndarray]:
     """The odometry table's columns from ``odom3`` values ``o`` (rows: t, v xyz, w xyz, their 6 variances).
 
     libRSF's x forward, y left, z up becomes the contract's x forward, y right, z down: the y and z
     components change sign, the variances do not.
     """
-    flip = np.array([1.0, -1.0, -1.0])
-    vel, rate, var_vel, var_rate = o[:, 1:4] * flip, o[:, 4:7] * flip, o[:, 7:10], o[:, 10:13]
+    vel, rate, var_vel, var_rate = o[:, 1:4] * LIBRSF_AXES, o[:, 4:7] * LIBRSF_AXES, o[:, 7:10], o[:, 10:13]
     return {
         "t": o[:, 0] - t0,
         "speed": vel[:, 0],

@@ -40,7 +40,7 @@ from simbench.core import atmosphere
 from simbench.core.constants import DEG
 from simbench.core.frames import geodetic_from_ecef
 from simbench.core.gpstime import day_of_year
-from simbench.data.librsf import SYSTEM_FLAGS
+from simbench.data.librsf import LIBRSF_AXES, SYSTEM_FLAGS
 from simbench.errors import SimbenchError
 from simbench.gnss.spp import ROUGH_FIX_MAX_RMS_M, solve_epochs
 from simbench.gnss.troposphere import troposphere_terms
@@ -152,12 +152,12 @@ def odom3_lines(odometry: pd.DataFrame) -> list[str]:
     speed, yaw, var_speed, var_yaw = (o[c].to_numpy(float) for c in ("speed", "yaw_rate", "var_speed", "var_yaw_rate"))
 
     def given(column: str, default: np.ndarray | float) -> np.ndarray:
-        return np.where(np.isfinite(o[column].to_numpy(float)), o[column].to_numpy(float), default)
+        values = o[column].to_numpy(float)
+        return np.where(np.isfinite(values), values, default)
 
-    flip = np.array([1.0, -1.0, -1.0])
     # + 0.0: a flipped zero is written 0, not -0
-    vel = np.column_stack([speed, given("vel_right", 0.0), given("vel_down", 0.0)]) * flip + 0.0
-    rate = np.column_stack([given("roll_rate", 0.0), given("pitch_rate", 0.0), yaw]) * flip + 0.0
+    vel = np.column_stack([speed, given("vel_right", 0.0), given("vel_down", 0.0)]) * LIBRSF_AXES + 0.0
+    rate = np.column_stack([given("roll_rate", 0.0), given("pitch_rate", 0.0), yaw]) * LIBRSF_AXES + 0.0
     var_vel = np.column_stack([var_speed, given("var_vel_right", var_speed), given("var_vel_down", var_speed)])
     var_rate = np.column_stack([given("var_roll_rate", var_yaw), given("var_pitch_rate", var_yaw), var_yaw])
     return [
