@@ -295,6 +295,10 @@ class EkfPass:
         self.arc_bias = np.full(obs.n_arcs, np.nan)  # final bias estimate of each arc [m]
         self.n_doppler = self.n_odometry = self.n_resets = self.n_fallbacks = 0
         self.estimate_zwd = wet.mode == WetDelayMode.estimate
+        self.white_clock = cfg.clock_model == ClockModel.white
+        # the time update's indices, once: it runs every epoch
+        self.pos_diag, self.vel_diag = np.arange(3), lay.vel0 + np.arange(3)
+        self.iono_diag, self.isb_diag = np.arange(lay.iono0, lay.isb0), np.arange(lay.isb0, lay.vel0)
         self._initialise()
 
     def _first_fix(self) -> tuple[Any, slice]:
@@ -361,11 +365,9 @@ class EkfPass:
         """Time update over ``dt`` seconds to epoch ``k`` (identity transition; constant velocity:
         position += velocity dt, with epoch ``k``'s mean wheel odometry applied at mid-interval)."""
         cfg, lay, kf = self.cfg, self.layout, self.kf
-        diag = np.arange(3)
-        white_clock = cfg.clock_model == ClockModel.white
+        diag, vel_diag, white_clock = self.pos_diag, self.vel_diag, self.white_clock
         if dt > 0 and lay.cv:
             q_acc, q_drift = cfg.accel_sigma_mps2_rts**2, cfg.drift_rw_mps_rts**2
-            vel_diag = lay.vel0 + diag
             if self.odometry is not None and np.isfinite(self.odometry[k, 0]):
                 # the mean speed since the previous epoch is the speed at mid-interval (for a
                 # steady acceleration): update there, halfway through the exact time update
@@ -385,9 +387,8 @@ class EkfPass:
             if not lay.cv:
                 P[diag, diag] += cfg.pos_rw_m_rts**2 * dt
             P[_ZWD, _ZWD] += (cfg.zwd_rw_m_rts**2 if self.estimate_zwd else 0.0) * dt
-            iono_diag, isb_diag = np.arange(lay.iono0, lay.isb0), np.arange(lay.isb0, lay.vel0)
-            P[iono_diag, iono_diag] += cfg.iono_rw_m_rts**2 * dt
-            P[isb_diag, isb_diag] += cfg.isb_rw_m_rts**2 * dt
+            P[self.iono_diag, self.iono_diag] += cfg.iono_rw_m_rts**2 * dt
+            P[self.isb_diag, self.isb_diag] += cfg.isb_rw_m_rts**2 * dt
             if white_clock:
                 P[_CLK, :] = 0.0
                 P[:, _CLK] = 0.0
@@ -444,7 +445,7 @@ class EkfPass:
             H[np.flatnonzero(e.has_phase), lay.iono0 + e.slots[e.has_phase]] = 1.0
             pred = pred + np.where(e.has_phase, kf.x[lay.iono0 + e.slots], 0.0)
         pred[e.isb_rows] += kf.x[e.isb_cols]
-        if self.cfg.clock_model == ClockModel.white:
+        if self.white_clock:
             # a white clock keeps nothing from the last epoch: centre it on this epoch's code, so a
             # receiver that holds its clock within a millisecond by jumps (u-blox: 300-2100 km, a
             # thousand sigma of the clock's 2 km) leaks no metres into the position
