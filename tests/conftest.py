@@ -74,6 +74,24 @@ def shared_data() -> Path:
     return require_shared(data_home())
 
 
+def truncate(path: Path) -> None:
+    """Damage: cut the file to half its bytes."""
+    path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
+
+
+def empty(path: Path) -> None:
+    """Damage: the file holds no bytes."""
+    path.write_bytes(b"")
+
+
+def garble(path: Path) -> None:
+    """Damage: flip 16 bytes in the middle; the file keeps its size, a Parquet file its footer and magic bytes."""
+    data = bytearray(path.read_bytes())
+    mid = len(data) // 2
+    data[mid - 8 : mid + 8] = bytes(b ^ 0xFF for b in data[mid - 8 : mid + 8])
+    path.write_bytes(bytes(data))
+
+
 def one_line_error(fn, *args, **kwargs) -> str:
     """Call ``fn``; assert it raises a :class:`SimbenchError` whose message is one line of the
     form ``field: problem -- fix``; return the message."""

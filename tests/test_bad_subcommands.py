@@ -34,6 +34,7 @@ import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
 import pytest
+from conftest import empty, garble, truncate
 from omegaconf import OmegaConf
 
 import simbench.cli.callbacks
@@ -84,22 +85,6 @@ def world(tmp_path_factory: pytest.TempPathFactory) -> World:
 
 
 # --- damage -------------------------------------------------------------------------------------
-
-
-def truncate(path: Path) -> None:
-    path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
-
-
-def empty(path: Path) -> None:
-    path.write_bytes(b"")
-
-
-def garble(path: Path) -> None:
-    """Flip 16 bytes in the middle: size, footer and magic bytes stay."""
-    data = bytearray(path.read_bytes())
-    mid = len(data) // 2
-    data[mid - 8 : mid + 8] = bytes(b ^ 0xFF for b in data[mid - 8 : mid + 8])
-    path.write_bytes(bytes(data))
 
 
 def binary(path: Path) -> None:

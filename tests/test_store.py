@@ -20,7 +20,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-from conftest import REPO_ROOT
+from conftest import REPO_ROOT, empty, garble, truncate
 from omegaconf import OmegaConf, open_dict
 
 import estimators
@@ -62,27 +62,11 @@ def _cache(run_dir: Path, name: str) -> Path:
     return next(run_dir.glob(f"cache/*/{name}"))
 
 
-def _truncate(path: Path) -> None:
-    path.write_bytes(path.read_bytes()[: path.stat().st_size // 2])
-
-
-def _empty(path: Path) -> None:
-    path.write_bytes(b"")
-
-
-def _garble(path: Path) -> None:
-    """Flip bytes in the middle: the file keeps its size, its Parquet footer and magic bytes."""
-    data = bytearray(path.read_bytes())
-    middle = len(data) // 2
-    data[middle - 8 : middle + 8] = bytes(b ^ 0xFF for b in data[middle - 8 : middle + 8])
-    path.write_bytes(bytes(data))
-
-
-def _delete(path: Path) -> None:
+def delete(path: Path) -> None:
     path.unlink()
 
 
-def _swap_epochs(path: Path) -> None:
+def swap_epochs(path: Path) -> None:
     """Replace the job's epochs with a valid Parquet file of other rows."""
     pd.read_parquet(path).iloc[:3].to_parquet(path)
 
@@ -91,31 +75,28 @@ def _swap_epochs(path: Path) -> None:
 #: intact run's result after a rerun. A run-level file is rebuilt by every finalize and needs no warning.
 FAULTS: list[tuple[str, Callable[[Path], Path], Callable[[Path], None], bool]] = [
     *(
-        (f"job summary {d.__name__[1:]}", lambda r: _job(r, ".summary.parquet"), d, True)
-        for d in (_truncate, _empty, _garble, _delete)
+        (f"job summary {d.__name__}", lambda r: _job(r, ".summary.parquet"), d, True)
+        for d in (truncate, empty, garble, delete)
     ),
     *(
-        (f"job epochs {d.__name__[1:]}", lambda r: _job(r, ".epochs.parquet"), d, True)
-        for d in (_truncate, _empty, _garble, _delete, _swap_epochs)
+        (f"job epochs {d.__name__}", lambda r: _job(r, ".epochs.parquet"), d, True)
+        for d in (truncate, empty, garble, delete, swap_epochs)
+    ),
+    *((f"job diagnostics {d.__name__}", lambda r: _job(r, ".diagnostics.json"), d, True) for d in (garble, delete)),
+    *(
+        (f"cache observations {d.__name__}", lambda r: _cache(r, "observations.parquet"), d, True)
+        for d in (truncate, empty, garble, delete)
     ),
     *(
-        (f"job diagnostics {d.__name__[1:]}", lambda r: _job(r, ".diagnostics.json"), d, True)
-        for d in (_garble, _delete)
-    ),
-    *(
-        (f"cache observations {d.__name__[1:]}", lambda r: _cache(r, "observations.parquet"), d, True)
-        for d in (_truncate, _empty, _garble, _delete)
-    ),
-    *(
-        (f"cache {n} truncate", lambda r, n=n: _cache(r, f"{n}.parquet"), _truncate, True)
+        (f"cache {n} truncate", lambda r, n=n: _cache(r, f"{n}.parquet"), truncate, True)
         for n in ("imu", "truth", "labels", "odometry")
     ),
-    ("cache manifest truncate", lambda r: _cache(r, MANIFEST), _truncate, True),
-    ("cache manifest delete", lambda r: _cache(r, MANIFEST), _delete, True),
-    ("run summary truncate", lambda r: r / "summary.parquet", _truncate, False),
-    ("run epochs truncate", lambda r: r / "epochs.parquet", _truncate, False),
-    ("run epochs delete", lambda r: r / "epochs.parquet", _delete, False),
-    ("claims truncate", lambda r: r / "claims.csv", _truncate, False),
+    ("cache manifest truncate", lambda r: _cache(r, MANIFEST), truncate, True),
+    ("cache manifest delete", lambda r: _cache(r, MANIFEST), delete, True),
+    ("run summary truncate", lambda r: r / "summary.parquet", truncate, False),
+    ("run epochs truncate", lambda r: r / "epochs.parquet", truncate, False),
+    ("run epochs delete", lambda r: r / "epochs.parquet", delete, False),
+    ("claims truncate", lambda r: r / "claims.csv", truncate, False),
 ]
 
 
@@ -167,7 +148,7 @@ def test_a_report_without_figures_has_its_tables_and_draws_nothing(intact: Path)
 def test_a_report_leaves_a_damaged_job_out_with_one_warning_line(intact: Path, tmp_path: Path) -> None:
     run_dir = tmp_path / "run"
     shutil.copytree(intact, run_dir)
-    _truncate(_job(run_dir, ".epochs.parquet"))
+    truncate(_job(run_dir, ".epochs.parquet"))
     with pytest.warns(SimbenchWarning, match=r"epochs\.parquet: differs from the sha256 .* -- left out"):
         summary, _ = aggregate(run_dir, {})
     assert summary.empty
