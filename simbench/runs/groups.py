@@ -58,6 +58,8 @@ def record_built_in_estimators(names: Iterable[str]) -> None:
     if folder is None:
         return
     record = {"stamp": _estimators_stamp(folder), "names": sorted(names)}
+    if recorded_built_in_estimators() == record["names"]:
+        return  # current already: every run and every job process registers, few need to write
     try:  # plainly: a half-written record reads as none (simbench.contract's atomic write imports pandas)
         (folder / "__pycache__").mkdir(exist_ok=True)
         (folder / "__pycache__" / BUILT_IN_NAMES).write_text(json.dumps(record))
