@@ -53,6 +53,7 @@ from estimators import register
 from estimators.base import Estimator, solution_frame
 from estimators.gauss_newton import GaussNewton
 from estimators.measurement import PppObservations, prepare_ppp
+from estimators.nlos_mixture import NlosMixture, NlosMixtureFields, predictors, validate_nlos_mixture
 from estimators.ppp_graph import PppGraph, PppGraphConfig, solve
 from estimators.robust_models import (
     DcsFields,
@@ -74,6 +75,8 @@ __all__ = [
     "L2Config",
     "MmBatch",
     "MmConfig",
+    "MmEm",
+    "MmEmConfig",
     "stop_reason",
 ]
 
@@ -331,3 +334,76 @@ class MmBatch(BatchGraphEstimator):
                 break
             prev_err = err
         return rows.values, {"iterations": len(history), "history": history}
+
+
+# --------------------------------------------------------------------------- self-tuning max-mixtures
+
+
+@dataclass
+class MmEmConfig(BatchConfig, MaxMixtureFields, NlosMixtureFields):
+    """Batch max-mixtures whose code model is learned from the residuals (:mod:`estimators.nlos_mixture`);
+    the phase keeps MM's static inlier/outlier pair."""
+
+    max_iterations: int = 50  #: solve / EM alternations at most
+
+    def validate(self, where: str) -> None:
+        """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
+        super().validate(where)
+        validate_max_mixture(self.outlier_scale, self.outlier_weight, where)
+        validate_nlos_mixture(self, where)
+
+
+@register
+class MmEm(BatchGraphEstimator):
+    """Self-tuning max-mixtures: a LOS/NLOS code model conditioned on C/N0 and elevation, learned by EM
+    from the residuals of the whole graph, alternating with the solve (libRSF's EM-tuned mixtures)."""
+
+    name = "mm_em"
+    Config = MmEmConfig
+
+    def _run(self, data, obs, g, structure):
+        cfg: MmEmConfig = self.config
+        rows = self._l2(g, structure)
+        sc, sp = self._a_priori_sigmas(obs)
+        x, names = predictors(obs.el, obs.cn0) if cfg.conditioned else (None, [])
+        r_c, r_p = rows.residuals
+        model = NlosMixture.start(r_c, sc, x, names, weight=cfg.nlos_weight_init, one_sided=cfg.one_sided)
+        inflate = np.sqrt(cfg.outlier_scale)
+        prev_err, stop, history = None, "max_iterations", []
+        for it in range(cfg.max_iterations):
+            r_c, r_p = rows.residuals
+            model = model.fit(r_c, sc, x, iterations=cfg.em_iterations, learn_los_scale=cfg.learn_los_scale)
+            code_sigma, code_offset, nlos = model.code_noise(r_c, sc, x, cfg.assignment)
+            out_p = max_mixture_outliers(r_p / sp, cfg.outlier_scale, cfg.outlier_weight)
+            noise = {
+                "code_sigma": code_sigma,
+                "code_offset": code_offset,
+                "phase_sigma": np.where(out_p, sp * inflate, sp),
+            }
+            rows.step(noise)
+            err = rows.error(noise)
+            history.append(
+                {
+                    "iteration": it + 1,
+                    "error": float(err),
+                    "nlos_code": int(np.sum(nlos > 0.5)),
+                    "outlier_phase": int(out_p.sum()),
+                    "los_scale": model.los_scale,
+                    "los_spread_m": model.los_spread,
+                    "nlos_tau_m": model.tau,
+                }
+            )
+            if prev_err is not None:
+                reason = stop_reason(prev_err, err, cfg.rel_tol, on_increase=False)
+                if reason is not None:
+                    stop = reason
+                    break
+            prev_err = err
+        r_c, _ = rows.residuals
+        self._model = model  # the learned model, for a caller that checks it against labels
+        return rows.values, {
+            "iterations": len(history),
+            "stop_reason": stop,
+            "history": history,
+            "nlos_model": model.summary(r_c, sc, x),
+        }
