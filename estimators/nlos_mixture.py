@@ -125,7 +125,7 @@ def _sigmoid(a: np.ndarray) -> np.ndarray:
     return 0.5 * (1.0 + np.tanh(0.5 * a))
 
 
-def _log_normal(r: np.ndarray, mean: np.ndarray, var: np.ndarray) -> np.ndarray:
+def _log_normal(r: np.ndarray, mean: np.ndarray | float, var: np.ndarray) -> np.ndarray:
     return -0.5 * (np.log(2.0 * np.pi * var) + (r - mean) ** 2 / var)
 
 
