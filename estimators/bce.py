@@ -61,6 +61,12 @@ joins the component most likely under the components' code marginals. BCE-AD
 gives a row without phase the mean phase residual as its phase feature (0 once
 standardised) and computes each cluster's code statistics over all its members.
 
+``conditioned`` (off by default): after each fit the component weights become per-row priors, a
+multinomial logistic regression of the assignment on C/N0 and elevation
+(:func:`estimators.clustering.conditioned_labels`), and each row takes the component most likely
+under its own prior: a weak, low signal joins a delayed component where its residual alone is
+ambiguous. The mean prior of each component per predictor quartile goes to ``conditioned``.
+
 BCE-AD augments the residuals with elevation, azimuth and C/N0, selects
 ``n_features`` of the five by MCFS every iteration
 (:func:`estimators.clustering.select_features`), clusters in the selected
@@ -78,8 +84,9 @@ from sklearn.mixture import BayesianGaussianMixture
 
 from estimators import register
 from estimators.batch_robust import BatchConfig, BatchGraphEstimator, stop_reason
-from estimators.clustering import Mixture, code_marginal_labels, fit_dpgmm, select_features
+from estimators.clustering import Mixture, code_marginal_labels, conditioned_labels, fit_dpgmm, select_features
 from estimators.measurement import PppObservations
+from estimators.nlos_mixture import predictors
 from estimators.ppp_graph import PppGraph
 from simbench.contract import ReceiverData
 from simbench.errors import SimbenchError, require_at_least
@@ -112,6 +119,9 @@ class BceConfig(BatchConfig):
     #: False: stop when the relative error change is below rel_tol (Sec. 5.2.3); True: also when
     #: the error rises (the decrease is below rel_tol, Sec. 6.2.5), see the module notes
     stop_on_increase: bool = False
+    #: component weights conditioned on C/N0 and elevation (:func:`~estimators.clustering.conditioned_labels`):
+    #: each row takes the component most likely under its own prior; False: one weight per component
+    conditioned: bool = False
 
     def validate(self, where: str) -> None:
         """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
@@ -238,7 +248,14 @@ class Bce(_IterativeCovariance):
         labels[has if has.any() else slice(None)] = mix.labels
         if has.any() and not has.all():  # rows without phase: most likely component of the code marginal
             labels[~has] = code_marginal_labels(r[~has, 0], mix.weights, means, covs)
-        return _component_noise(means, covs, labels), {"mixture": mix.to_json()}
+        record: dict[str, Any] = {"mixture": mix.to_json()}
+        if cfg.conditioned:
+            x, names = predictors(obs.el, obs.cn0)
+            points = r if has.any() else r[:, :1]
+            d = points.shape[1]
+            labels, prior = conditioned_labels(points, labels, means[:, :d], covs[:, :d, :d], x)
+            record["conditioned"] = _prior_by_bin(prior, x, names)
+        return _component_noise(means, covs, labels), record
 
 
 @register
@@ -313,6 +330,20 @@ class BceAd(_IterativeCovariance):
     def _a_priori_cov(self, obs: PppObservations) -> np.ndarray:
         sc, sp = self._a_priori_sigmas(obs)
         return np.diag([np.median(sc) ** 2, np.median(sp) ** 2])
+
+
+def _prior_by_bin(prior: np.ndarray, x: np.ndarray, names: list[str]) -> dict[str, Any]:
+    """Mean conditioned prior of each component per quartile of each predictor (JSON record)."""
+    record: dict[str, Any] = {}
+    for j, name in enumerate(names):
+        edges = np.quantile(x[:, j], [0.0, 0.25, 0.5, 0.75, 1.0])
+        bins = np.clip(np.searchsorted(edges, x[:, j], side="right") - 1, 0, 3)
+        record[f"by_{name}"] = [
+            {"low": float(edges[b]), "high": float(edges[b + 1]), "prior": prior[bins == b].mean(axis=0).tolist()}
+            for b in range(4)
+            if np.any(bins == b)
+        ]
+    return record
 
 
 def _standardised(x: np.ndarray) -> np.ndarray:

@@ -22,12 +22,19 @@ from typing import Any
 
 import numpy as np
 from sklearn.exceptions import ConvergenceWarning
-from sklearn.linear_model import Lars
+from sklearn.linear_model import Lars, LogisticRegression
 from sklearn.manifold import spectral_embedding
 from sklearn.mixture import BayesianGaussianMixture
 from sklearn.neighbors import kneighbors_graph
 
-__all__ = ["Mixture", "code_marginal_labels", "fit_dpgmm", "mcfs_scores", "select_features"]
+__all__ = [
+    "Mixture",
+    "code_marginal_labels",
+    "conditioned_labels",
+    "fit_dpgmm",
+    "mcfs_scores",
+    "select_features",
+]
 
 
 @dataclass
@@ -227,3 +234,60 @@ def select_features(x: np.ndarray, n_select: int, **mcfs_kwargs: Any) -> tuple[n
     scores = mcfs_scores(x, **mcfs_kwargs)
     order = np.argsort(-scores, kind="stable")
     return np.sort(order[:n_select]), scores
+
+
+def conditioned_labels(
+    x: np.ndarray, labels: np.ndarray, means: np.ndarray, covs: np.ndarray, predictors: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Re-assign points with component weights that depend on predictors (a gated mixture).
+
+    A multinomial logistic regression of the current ``labels`` on the standardised ``predictors``
+    (e.g. C/N0 and elevation) gives each point its own prior over the components; each point then
+    takes the component maximising that prior times the component's density. Where the predictors
+    say which points are late (weak, low signals), a delayed component keeps them and the others
+    stay in the core.
+
+    Parameters
+    ----------
+    x : ndarray, shape (N, D)
+        Points (residuals [m]); a NaN in column 1 and beyond means the point has the first dimension
+        only, and its density is the components' marginal of it.
+    labels : ndarray of int, shape (N,)
+        Current assignment, 0..K-1.
+    means, covs : ndarray, shapes (K, D) and (K, D, D)
+        Component means [m] and covariances [m^2].
+    predictors : ndarray, shape (N, P)
+
+    Returns
+    -------
+    labels : ndarray of int, shape (N,)
+    prior : ndarray, shape (N, K)
+        Each point's conditioned prior weights.
+    """
+    k = len(means)
+    present = np.unique(labels)
+    prior = np.full((len(x), k), 0.0)
+    if len(present) < 2:
+        prior[:, present] = 1.0
+        return labels, prior
+    sd = predictors.std(axis=0)
+    z = (predictors - predictors.mean(axis=0)) / np.where(sd > 0, sd, 1.0)
+    model = LogisticRegression(C=1.0, max_iter=200).fit(z, labels)
+    prior[:, model.classes_] = model.predict_proba(z)
+    with np.errstate(divide="ignore"):
+        score = np.log(prior) + _log_densities(x, means, covs)
+    return np.argmax(score, axis=1), prior
+
+
+def _log_densities(x: np.ndarray, means: np.ndarray, covs: np.ndarray) -> np.ndarray:
+    """Log density of each point under each component, shape (N, K) (the first dimension's marginal
+    where a point has NaN beyond it)."""
+    full = np.all(np.isfinite(x), axis=1)
+    out = np.empty((len(x), len(means)))
+    var = covs[:, 0, 0]
+    out[~full] = -0.5 * (np.log(2 * np.pi * var) + (x[~full, :1] - means[None, :, 0]) ** 2 / var)
+    for c in range(len(means)):
+        d = x[full] - means[c]
+        inv = np.linalg.inv(covs[c])
+        out[full, c] = -0.5 * (np.linalg.slogdet(2 * np.pi * covs[c])[1] + np.einsum("ij,jk,ik->i", d, inv, d))
+    return out

@@ -10,6 +10,7 @@ import pytest
 
 import simbench
 from estimators.batch_robust import MmEm, MmEmConfig
+from estimators.clustering import conditioned_labels
 from estimators.nlos_mixture import Assignment, NlosMixture, predictors
 from estimators.ppp_config import MeasurementMode
 from simbench.contract import Scenario
@@ -118,3 +119,24 @@ def test_predictors_without_cn0_use_elevation_alone() -> None:
 def test_bad_config_is_one_line(field: str, value: Any) -> None:
     with pytest.raises(SimbenchError, match=f"estimator.mm_em.{field}"):
         MmEm(MmEmConfig(**{field: value}))
+
+
+def test_gated_mixture_labels_follow_the_predictor() -> None:
+    """BCE's ``conditioned`` option: two overlapping components, NLOS where C/N0 is low; with the weights
+    conditioned on C/N0 the rows between the components go where their C/N0 says."""
+    rng = np.random.default_rng(3)
+    n = 4000
+    cn0, el = rng.uniform(18.0, 48.0, n), np.radians(rng.uniform(10.0, 80.0, n))
+    nlos = rng.random(n) < 1.0 / (1.0 + np.exp(0.8 * (cn0 - 28.0)))
+    r = rng.normal(np.where(nlos, 15.0, 0.0), 6.0)
+    means, covs = np.array([[0.0], [15.0]]), np.full((2, 1, 1), 36.0)
+    plain = np.argmax(np.log([0.65, 0.35]) + _log_density(r, means, covs), axis=1)
+    gated, prior = conditioned_labels(r[:, None], plain, means, covs, predictors(el, cn0)[0])
+    # measured: 0.91 of the rows right by their residual alone, 0.97 with the gate
+    assert np.mean(plain == nlos) < 0.92 and np.mean(gated == nlos) > 0.95
+    assert prior[cn0 < 22.0, 1].mean() > 0.8 and prior[cn0 > 35.0, 1].mean() < 0.1
+
+
+def _log_density(r: np.ndarray, means: np.ndarray, covs: np.ndarray) -> np.ndarray:
+    var = covs[:, 0, 0]
+    return -0.5 * (np.log(2 * np.pi * var) + (r[:, None] - means[None, :, 0]) ** 2 / var)
