@@ -62,7 +62,7 @@ def register(cls: E) -> E:
 
 def _load_all() -> None:
     for module in pkgutil.iter_modules(__path__, prefix=f"{__name__}."):
-        importlib.import_module(module.name)
+        importlib.import_module(module.name)  # dynamic: the modules of this package, found at run time
 
 
 def built_in() -> dict[str, type[Estimator]]:

@@ -96,7 +96,8 @@ def main() -> None:
     one_line_warnings()
     args = sys.argv[1:]
     if args and args[0] in SUBCOMMANDS:
-        sys.exit(importlib.import_module(f"simbench.cli.{SUBCOMMANDS[args[0]]}").main(args[1:]))
+        command = importlib.import_module(f"simbench.cli.{SUBCOMMANDS[args[0]]}")  # dynamic: a module of SUBCOMMANDS
+        sys.exit(command.main(args[1:]))
     if any(a in ("-h", "--help") for a in args):
         print(help_text())
         return
