@@ -16,7 +16,8 @@ __all__ = ["ALL_ESTIMATORS", "ESTIMATOR_GROUP", "SOURCE_GROUP", "LoadedPlugin", 
 
 #: Entry-point group in which installed packages name their estimator classes (:mod:`estimators`).
 ESTIMATOR_GROUP = "simbench.estimators"
-#: Entry-point group in which packages (simbench itself too) name their source classes (:mod:`simbench.source`).
+#: Entry-point group in which packages (simbench itself too) name their source classes
+#: (:mod:`simbench.source_registry`).
 SOURCE_GROUP = "simbench.sources"
 #: The ``estimator`` option that selects every registered estimator (the default run); no
 #: estimator may take this name.

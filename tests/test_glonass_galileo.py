@@ -26,8 +26,8 @@ from simbench.core.gpstime import datetime64_to_gps
 from simbench.core.orbits import BroadcastEphemeris
 from simbench.data.galileo import read_galileo_navigation
 from simbench.data.glonass import read_glonass_navigation
+from simbench.data.log_sources import RinexConfig
 from simbench.data.rinex import load_rinex
-from simbench.data.sources import RinexConfig
 from simbench.errors import SimbenchError
 from simbench.gnss.geometry import sagnac_range
 from simbench.gnss.navigation import KEPLER_CLOCK_FIELDS

@@ -49,7 +49,7 @@ LAYERS: tuple[tuple[tuple[str, ...], ...], ...] = (
             "simbench.bounds",
             "simbench.typed",
             "simbench.contract",
-            "simbench.source",
+            "simbench.source_registry",
             "simbench.entry_points",
             "simbench.paths",
         ),

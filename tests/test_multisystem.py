@@ -17,8 +17,8 @@ from simbench.contract import ReceiverData
 from simbench.core.frames import geodetic_from_ecef
 from simbench.core.gpstime import datetime64_to_gps
 from simbench.data.beidou import read_beidou_navigation
+from simbench.data.log_sources import RinexConfig
 from simbench.data.rinex import load_rinex
-from simbench.data.sources import RinexConfig
 from simbench.errors import SimbenchError
 from simbench.gnss.geometry import sagnac_range
 from simbench.runs.scenarios import ScenarioSettings, build_scenario

@@ -17,9 +17,9 @@ from estimators.measurement import prepare_ppp
 from estimators.ppp_config import MeasurementMode
 from simbench.contract import MISSING_NEED_REASONS, OBSERVATION_COLUMNS, Need, Scenario
 from simbench.core.constants import C_LIGHT, SECONDS_PER_WEEK
+from simbench.data.log_sources import RinexConfig
 from simbench.data.reference import match_reference, read_reference
 from simbench.data.rinex import RinexObs, load_rinex, read_rinex_obs, satellite_states
-from simbench.data.sources import RinexConfig
 from simbench.data.sp3 import read_sp3
 from simbench.errors import SimbenchError
 from simbench.gnss.geometry import sagnac_range

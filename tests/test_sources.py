@@ -3,7 +3,7 @@
 The built-ins (simulated, rinex, librsf) come through simbench's own entry points; the
 example package (``examples/simbench-example-estimator``, source ``static_receiver``;
 ``.ci/run`` installs it) is the real plug-in. Broken packages are simulated with entry
-points handed to :func:`simbench.source.discover` or patched in for the CLI.
+points handed to :func:`simbench.source_registry.discover` or patched in for the CLI.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ import pytest
 from conftest import FakeEntryPoint, one_line_error
 
 import simbench.cli.main as cli
-from simbench import source as sources
+from simbench import source_registry as sources
 from simbench.contract import Scenario
 from simbench.runs.compose import available, compose_config, register_schemas
 from simbench.runs.scenarios import build_scenario, scenario_settings

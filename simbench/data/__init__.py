@@ -4,8 +4,8 @@ writers of those formats (:mod:`simbench.data.export`). Beside :mod:`simbench.si
 
 :func:`load_rinex`, :func:`load_gnsslogger` and :func:`load_librsf` return a
 :class:`~simbench.contract.Scenario` with the simulator's observation columns, ``labels=None`` and
-an empty IMU table; :mod:`simbench.data.sources` makes them the scenario sources
-``scenario.source=rinex`` / ``gnsslogger`` / ``librsf`` (:mod:`simbench.source`), and
+an empty IMU table; :mod:`simbench.data.log_sources` makes them the scenario sources
+``scenario.source=rinex`` / ``gnsslogger`` / ``librsf`` (:mod:`simbench.source_registry`), and
 :mod:`simbench.data.logs` holds the raw-log -> scenario steps they share.
 """
 

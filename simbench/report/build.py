@@ -80,7 +80,7 @@ from simbench.runs.store import aggregate, cached_scenarios, diagnostics, intact
 from simbench.runs.studies import read_study_times, time_budget
 from simbench.runs.zero_baseline import COLUMNS as ZERO_BASELINE_COLUMNS
 from simbench.runs.zero_baseline import TABLE_NAME as ZERO_BASELINE_TABLE
-from simbench.source import SIMULATED
+from simbench.source_registry import SIMULATED
 
 #: The comparison baseline when present (the a priori L2 estimator), else the first estimator.
 BASELINES = ("l2", "isam2_ppp", "ekf_ppp")

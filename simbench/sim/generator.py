@@ -63,7 +63,7 @@ def generate(cfg: SimConfig) -> Scenario:
     cfg : SimConfig
         Scenario, receiver and IMU configuration and the seed, checked by
         :func:`~simbench.sim.config.validate_sim` (once per job, where the source checks its
-        config: :meth:`simbench.sim.source.Simulator.check`); the generator trusts it.
+        config: :meth:`simbench.sim.simulator_source.Simulator.check`); the generator trusts it.
 
     Returns
     -------

@@ -23,7 +23,7 @@ from simbench.data.rinex import NAV_SETTINGS, load_rinex
 from simbench.errors import SimbenchError
 from simbench.gnss.navigation import SYSTEM_NAMES, nav_header_system, nav_paths
 from simbench.paths import require_file
-from simbench.source import DataConfig, Source, SourceConfig, scenario_config
+from simbench.source_registry import DataConfig, Source, SourceConfig, scenario_config
 
 __all__ = ["RinexConfig", "GnssLoggerConfig", "LibrsfConfig", "RinexSource", "GnssLoggerSource", "LibrsfSource"]
 

@@ -6,7 +6,7 @@ from simbench.contract import Scenario
 from simbench.sim.config import ConstellationKind, ScenarioConfig, SimConfig, TrajectoryKind, validate_sim
 from simbench.sim.generator import generate
 from simbench.sim.trajectory_file import REPLAY_PATH_FIELD
-from simbench.source import SIMULATED, DataConfig, Source, scenario_config
+from simbench.source_registry import SIMULATED, DataConfig, Source, scenario_config
 
 
 class Simulator(Source):
@@ -35,7 +35,7 @@ def sim_config_of(cfg: DataConfig) -> SimConfig:
     Raises
     ------
     SimbenchError
-        When ``cfg.scenario`` is not a :class:`ScenarioConfig` (:func:`simbench.source.scenario_config`).
+        When ``cfg.scenario`` is not a :class:`ScenarioConfig` (:func:`simbench.source_registry.scenario_config`).
     """
     if isinstance(cfg, SimConfig):
         return cfg
