@@ -24,8 +24,7 @@ from simbench.core.galileo_orbits import GalileoEphemeris
 from simbench.core.glonass_orbits import GlonassEphemeris
 from simbench.core.gpstime import datetime64_to_gps
 from simbench.core.orbits import BroadcastEphemeris
-from simbench.data.galileo import read_galileo_navigation
-from simbench.data.glonass import read_glonass_navigation
+from simbench.data.broadcast import read_navigation
 from simbench.data.log_sources import RinexConfig
 from simbench.data.rinex import load_rinex
 from simbench.errors import SimbenchError
@@ -265,7 +264,7 @@ def test_glonass_reader_time_scale_and_bad_records(tmp_path: Path) -> None:
     nav = tmp_path / "r13.rnx"
     rec = _record("R13", "2023 01 08 11 45 00", _glonass_values(R13))
     nav.write_text(NAV_HEADER + rec + "\n")
-    eph = read_glonass_navigation(nav)
+    eph = read_navigation("R", nav)
     assert eph.sats.tolist() == ["R13"] and eph.freq_number.tolist() == [-2]
     # the RINEX epoch is UTC: the record's own state holds at UTC + 18 s in GPS time
     tb_gps = float(datetime64_to_gps(np.datetime64("2023-01-08T11:45:00"))) + GPS_MINUS_UTC_2019
@@ -275,13 +274,13 @@ def test_glonass_reader_time_scale_and_bad_records(tmp_path: Path) -> None:
     # a malformed number and an impossible channel give one line each
     bad = tmp_path / "bad.rnx"
     bad.write_text(NAV_HEADER + rec.replace("1.948561668396E+00", "1.948561668396X+00") + "\n")
-    assert "malformed R13 record" in one_line_error(read_glonass_navigation, bad)
+    assert "malformed R13 record" in one_line_error(read_navigation, "R", bad)
     chan = tmp_path / "chan.rnx"
     chan.write_text(NAV_HEADER + _record("R13", "2023 01 08 11 45 00", _glonass_values({**R13, "k": 20})) + "\n")
-    assert "frequency number 20" in one_line_error(read_glonass_navigation, chan)
+    assert "frequency number 20" in one_line_error(read_navigation, "R", chan)
     only_e = tmp_path / "e.rnx"
     only_e.write_text(NAV_HEADER + _record("E01", "2017 01 01 00 10 00", _galileo_values(E01)) + "\n")
-    msg = one_line_error(read_glonass_navigation, only_e)
+    msg = one_line_error(read_navigation, "R", only_e)
     assert "scenario.nav_glo" in msg and "no GLONASS records" in msg
 
 
@@ -298,7 +297,7 @@ def test_galileo_kepler_uses_galileo_constants(tmp_path: Path) -> None:
         + _record("E01", "2017 01 01 00 10 00", _galileo_values(fnav))
         + "\n"
     )
-    eph = read_galileo_navigation(nav)
+    eph = read_navigation("E", nav)
     assert isinstance(eph, GalileoEphemeris) and eph.tgd.tolist() == [E01["bgd_b"]]
     toe = 1930 * SECONDS_PER_WEEK + 600.0
     tks = np.array([-3000.0, 0.0, 3600.0])

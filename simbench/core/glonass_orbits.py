@@ -23,7 +23,7 @@ with the leap seconds (:func:`simbench.core.gpstime.utc_to_gps`). The
 satellite clock is ``dt_sv(t) = -TauN + GammaN (t - tb)`` (RINEX stores
 -TauN and +GammaN; relativistic effects are inside the broadcast clock). The
 GLONASS-GPS system time offset is left to a per-system receiver clock.
-The RINEX reader is :func:`simbench.data.glonass.read_glonass_navigation`.
+The RINEX reader is :func:`simbench.data.broadcast.read_navigation` (``"R"``).
 """
 
 from __future__ import annotations

@@ -11,19 +11,18 @@ an empty IMU table; :mod:`simbench.data.log_sources` makes them the scenario sou
 
 from __future__ import annotations
 
-from simbench.data.beidou import read_beidou_navigation
+from simbench.data.broadcast import load_navigation, read_navigation
 from simbench.data.gnsslogger import load_gnsslogger, read_gnsslogger
 from simbench.data.librsf import LibrsfLog, load_librsf, read_librsf, write_synthetic_librsf
-from simbench.data.qzss import read_qzss_navigation
 from simbench.data.reference import Reference, match_reference, read_reference, truth_table
 from simbench.data.rinex import RinexObs, load_rinex, read_rinex_obs
 from simbench.data.sp3 import Sp3Orbits, read_sp3
 
 __all__ = [
-    "read_beidou_navigation",
+    "load_navigation",
+    "read_navigation",
     "load_gnsslogger",
     "read_gnsslogger",
-    "read_qzss_navigation",
     "LibrsfLog",
     "load_librsf",
     "read_librsf",

@@ -585,6 +585,7 @@ def write_synthetic_librsf(
     Returns
     -------
     Path
+        The libRSF file written (``path``).
 
     Raises
     ------

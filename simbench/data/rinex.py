@@ -30,8 +30,8 @@ satellite from the frequency channel of its navigation record; orbits by
 numerical integration, :mod:`simbench.core.glonass_orbits`), Galileo (``E``,
 E1; clock minus BGD(E1,E5b), :mod:`simbench.core.galileo_orbits`), BeiDou
 (``C``, B1I: ``C1I`` in RINEX 3.02, ``C2I`` in 3.01 and 3.03+, :func:`first_signals`;
-:mod:`simbench.data.beidou`) and QZSS (``J``, L1 C/A; GPS-like records,
-:mod:`simbench.data.qzss`) are supported. Each satellite's second frequency
+:mod:`simbench.core.beidou_orbits`) and QZSS (``J``, L1 C/A; GPS-like records) are supported
+(their navigation records: :mod:`simbench.data.broadcast`). Each satellite's second frequency
 (:data:`SECOND_SIGNALS`: GPS L2 else L5, Galileo E5a else E5b, BeiDou B3I else
 B2I, GLONASS G2, QZSS L2C else L5) goes into the ``*_l2`` columns with its
 ``f1_f2_ratio``; a satellite keeps one second signal for the whole log (the one
@@ -58,7 +58,6 @@ microseconds; this reader takes well under a second.
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -69,12 +68,8 @@ from simbench.contract import NavInfo, RinexFiles, Scenario
 from simbench.core.constants import C_LIGHT, F_B1I, F_L1, F_L2, SECONDS_PER_WEEK
 from simbench.core.glonass_orbits import GLO_F1_BASE_HZ, GlonassEphemeris, glonass_l1_frequency
 from simbench.core.gpstime import datetime64_to_gps
-from simbench.core.orbits import BroadcastEphemeris
-from simbench.data.beidou import load_beidou_navigation
-from simbench.data.galileo import load_galileo_navigation
-from simbench.data.glonass import read_glonass_navigation
+from simbench.data.broadcast import Ephemeris, load_navigation
 from simbench.data.logs import epoch_grid_of, log_scenario, log_truth, observation_table, rough_fix
-from simbench.data.qzss import read_qzss_navigation
 from simbench.data.reference import read_reference
 from simbench.errors import SimbenchError, warn
 from simbench.gnss.coverage import check_coverage
@@ -822,17 +817,6 @@ def _first_records(
     return epochs, rows
 
 
-Ephemeris = BroadcastEphemeris | GlonassEphemeris
-#: Navigation reader of GLONASS and QZSS, called with ``(paths, setting=...)``.
-_READERS: dict[str, Callable[..., Ephemeris]] = {"R": read_glonass_navigation, "J": read_qzss_navigation}
-#: Navigation reader of Galileo and BeiDou, called as :data:`_READERS`: their second signals need
-#: group delays the ephemeris does not keep, which these return beside it.
-_LOADERS: dict[str, Callable[..., tuple[Ephemeris, GroupDelays]]] = {
-    "E": load_galileo_navigation,
-    "C": load_beidou_navigation,
-}
-
-
 def _load_ephemeris(paths: tuple[str, ...], setting: str, system: str) -> tuple[Ephemeris, GroupDelays]:
     """Ephemeris of one system from ``paths`` (records merged), read for ``setting`` (the parameter that named
     them: the system's own, or ``scenario.nav`` standing in for it), and its group delays
@@ -848,10 +832,8 @@ def _load_ephemeris(paths: tuple[str, ...], setting: str, system: str) -> tuple[
     delays: GroupDelays = {}
     if system == "G":
         eph: Ephemeris = read_gps_navigation(paths, setting=setting)
-    elif system in _LOADERS:
-        eph, delays = _LOADERS[system](paths, setting=setting)
     else:
-        eph = _READERS[system](paths, setting=setting)
+        eph, delays = load_navigation(system, paths, setting=setting)
     return eph, {"tgd": eph.tgd, **delays}
 
 
