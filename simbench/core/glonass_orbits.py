@@ -32,9 +32,7 @@ import math
 
 import numpy as np
 
-from simbench.core.gpstime import format_gps_time
-from simbench.core.orbits import ClosestRecordSelector, SatelliteStates, state_time_grid
-from simbench.errors import SimbenchError
+from simbench.core.orbits import RecordEphemeris, SatelliteStates, state_time_grid
 
 __all__ = [
     "GlonassEphemeris",
@@ -112,7 +110,7 @@ def _rk4(
     return pos, vel
 
 
-class GlonassEphemeris:
+class GlonassEphemeris(RecordEphemeris):
     """GLONASS broadcast ephemerides (see the module docstring); same interface as the GPS one.
 
     Attributes
@@ -134,6 +132,7 @@ class GlonassEphemeris:
     """
 
     system_name = "GLONASS"
+    coverage_fix = "pass the GLONASS navigation data of the observation day"
 
     def __init__(
         self,
@@ -172,24 +171,7 @@ class GlonassEphemeris:
         last = np.searchsorted(self._sat_idx, np.arange(m), side="right") - 1
         self.freq_number = r["freq"].astype(int)[last]
         self.tgd = np.zeros(m)
-        self._selector = ClosestRecordSelector(self._sat_idx, self._tb, m)
-        self.t_coverage = (float(self._tb.min() - self.max_age_s), float(self._tb.max() + self.max_age_s))
-
-    def select_records(self, t_gps: np.ndarray) -> np.ndarray:
-        """Index of the record used for each (epoch, satellite), -1 if none (as the GPS ephemeris' method).
-
-        Parameters
-        ----------
-        t_gps : np.ndarray, shape (n,), (n, 1) or (n, m)
-            Times [s]; 1-D (or one column) means the same time for all satellites.
-
-        Returns
-        -------
-        idx : np.ndarray of int, shape (n, m)
-            Index into the record arrays of the record with the nearest tb (ties: the earlier), or -1
-            if |t - tb| > ``max_age_s`` or the satellite has no record.
-        """
-        return self._selector.select(t_gps, self.max_age_s)
+        self._index_records(self._sat_idx, self._tb)
 
     def states(self, t_gps: np.ndarray, offset_s: np.ndarray | float | None = None) -> SatelliteStates:
         """Satellite positions, velocities and clocks from the record with the nearest tb.
@@ -220,13 +202,7 @@ class GlonassEphemeris:
         ok = idx >= 0
         bad = ~ok.any(axis=1)
         if bad.any():
-            raise SimbenchError(
-                "t_gps",
-                f"no valid GLONASS ephemeris at {int(bad.sum())} of {n} epochs (first "
-                f"{format_gps_time(float(t[np.argmax(bad), 0]))} GPS); {self.source or 'the ephemeris'} covers "
-                f"{format_gps_time(self.t_coverage[0])} .. {format_gps_time(self.t_coverage[1])} GPS",
-                "pass the GLONASS navigation data of the observation day",
-            )
+            self._raise_coverage(int(bad.sum()), n, first=float(t[np.argmax(bad), 0]))
         gi = idx[ok]
         dt = (np.broadcast_to(t, (n, m))[ok] - self._tb[gi]) + off[ok]
         p, v = _rk4(self._pos[gi], self._vel[gi], self._acc[gi], dt, self.max_step_s)
