@@ -17,13 +17,19 @@ from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
 
+import numpy as np
+import pandas as pd
 import pytest
 from threadpoolctl import threadpool_limits
 
 import estimators
 import simbench.cli.main as cli
+from estimators.measurement import PppObservations, prepare_ppp
+from estimators.ppp_config import MeasurementMode
 from simbench import source_registry
+from simbench.contract import ReceiverData
 from simbench.errors import SimbenchError
+from simbench.gnss.spp import SppSolution, solve_epochs
 from simbench.paths import data_home
 from simbench.runs.compose import preset_estimator_config, register_schemas
 
@@ -171,6 +177,14 @@ def run_simbench(*args: str, **kwargs: Any) -> subprocess.CompletedProcess:
     )
 
 
+def simbench_summary(out: Path, *args: str) -> pd.DataFrame:
+    """``python -m simbench ARGS results_dir=OUT progress=false`` (:func:`run_simbench`); assert it
+    exits 0; its ``summary.parquet``."""
+    proc = run_simbench(*args, f"results_dir={out}", "progress=false")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return pd.read_parquet(out / "summary.parquet")
+
+
 def cli_error_line(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], *argv: str) -> str:
     """Run ``python -m simbench ARGV`` in this process; assert it exits with code 2 and one line on
     stderr; return that line."""
@@ -181,3 +195,23 @@ def cli_error_line(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixtur
     lines = capsys.readouterr().err.strip().splitlines()
     assert len(lines) == 1, lines
     return lines[0]
+
+
+def single_point_fixes(
+    view: ReceiverData, code_sigma_m: float, phase_sigma_m: float, elevation_mask_deg: float
+) -> tuple[PppObservations, SppSolution]:
+    """The shared model's rows of a receiver view (broadcast ionosphere, measurements ``auto``) and the
+    single-point fix of each of its epochs (one clock per system)."""
+    obs = prepare_ppp(
+        view,
+        ionosphere="broadcast",
+        code_sigma_m=code_sigma_m,
+        phase_sigma_m=phase_sigma_m,
+        elevation_mask_deg=elevation_mask_deg,
+        measurements=MeasurementMode.auto,
+    )
+    row_k = np.repeat(np.arange(obs.n_epochs), obs.epoch_stop - obs.epoch_start)
+    fixes = solve_epochs(
+        row_k, obs.sat_pos, obs.code, sigma=obs.sigma_code, el=obs.el, doy=obs.doy, system_index=obs.system_index
+    )
+    return obs, fixes

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import run_simbench
+from conftest import run_simbench, simbench_summary
 
 from estimators.rtklib_spp import RtklibSpp
 from simbench.cli.main import SUBCOMMANDS, planned_jobs, suggest_names
@@ -57,17 +57,9 @@ def test_cli_writes_store_and_report(tmp_path: Path) -> None:
 def test_cli_overrides_scenario_and_receiver(tmp_path: Path) -> None:
     out = tmp_path / "flight"
     # two estimators suffice: the rows must carry the scenario and receiver the command line chose
-    proc = run_simbench(
-        "scenario=flight",
-        "receiver=high",
-        "seed=3",
-        "scenario.duration_s=30",
-        "estimator=[l2,ekf_ppp]",
-        f"results_dir={out}",
-        "progress=false",
+    summary = simbench_summary(
+        out, "scenario=flight", "receiver=high", "seed=3", "scenario.duration_s=30", "estimator=[l2,ekf_ppp]"
     )
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    summary = pd.read_parquet(out / "summary.parquet")
     assert len(summary) == 2 and (summary["status"] == "ok").all()
     assert (summary["scenario"] == "flight").all() and (summary["receiver"] == "high").all()
     assert (summary["seed"] == 3).all() and (summary["n_epochs"] == 30).all()

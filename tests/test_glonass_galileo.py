@@ -62,14 +62,19 @@ def _glonass_truth(pos: np.ndarray, vel: np.ndarray, acc: np.ndarray, dt: float)
     return sol.y[:, -1]
 
 
-def _kepler(el: dict[str, float], tk: float, mu: float, we: float) -> np.ndarray:
-    """Textbook broadcast Kepler position (IS-GPS-200 Table 20-IV) with the given constants."""
+def _eccentric_anomaly(el: dict[str, float], tk: float, mu: float) -> tuple[float, float]:
+    """Semi-major axis [m] and eccentric anomaly [rad] at ``tk`` [s] after Toe (Kepler's equation, fixed point)."""
     a = el["sqrta"] ** 2
-    n = math.sqrt(mu / a**3) + el["dn"]
-    m = el["m0"] + n * tk
+    m = el["m0"] + (math.sqrt(mu / a**3) + el["dn"]) * tk
     e_anom = m
     for _ in range(30):
         e_anom = m + el["e"] * math.sin(e_anom)
+    return a, e_anom
+
+
+def _kepler(el: dict[str, float], tk: float, mu: float, we: float) -> np.ndarray:
+    """Textbook broadcast Kepler position (IS-GPS-200 Table 20-IV) with the given constants."""
+    a, e_anom = _eccentric_anomaly(el, tk, mu)
     nu = math.atan2(math.sqrt(1 - el["e"] ** 2) * math.sin(e_anom), math.cos(e_anom) - el["e"])
     phi = nu + el["w"]
     u = phi + el["cus"] * math.sin(2 * phi) + el["cuc"] * math.cos(2 * phi)
@@ -87,12 +92,7 @@ def _kepler(el: dict[str, float], tk: float, mu: float, we: float) -> np.ndarray
 
 
 def _kepler_clock(el: dict[str, float], tk: float) -> float:
-    a = el["sqrta"] ** 2
-    n = math.sqrt(MU / a**3) + el["dn"]
-    m = el["m0"] + n * tk
-    e_anom = m
-    for _ in range(30):
-        e_anom = m + el["e"] * math.sin(e_anom)
+    _, e_anom = _eccentric_anomaly(el, tk, MU)
     f_rel = -2 * math.sqrt(MU) / C_LIGHT**2
     return el["af0"] + el["af1"] * tk + el["af2"] * tk * tk + f_rel * el["e"] * el["sqrta"] * math.sin(e_anom)
 

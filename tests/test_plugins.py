@@ -15,7 +15,7 @@ from typing import Any
 
 import pandas as pd
 import pytest
-from conftest import EXAMPLE_MISSING, EXAMPLE_PACKAGE, FakeEntryPoint, cli_error_line, one_line_error, run_simbench
+from conftest import EXAMPLE_MISSING, EXAMPLE_PACKAGE, FakeEntryPoint, cli_error_line, one_line_error, simbench_summary
 from omegaconf import OmegaConf
 
 import estimators
@@ -146,18 +146,8 @@ def test_a_bad_shipped_yaml_is_one_line_naming_the_package(
 
 def test_the_example_runs_in_a_sweep_through_the_cli(tmp_path: Path) -> None:
     out = tmp_path / "sweep"
-    proc = run_simbench(
-        "-m",
-        "scenario=open_sky",
-        "receiver=high",
-        "scenario.duration_s=30",
-        "seed=0",
-        f"estimator=[{EXAMPLE}]",
-        f"results_dir={out}",
-        "progress=false",
-    )
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    summary = pd.read_parquet(out / "summary.parquet")
+    sweep = ("-m", "scenario=open_sky", "receiver=high", "scenario.duration_s=30", "seed=0", f"estimator=[{EXAMPLE}]")
+    summary = simbench_summary(out, *sweep)
     assert list(summary["estimator"]) == [EXAMPLE] and (summary["status"] == "ok").all()
     assert (summary["availability"] == 1.0).all()
     # open sky, single-point code with Klobuchar: about a metre horizontally (1.0 m when written with

@@ -11,9 +11,8 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
-import pandas as pd
 import pytest
-from conftest import EXAMPLE_MISSING, EXAMPLE_PACKAGE, FakeEntryPoint, cli_error_line, one_line_error, run_simbench
+from conftest import EXAMPLE_MISSING, EXAMPLE_PACKAGE, FakeEntryPoint, cli_error_line, one_line_error, simbench_summary
 
 from simbench import source_registry as sources
 from simbench.contract import Scenario
@@ -53,15 +52,7 @@ def test_the_example_source_builds_from_its_config_defaults() -> None:
 
 def test_the_example_source_runs_through_the_cli(tmp_path: Path) -> None:
     out = tmp_path / "run"
-    proc = run_simbench(
-        f"scenario={EXAMPLE}",
-        "scenario.duration_s=20",
-        "estimator=[cauchy_spp]",
-        f"results_dir={out}",
-        "progress=false",
-    )
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    summary = pd.read_parquet(out / "summary.parquet")
+    summary = simbench_summary(out, f"scenario={EXAMPLE}", "scenario.duration_s=20", "estimator=[cauchy_spp]")
     assert list(summary["source"]) == [EXAMPLE] and (summary["status"] == "ok").all()
     # 1 m white code noise on six or more satellites: metre-level single-point fixes
     assert (summary["horizontal_median"] < 3.0).all()

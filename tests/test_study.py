@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
-from conftest import one_line_error, run_simbench
+from conftest import one_line_error, simbench_summary
 
 import simbench
 from simbench.errors import SimbenchError
@@ -21,17 +21,8 @@ KEY = ["seed", "estimator"]
 @pytest.fixture(scope="module")
 def cli_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("cli") / "run"
-    proc = run_simbench(
-        "-m",
-        "scenario=urban",
-        "receiver=low",
-        "estimator=[l2,dcs]",
-        "seed=0,1",
-        "scenario.duration_s=60",
-        f"results_dir={out}",
-        "progress=false",
-    )
-    assert proc.returncode == 0, proc.stderr[-2000:]
+    sweep = ("-m", "scenario=urban", "receiver=low", "estimator=[l2,dcs]", "seed=0,1", "scenario.duration_s=60")
+    simbench_summary(out, *sweep)
     return out
 
 

@@ -147,7 +147,7 @@ class GlonassEphemeris(RecordEphemeris):
         Parameters
         ----------
         sats : np.ndarray of str, shape (m,)
-            Satellite ids; ``records['sat']`` indexes into it.
+            GLONASS satellite ids (``'R05'``), in the order ``records['sat']`` indexes.
         records : dict of str -> np.ndarray
             ``sat`` (int index, (R,)), ``tb`` (continuous GPS s, (R,)), ``pos`` [m],
             ``vel`` [m/s] and ``acc`` (lunisolar) [m/s^2] (each (R, 3), PZ-90 at tb),

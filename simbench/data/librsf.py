@@ -585,7 +585,7 @@ def write_synthetic_librsf(
     Returns
     -------
     Path
-        The libRSF file written (``path``).
+        The synthetic log written (``path``).
 
     Raises
     ------

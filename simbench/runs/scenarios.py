@@ -150,6 +150,7 @@ def simulate(
     Returns
     -------
     Scenario
+        The observations, IMU, truth and the labels of every simulated error.
 
     Raises
     ------
