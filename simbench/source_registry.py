@@ -182,16 +182,9 @@ def discover(entries: Iterable[EntryPoint]) -> dict[str, Plugin]:
                 f"source: str = '{entry.name}'",
                 fix,
             )
-        if cls.name != entry.name:
-            raise SimbenchError(
-                field, f"package '{package}': {cls.__name__}.name is {cls.name!r}, not the entry point's name", fix
-            )
+        loaded.check_name()
         if entry.name in found and found[entry.name].cls is not cls:
-            raise SimbenchError(
-                field,
-                f"package '{package}' registers the name '{entry.name}' of package '{found[entry.name].package}'",
-                f"rename the source in package '{package}' or pip uninstall one of them",
-            )
+            loaded.refuse_taken(f"package '{found[entry.name].package}'")
         found[entry.name] = Plugin(cls=cls, package=package)
     return found
 
