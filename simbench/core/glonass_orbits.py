@@ -174,15 +174,8 @@ class GlonassEphemeris(RecordEphemeris):
         self._index_records(self._sat_idx, self._tb)
 
     def states(self, t_gps: np.ndarray, offset_s: np.ndarray | float | None = None) -> SatelliteStates:
-        """Satellite positions, velocities and clocks from the record with the nearest tb.
-
-        Parameters
-        ----------
-        t_gps : np.ndarray, shape (n,) or (n, m)
-            Evaluation times, continuous GPS seconds [s]; also selects the record.
-        offset_s : np.ndarray or float, optional
-            Small offsets added to ``t_gps`` with full precision [s];
-            broadcastable to (n, m). Record selection ignores it.
+        """Satellite positions, velocities and clocks from the record with the nearest tb, integrated to
+        ``t_gps + offset_s`` (parameters and errors as :meth:`simbench.core.orbits.BroadcastEphemeris.states`).
 
         Returns
         -------
@@ -190,11 +183,6 @@ class GlonassEphemeris(RecordEphemeris):
             PZ-90 (taken as WGS-84) positions of time t [m], velocities [m/s],
             clock -TauN + GammaN (t - tb) [s] and its rate GammaN [s/s]; NaN where
             no record lies within ``max_age_s``.
-
-        Raises
-        ------
-        SimbenchError
-            If at some requested epoch no satellite has a valid record.
         """
         t, off = state_time_grid(t_gps, offset_s, self.sats.size)
         n, m = off.shape
