@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from conftest import one_line_error
 
-from estimators.measurement import prepare_ppp
-from estimators.ppp_config import MeasurementMode
+from estimators.model.measurement import prepare_ppp
+from estimators.model.ppp_config import MeasurementMode
 from simbench.contract import OBSERVATION_COLUMNS, ODOMETRY_COLUMNS, Scenario
 from simbench.data.librsf import load_librsf, read_librsf, write_synthetic_librsf
 from simbench.errors import SimbenchError

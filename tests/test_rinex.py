@@ -13,8 +13,8 @@ from conftest import one_line_error
 
 import estimators
 from estimators.base import Estimator
-from estimators.measurement import prepare_ppp
-from estimators.ppp_config import MeasurementMode
+from estimators.model.measurement import prepare_ppp
+from estimators.model.ppp_config import MeasurementMode
 from simbench.contract import MISSING_NEED_REASONS, OBSERVATION_COLUMNS, Need, Scenario
 from simbench.core.constants import C_LIGHT, SECONDS_PER_WEEK
 from simbench.data.reference import match_reference, read_reference

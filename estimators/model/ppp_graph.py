@@ -1,6 +1,6 @@
 """The shared PPP factor-graph model used by every GTSAM estimator (batch and incremental).
 
-The model is the one of :mod:`estimators.measurement` (dissertation eqs. 4.1-4.4),
+The model is the one of :mod:`estimators.model.measurement` (dissertation eqs. 4.1-4.4),
 written with GTSAM's native C++ GNSS factors so that no Python callback sits in
 the optimiser's hot path.
 
@@ -8,7 +8,7 @@ Variables and keys
 ------------------
 All keys are :func:`gtsam.symbol` keys; ``k`` is the index of a *solved* epoch
 (row ``k`` of ``obs.epoch_ids``), ``r`` an observation row of
-:class:`~estimators.measurement.PppObservations`, ``a`` an arc id (``obs.arc``).
+:class:`~estimators.model.measurement.PppObservations`, ``a`` an arc id (``obs.arc``).
 
 =================  ==========  ===============================================
 key                type        meaning
@@ -111,8 +111,8 @@ from typing import Any
 import gtsam
 import numpy as np
 
-from estimators.measurement import PppObservations, content_digest, zenith_wet_delay_m
-from estimators.ppp_config import (
+from estimators.model.measurement import PppObservations, content_digest, zenith_wet_delay_m
+from estimators.model.ppp_config import (
     DIRECTION_MIN_SPEED_MPS,
     MIN_ODOMETRY_VARIANCE,
     STANDSTILL_MPS,
@@ -204,7 +204,7 @@ ZERO_KEY = gtsam.symbol("z", 0)
 
 @dataclass
 class PppGraphConfig(MotionModelConfig):
-    """Stochastic model of the PPP graph: the shared model of :class:`~estimators.ppp_config.MotionModelConfig`.
+    """Stochastic model of the PPP graph: the shared model of :class:`~estimators.model.ppp_config.MotionModelConfig`.
 
     In the graph the clock prior holds at every epoch and the slant ionosphere
     residual is one key per row, a random walk along its arc. With
@@ -231,7 +231,7 @@ class PppGraph:
     Parameters
     ----------
     obs : PppObservations
-        From :func:`~estimators.measurement.prepare_ppp`.
+        From :func:`~estimators.model.measurement.prepare_ppp`.
     cfg : PppGraphConfig
 
     Attributes
@@ -246,7 +246,7 @@ class PppGraph:
     zwd0 : float
         Zenith wet delay at the first single point fix [m]: the modelled one (``wet_delay`` resolved
         to ``model``) or the ZWD state's prior mean (``estimate``),
-        :func:`~estimators.measurement.zenith_wet_delay_m`.
+        :func:`~estimators.model.measurement.zenith_wet_delay_m`.
     estimate_zwd : bool
         Whether there are ZWD states (``zwd_key``); else the factors' ZWD slot is ``ZERO_KEY``.
     row_epoch : ndarray of int, shape (N,)
@@ -921,7 +921,7 @@ def wet_delay_choice(obs: PppObservations, cfg: MotionModelConfig) -> WetDelayCh
     ----------
     obs : PppObservations
     cfg : MotionModelConfig
-        The estimator's model (its :class:`~estimators.ppp_config.MotionModelConfig` fields are used).
+        The estimator's model (its :class:`~estimators.model.ppp_config.MotionModelConfig` fields are used).
 
     Returns
     -------

@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from estimators.ppp_config import IonosphereMode, MeasurementMode, SigmaModel, VarianceComponents, WetDelayMode
+from estimators.model.ppp_config import IonosphereMode, MeasurementMode, SigmaModel, VarianceComponents, WetDelayMode
 from simbench.contract import NavInfo, ReceiverData
 from simbench.core import atmosphere
 from simbench.core.constants import DEG, F_L1
