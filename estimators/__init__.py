@@ -31,7 +31,7 @@ from importlib.metadata import EntryPoint, entry_points
 from typing import TypeVar
 
 from estimators.base import Estimator, Solution
-from simbench.entry_points import ALL_ESTIMATORS, ESTIMATOR_GROUP, check_name, load_plugin
+from simbench.entry_points import ALL_ESTIMATORS, ESTIMATOR_GROUP, load_plugin
 from simbench.errors import SimbenchError
 
 #: Entry-point group in which installed packages name their estimator classes.
@@ -104,11 +104,27 @@ def discover(entries: Iterable[EntryPoint], taken: dict[str, type[Estimator]]) -
                 f"package '{package}': {cls.__name__} has no Config dataclass",
                 f"give {cls.__name__} a Config dataclass of its parameters, or pip uninstall {package}",
             )
+        if getattr(cls, "name", None) != entry.name:
+            raise SimbenchError(
+                field,
+                f"package '{package}': {cls.__name__}.name is "
+                f"{getattr(cls, 'name', None)!r}, not the entry point's name",
+                fix,
+            )
         if entry.name == ALL:
             raise SimbenchError(field, f"package '{package}' uses the reserved name '{entry.name}'", fix)
-        owners = {n: (c, "a built-in estimator") for n, c in taken.items()}
-        owners.update({n: (p.cls, f"package '{p.package}'") for n, p in found.items()})
-        check_name(loaded, entry, owners, "estimator")
+        if entry.name in taken and taken[entry.name] is not cls:
+            owner = "a built-in estimator"
+        elif entry.name in found and found[entry.name].cls is not cls:
+            owner = f"package '{found[entry.name].package}'"
+        else:
+            owner = ""
+        if owner:
+            raise SimbenchError(
+                field,
+                f"package '{package}' registers the name '{entry.name}' of {owner}",
+                f"rename the estimator in package '{package}' or pip uninstall one of them",
+            )
         found[entry.name] = Plugin(cls=cls, package=package)
     return found
 

@@ -6,22 +6,13 @@ are discovered alike; each group adds its own checks on the loaded class.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass
 from importlib.metadata import EntryPoint, entry_points
 from typing import Generic, TypeVar
 
 from simbench.errors import SimbenchError, one_line
 
-__all__ = [
-    "ALL_ESTIMATORS",
-    "ESTIMATOR_GROUP",
-    "SOURCE_GROUP",
-    "LoadedPlugin",
-    "check_name",
-    "entry_point_names",
-    "load_plugin",
-]
+__all__ = ["ALL_ESTIMATORS", "ESTIMATOR_GROUP", "SOURCE_GROUP", "LoadedPlugin", "entry_point_names", "load_plugin"]
 
 #: Entry-point group in which installed packages name their estimator classes (:mod:`estimators`).
 ESTIMATOR_GROUP = "simbench.estimators"
@@ -78,38 +69,6 @@ def load_plugin(entry: EntryPoint, base: type[T], kind: str, readme_section: str
             field, f"package '{package}' names {entry.value}, not {article} {base.__name__} subclass", fix
         )
     return LoadedPlugin(cls=cls, package=package, field=field, fix=fix)
-
-
-def check_name(loaded: LoadedPlugin[T], entry: EntryPoint, owners: Mapping[str, tuple[type, str]], kind: str) -> None:
-    """Refuse, in one line naming the package, a plug-in whose class ``name`` is not its entry point's,
-    or whose name another class already owns.
-
-    Parameters
-    ----------
-    loaded : LoadedPlugin
-        The class :func:`load_plugin` loaded for ``entry``.
-    entry : importlib.metadata.EntryPoint
-        Its entry point.
-    owners : mapping
-        The names taken so far: name to (class, owner as said in a message, e.g. ``package 'x'``).
-    kind : str
-        The group's noun in messages, e.g. ``estimator``.
-    """
-    cls, package = loaded.cls, loaded.package
-    name = getattr(cls, "name", None)
-    if name != entry.name:
-        raise SimbenchError(
-            loaded.field,
-            f"package '{package}': {cls.__name__}.name is {name!r}, not the entry point's name",
-            loaded.fix,
-        )
-    taken = owners.get(entry.name)
-    if taken is not None and taken[0] is not cls:
-        raise SimbenchError(
-            loaded.field,
-            f"package '{package}' registers the name '{entry.name}' of {taken[1]}",
-            f"rename the {kind} in package '{package}' or pip uninstall one of them",
-        )
 
 
 def entry_point_names(group: str) -> list[str]:

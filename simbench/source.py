@@ -29,7 +29,7 @@ from typing import Any, ClassVar, Protocol, TypeVar
 
 from simbench.bounds import check_bounds
 from simbench.contract import Scenario
-from simbench.entry_points import SOURCE_GROUP, check_name, load_plugin
+from simbench.entry_points import SOURCE_GROUP, load_plugin
 from simbench.errors import SimbenchError
 from simbench.typed import check_choices
 
@@ -182,7 +182,16 @@ def discover(entries: Iterable[EntryPoint]) -> dict[str, Plugin]:
                 f"source: str = '{entry.name}'",
                 fix,
             )
-        check_name(loaded, entry, {n: (p.cls, f"package '{p.package}'") for n, p in found.items()}, "source")
+        if cls.name != entry.name:
+            raise SimbenchError(
+                field, f"package '{package}': {cls.__name__}.name is {cls.name!r}, not the entry point's name", fix
+            )
+        if entry.name in found and found[entry.name].cls is not cls:
+            raise SimbenchError(
+                field,
+                f"package '{package}' registers the name '{entry.name}' of package '{found[entry.name].package}'",
+                f"rename the source in package '{package}' or pip uninstall one of them",
+            )
         found[entry.name] = Plugin(cls=cls, package=package)
     return found
 
