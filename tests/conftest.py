@@ -24,8 +24,8 @@ from threadpoolctl import threadpool_limits
 
 import estimators
 import simbench.cli.main as cli
-from estimators.measurement import PppObservations, prepare_ppp
-from estimators.ppp_config import MeasurementMode
+from estimators.model.measurement import PppObservations, prepare_ppp
+from estimators.model.ppp_config import MeasurementMode
 from simbench import source_registry
 from simbench.contract import ReceiverData
 from simbench.errors import SimbenchError

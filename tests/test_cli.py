@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 from conftest import run_simbench, simbench_summary
 
-from estimators.rtklib_spp import RtklibSpp
+from estimators.baselines.rtklib_spp import RtklibSpp
 from simbench.cli.main import SUBCOMMANDS, planned_jobs, suggest_names
 from simbench.cli.score import scenario_key_of
 from simbench.cli.terminal import SUMMARY_WIDTH, compact_summary

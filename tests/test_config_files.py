@@ -23,7 +23,7 @@ import yaml
 from omegaconf import OmegaConf
 
 import estimators
-from estimators.ppp_config import (
+from estimators.model.ppp_config import (
     GnssModelConfig,
     IonosphereMode,
     MotionModel,

@@ -17,7 +17,7 @@ import pytest
 
 import estimators
 import simbench
-from estimators.measurement import IonosphereMode
+from estimators.model.measurement import IonosphereMode
 from simbench.analysis.metrics import enu_errors
 from simbench.contract import OPTIONAL_OBSERVATION_COLUMNS, ReceiverData, Scenario
 from simbench.core.constants import C_LIGHT, F_B1I, F_L1, F_L2

@@ -35,10 +35,21 @@ from typing import NamedTuple
 
 import pytest
 
+import estimators
+
 ROOT = Path(__file__).resolve().parent.parent
 SCANNED_PACKAGES = ("simbench", "estimators")
 #: Further folders checked for rule (b) only: they may import any layer.
 PRIVATE_NAME_SCANNED = ("tests", "benchmarks", "examples")
+
+#: The estimator family packages; every built-in estimator lives in one.
+ESTIMATOR_FAMILIES = (
+    "estimators.batch",
+    "estimators.incremental",
+    "estimators.filters",
+    "estimators.gnss_ins",
+    "estimators.baselines",
+)
 
 #: The layers, bottom up. Each is a tuple of units; a unit is a tuple of module prefixes. A module may
 #: import its own unit and every unit of a lower layer.
@@ -57,7 +68,8 @@ LAYERS: tuple[tuple[tuple[str, ...], ...], ...] = (
     (("simbench.core",),),  # physics: frames, time, orbits, atmosphere
     (("simbench.gnss",),),  # measurement model, single point, navigation
     (("simbench.sim",), ("simbench.data",)),  # scenario sources, side by side
-    (("estimators",),),
+    (("estimators", "estimators.base", "estimators.model"),),  # the registry, the interface, the shared GNSS model
+    tuple((family,) for family in ESTIMATOR_FAMILIES),  # side by side: each imports the model, never another
     (("simbench.analysis",),),  # statistics, claims, tables on data frames
     (("simbench.runs",),),  # composition, jobs, store, studies
     (("simbench.report",),),
@@ -405,9 +417,9 @@ from simbench.runs import jobs
 
 
 def f(self):
-    from estimators.measurement import troposphere_terms
+    from estimators.model.measurement import troposphere_terms
     import importlib  # lazy: only an entry point may say so
-    importlib.import_module("estimators.bce")
+    importlib.import_module("estimators.batch.bce")
     import matplotlib  # optional: plotting
     x = orbits._CHUNK_EPOCHS + orbits_mod._CHUNK_EPOCHS
     y = self._cache + np.pi + orbits.__name__ + orbits.FIT_HALF_WINDOW_S
@@ -424,12 +436,12 @@ def test_checker_finds_every_kind_of_violation() -> None:
         "fake.py:8: imports private name _helper from simbench.sim",
         "fake.py:9: imports simbench.data.rinex from a higher layer or a sibling unit",
         "fake.py:10: imports simbench.runs.jobs from a higher layer or a sibling unit",
-        "fake.py:14: imports estimators.measurement from a higher layer or a sibling unit",
+        "fake.py:14: imports estimators.model.measurement from a higher layer or a sibling unit",
         "fake.py:14: imports inside a function (only an optional dependency may, with '# optional: ...' on its line, "
         "or an entry point, with '# lazy')",
         "fake.py:15: imports inside a function (only an optional dependency may, with '# optional: ...' on its line, "
         "or an entry point, with '# lazy')",
-        "fake.py:16: imports estimators.bce dynamically from a higher layer",
+        "fake.py:16: imports estimators.batch.bce dynamically from a higher layer",
         "fake.py:18: reads private name _CHUNK_EPOCHS of module orbits",
         "fake.py:18: reads private name _CHUNK_EPOCHS of module orbits_mod",
     ]
@@ -468,6 +480,24 @@ def test_layer_order() -> None:
     assert allowed("simbench.cli.main", "simbench.report.build")
     assert not allowed("simbench.core.frames", "simbench")  # the facade is on top
     assert allowed("simbench.core.frames", "numpy")
+    # estimator families import the shared model and the registry, never each other
+    assert allowed("estimators.batch.bce", "estimators.model.measurement")
+    assert allowed("estimators.batch.oracle", "estimators.batch.robust")
+    assert allowed("estimators.incremental.ice", "estimators")
+    assert not allowed("estimators.incremental.isam2", "estimators.batch.robust")
+    assert not allowed("estimators.gnss_ins.crt_lss", "estimators.filters.ekf_ppp")
+    assert not allowed("estimators.model.ppp_graph", "estimators.batch.robust")
+
+
+def test_every_estimator_lives_in_a_family_package() -> None:
+    """No estimator module outside ``estimators/<family>/`` (issue 47): the registry, the interface and
+    the model register none, and every family package is declared in :data:`LAYERS`."""
+    families = set(ESTIMATOR_FAMILIES)
+    folders = {f"estimators.{p.name}" for p in (ROOT / "estimators").iterdir() if (p / "__init__.py").is_file()}
+    assert folders == families | {"estimators.model"}
+    homes = {name: cls.__module__.rpartition(".")[0] for name, cls in estimators.built_in().items()}
+    assert len(homes) >= 15
+    assert {name: home for name, home in homes.items() if home not in families} == {}
 
 
 def test_relative_imports_resolve_against_the_package() -> None:

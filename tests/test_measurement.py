@@ -12,8 +12,8 @@ import pandas as pd
 import pymap3d
 import pytest
 
-from estimators.measurement import arc_ids, predict, prepare_ppp, sigma_factor
-from estimators.ppp_config import IonosphereMode, MeasurementMode, SigmaModel, VarianceComponents
+from estimators.model.measurement import arc_ids, predict, prepare_ppp, sigma_factor
+from estimators.model.ppp_config import IonosphereMode, MeasurementMode, SigmaModel, VarianceComponents
 from simbench.contract import NavInfo, ReceiverData
 from simbench.core import atmosphere
 from simbench.core.constants import DEG, F_L1, F_L2, IONO_L2_SCALE, LAMBDA_L1, LAMBDA_L2, SECONDS_PER_WEEK

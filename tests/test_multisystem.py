@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from conftest import dissertation
 
-from estimators.ekf_ppp import EkfPpp
-from estimators.measurement import prepare_ppp
+from estimators.filters.ekf_ppp import EkfPpp
+from estimators.model.measurement import prepare_ppp
 from simbench.contract import ReceiverData
 from simbench.core.frames import geodetic_from_ecef
 from simbench.core.gpstime import datetime64_to_gps

@@ -23,7 +23,7 @@ unchanged on real data:
 Klobuchar and Saastamoinen are not applied here: the observation table holds
 raw observables as the simulator's does, the header's Klobuchar coefficients
 go into :class:`~simbench.contract.NavInfo`, and the shared measurement model
-(:func:`estimators.measurement.prepare_ppp`) applies both.
+(:func:`estimators.model.measurement.prepare_ppp`) applies both.
 
 GPS (``G``, L1 C/A), GLONASS (``R``, L1 C/A FDMA: the wavelength of each
 satellite from the frequency channel of its navigation record; orbits by

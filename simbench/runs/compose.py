@@ -18,7 +18,7 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 import estimators
-from estimators.ppp_config import GnssModelConfig
+from estimators.model.ppp_config import GnssModelConfig
 from simbench import source_registry as sources
 from simbench.errors import SimbenchError
 from simbench.paths import data_path

@@ -11,7 +11,7 @@ the signals differs. Each pair (preset, geodetic) is solved epoch by epoch on
 the satellites both receivers track, as the published test's double
 differences are, with the project's one single-point solver
 (:func:`simbench.gnss.spp.solve_epochs`) on the shared measurement model
-(:func:`estimators.measurement.prepare_ppp`, code only): a satellite only one
+(:func:`estimators.model.measurement.prepare_ppp`, code only): a satellite only one
 receiver keeps would change the geometry, not measure the receiver.
 
 ``python -m simbench zero-baseline morgantown1 morgantown2 morgantown3 --out DIR``
@@ -29,8 +29,8 @@ import numpy as np
 import pandas as pd
 from tqdm.auto import tqdm
 
-from estimators.measurement import prepare_ppp
-from estimators.ppp_config import IonosphereMode, MeasurementMode, StochasticModelConfig
+from estimators.model.measurement import prepare_ppp
+from estimators.model.ppp_config import IonosphereMode, MeasurementMode, StochasticModelConfig
 from simbench.analysis.metrics import enu_errors
 from simbench.analysis.published import DRIVE_SCENARIOS, ZERO_BASELINE_MEAN_3D_M, Receiver
 from simbench.contract import Scenario, write_bytes

@@ -49,8 +49,8 @@ import pandas as pd
 
 from estimators import register
 from estimators.base import Estimator, solution_frame
-from estimators.measurement import ionosphere_free
-from estimators.ppp_config import IonosphereMode
+from estimators.model.measurement import ionosphere_free
+from estimators.model.ppp_config import IonosphereMode
 from simbench.contract import Need, ReceiverData
 from simbench.data.export import write_receiver_rinex
 from simbench.data.rtklib_pos import parse_rtklib_pos
@@ -77,7 +77,7 @@ NAVSYS_BITS: dict[str, int] = {"G": 1, "S": 2, "R": 4, "E": 8, "J": 16, "C": 32,
 class IonosphereModel(Choice):
     """Ionospheric correction RTKLIB applies (member names are the YAML words).
 
-    The first three are :class:`~estimators.ppp_config.IonosphereMode`'s words, so the
+    The first three are :class:`~estimators.model.ppp_config.IonosphereMode`'s words, so the
     ``gnss_model`` preset's choice reaches RTKLIB as it reaches the other estimators.
     """
 
@@ -132,7 +132,7 @@ def rnx2rtkp_options(config: RtklibSppConfig, systems: str, dual_frequency: bool
     systems : str
         RINEX system letters to use, e.g. ``'GC'``.
     dual_frequency : bool
-        What ``ionosphere = auto`` resolves to on the rows (:func:`estimators.measurement.ionosphere_free`);
+        What ``ionosphere = auto`` resolves to on the rows (:func:`estimators.model.measurement.ionosphere_free`);
         ignored for the other choices.
 
     Returns

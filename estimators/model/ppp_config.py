@@ -1,7 +1,7 @@
 """The PPP stochastic model every PPP estimator shares (dissertation Table 4.4.2).
 
-EKF-PPP (:class:`~estimators.ekf_ppp.EkfPppConfig`) and the GTSAM graph
-estimators (:class:`~estimators.ppp_graph.PppGraphConfig` and its children)
+EKF-PPP (:class:`~estimators.filters.ekf_ppp.EkfPppConfig`) and the GTSAM graph
+estimators (:class:`~estimators.model.ppp_graph.PppGraphConfig` and its children)
 carry the same model fields with the same defaults; they live here once,
 with their one validation entry point. The motion and clock-drift model
 (:class:`MotionModelConfig`: random walk or constant velocity with Doppler and
@@ -59,7 +59,7 @@ class SigmaModel(Choice):
     """How a row's a-priori sigma follows its signal (member names are the YAML words).
 
     The zenith sigmas (``code_sigma_m``, ``phase_sigma_m``, ``doppler_sigma_mps``) are
-    multiplied by a per-row factor (:func:`estimators.measurement.sigma_factor`).
+    multiplied by a per-row factor (:func:`estimators.model.measurement.sigma_factor`).
     """
 
     elevation = "elevation"  #: ``1 / sin(el)`` (Table 4.4.2)
@@ -74,10 +74,10 @@ class IonosphereMode(Choice):
     """How the ionospheric delay leaves the code and phase (member names are the YAML words)."""
 
     #: ``free`` when every tracked satellite has a second frequency (decided on the data by
-    #: :func:`~estimators.measurement.prepare_ppp`), ``measured`` when some have and their code pairs
+    #: :func:`~estimators.model.measurement.prepare_ppp`), ``measured`` when some have and their code pairs
     #: measure the delay better than the broadcast model does, else ``broadcast``; a system whose code
     #: pairs' unbroadcast group delays are expected to cost the position more than the broadcast
-    #: model's error keeps the broadcast delay (:func:`~estimators.measurement.pair_against_broadcast`)
+    #: model's error keeps the broadcast delay (:func:`~estimators.model.measurement.pair_against_broadcast`)
     auto = "auto"
     #: first frequency only, the broadcast Klobuchar delay removed (scaled to the row's carrier)
     broadcast = "broadcast"
@@ -100,12 +100,12 @@ class WetDelayMode(Choice):
     #: ``estimate`` where the log's own estimate is a wet delay, else ``model``: a batch L2 solve with the
     #: ZWD state decides, and an estimate further than :data:`WET_DELAY_GATE_SIGMAS` times
     #: :data:`WET_DELAY_CLIMATOLOGY_SIGMA_M` from the MOPS climatology is an elevation-dependent error
-    #: the state took up, not the atmosphere (:func:`estimators.ppp_graph.wet_delay_choice`)
+    #: the state took up, not the atmosphere (:func:`estimators.model.ppp_graph.wet_delay_choice`)
     auto = "auto"
 
     #: the wet delay modelled too, no state: the zenith wet delay of the RTCA MOPS climatology (by
     #: latitude and season) at the first fix, Niell's wet mapping
-    #: (:func:`~estimators.measurement.zenith_wet_delay_m`)
+    #: (:func:`~estimators.model.measurement.zenith_wet_delay_m`)
     model = "model"
     #: a zenith wet delay state per epoch (Table 4.4.2): prior ``zwd_sigma_m`` around Saastamoinen's
     #: wet delay of the standard atmosphere, random walk ``zwd_rw_m_rts``
@@ -125,7 +125,7 @@ class VarianceComponents(Choice):
     A robust (Huber) single-point pass per epoch gives code residuals; per group the factor
     on the code sigma is Helmert's estimate from the residuals and their redundancy numbers,
     relative to the other groups (geometric mean over the rows 1; the overall scale stays
-    the a-priori model's): :func:`estimators.measurement.variance_factors`.
+    the a-priori model's): :func:`estimators.model.measurement.variance_factors`.
     """
 
     none = "none"  #: the a-priori sigmas as they are
@@ -317,7 +317,7 @@ class StochasticModelConfig:
         return frozenset(needs)
 
     def prepare_kwargs(self) -> dict[str, Any]:
-        """Keyword arguments of :func:`~estimators.measurement.prepare_ppp` for this config."""
+        """Keyword arguments of :func:`~estimators.model.measurement.prepare_ppp` for this config."""
         return {
             "ionosphere": self.ionosphere,
             "variance_components": self.variance_components,

@@ -13,7 +13,7 @@ on the same hour, 0.2 s for the whole step against 0.45 s.
 
 Conditioning: the clock is in seconds and enters with Jacobian ``c`` (1.2e10 per
 second once whitened by a phase sigma, against 1-100 for the rest), which squared
-in ``A'A`` defeats a plain Cholesky (see :mod:`estimators.ppp_graph`). Every column
+in ``A'A`` defeats a plain Cholesky (see :mod:`estimators.model.ppp_graph`). Every column
 of ``A`` is scaled to unit norm first (Jacobi scaling), which removes that spread;
 the step agrees with GTSAM's sequential Cholesky to 1e-6 m on the hour above.
 

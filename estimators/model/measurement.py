@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from estimators.ppp_config import IonosphereMode, MeasurementMode, SigmaModel, VarianceComponents, WetDelayMode
+from estimators.model.ppp_config import IonosphereMode, MeasurementMode, SigmaModel, VarianceComponents, WetDelayMode
 from simbench.contract import NavInfo, ReceiverData
 from simbench.core import atmosphere
 from simbench.core.constants import DEG, F_L1
@@ -409,24 +409,13 @@ def prepare_ppp(
     ----------
     data : ReceiverData
     ionosphere : IonosphereMode
-        ``free``: the ionosphere-free combination of each row's two frequencies,
-        ``(gamma P1 - P2) / (gamma - 1)`` with ``gamma = f1_f2_ratio**2`` (code; phase where
-        both phases exist), any system, the satellite clock moved to the combination's
-        reference with the optional :data:`SAT_DCB_COLUMN`; rows without a second frequency are dropped
-        (``n_single_frequency_dropped``). ``broadcast``: the first frequency with the
-        Klobuchar delay removed, scaled by ``(f_L1 / f)**2`` to the row's carrier. ``measured``:
-        the first frequency with each row's delay measured by its code pair where it has one and
-        the broadcast delay fitted to those elsewhere
-        (:func:`simbench.gnss.measured_ionosphere.measured_ionosphere`). ``auto``: ``free`` when
-        every satellite above the mask has a second frequency on at least
-        :data:`AUTO_FREE_MIN_FRACTION` of its rows, ``measured`` when some rows have one and some
-        system's code pairs measure the delay better than the broadcast model
-        (:func:`simbench.gnss.measured_ionosphere.measured_ionosphere`), else ``broadcast``; a
-        system whose pairs' unbroadcast group delays are expected to move the position more than
-        the broadcast model's error (:func:`pair_against_broadcast`) keeps the broadcast delay
-        (``free`` then becomes ``measured``, or ``broadcast`` when that is every system, in one
-        warning line); the decision is the result's ``ionosphere`` (and ``ionosphere_free``), the
-        expected errors its ``ionosphere_expected_m``.
+        How the delay leaves the code and phase (:class:`IonosphereMode`). ``free`` combines each
+        row's two frequencies ``(gamma P1 - P2) / (gamma - 1)``, ``gamma = f1_f2_ratio**2``, the
+        satellite clock moved to the combination's reference with the optional
+        :data:`SAT_DCB_COLUMN`, and drops rows without a second frequency
+        (``n_single_frequency_dropped``); under ``auto`` a system whose pairs lose to the broadcast
+        model (:func:`pair_against_broadcast`) keeps the broadcast delay, in one warning line. The
+        decision is the result's ``ionosphere``, the expected errors its ``ionosphere_expected_m``.
     code_sigma_m, phase_sigma_m : float
         Zenith standard deviations [m] of the (combined) code and phase; scaled per row by
         :func:`sigma_factor`.
@@ -453,8 +442,72 @@ def prepare_ppp(
         Missing columns, ``ionosphere=free`` on data without a second frequency,
         bad sigmas, or no epoch with enough satellites.
     """
+    _check_prepare_inputs(data.observations, ionosphere, code_sigma_m, phase_sigma_m, min_satellites)
+    weighting = _Weighting(code_sigma_m, sigma_model, cn0_ref_dbhz)
+    picked = _picked_rows(
+        data, ionosphere, measurements, weighting, elevation_mask_deg, min_satellites, max_gap_epochs, doppler_slip_m
+    )
+    rows = _Rows.of(data, picked, weighting)
+    _say_missing_cn0(rows.cn0, sigma_model, variance_components, id(data.observations))
+    corrected = _without_ionosphere(data, picked, rows, ionosphere)
+    sigma_code, factors = _scaled_code_sigmas(
+        variance_components,
+        code_sigma_m * rows.sigma_scale,
+        rows.systems,
+        rows.system_index,
+        rows.cn0,
+        rows.epoch_stop - rows.epoch_start,
+        rows.sat_pos,
+        corrected.code,
+        picked.el,
+        rows.doy,
+    )
+    return _observations(data, picked, rows, corrected, sigma_code, phase_sigma_m * rows.sigma_scale, factors)
+
+
+@dataclass(frozen=True)
+class _Weighting:
+    """The a-priori code sigma [m] and how it follows elevation and C/N0 (:func:`sigma_factor`)."""
+
+    code_sigma_m: float
+    sigma_model: SigmaModel
+    cn0_ref_dbhz: float
+
+    def factor(self, el_rad: np.ndarray, cn0: np.ndarray) -> np.ndarray:
+        """Each row's sigma factor."""
+        return sigma_factor(el_rad, cn0, self.sigma_model, self.cn0_ref_dbhz)
+
+
+@dataclass
+class _Picked:
+    """The rows :func:`prepare_ppp` keeps (sorted by epoch and satellite), their phase arcs and the
+    ionosphere decision (:func:`_ionosphere_decision`)."""
+
+    sub: pd.DataFrame
+    sat: np.ndarray
+    epoch: np.ndarray
+    el: np.ndarray  #: [rad]
+    arc: np.ndarray
+    choice: IonosphereMode
+    expected: dict[str, tuple[float, float]]
+    declined: set[str]
+    n_dropped: int  #: rows without the second frequency ``free`` needs
+    checked: CodePhaseCheck
+
+
+def _picked_rows(
+    data: ReceiverData,
+    ionosphere: IonosphereMode,
+    measurements: MeasurementMode,
+    weighting: _Weighting,
+    elevation_mask_deg: float,
+    min_satellites: int,
+    max_gap_epochs: int,
+    doppler_slip_m: float,
+) -> _Picked:
+    """Select: the rows with every value used, above the mask, in epochs with enough satellites, their
+    phase arcs identified and checked (:func:`checked_arcs`), and the ionosphere decision."""
     obs = data.observations
-    _check_prepare_inputs(obs, ionosphere, code_sigma_m, phase_sigma_m, min_satellites)
     require_phase = measurements == MeasurementMode.code_phase
     if require_phase and len(obs) and not np.isfinite(obs["phase_l1"].to_numpy(float)).any():
         raise SimbenchError(
@@ -466,7 +519,13 @@ def prepare_ppp(
     second = _second_frequency(obs)
     above = obs["el"].to_numpy(float) > elevation_mask_deg
     choice, expected, declined = _ionosphere_decision(
-        data, ionosphere, valid & above, elevation_mask_deg, code_sigma_m, sigma_model, cn0_ref_dbhz
+        data,
+        ionosphere,
+        valid & above,
+        elevation_mask_deg,
+        weighting.code_sigma_m,
+        weighting.sigma_model,
+        weighting.cn0_ref_dbhz,
     )
     free = choice == IonosphereMode.free
     n_dropped = int((valid & above & ~second).sum()) if free else 0
@@ -480,85 +539,161 @@ def prepare_ppp(
     with_phase = with_phase[valid]
     arc = np.full(len(obs), -1, np.int64)
     arc[with_phase] = arc_ids(obs.loc[with_phase], max_gap_epochs, use_l2=free, doppler_slip_m=doppler_slip_m)
-    sigma = code_sigma_m * sigma_factor(obs["el"].to_numpy(float) * DEG, _cn0(obs), sigma_model, cn0_ref_dbhz)
+    sigma = weighting.code_sigma_m * weighting.factor(obs["el"].to_numpy(float) * DEG, _cn0(obs))
     checked = checked_arcs(obs, arc, sigma, free=free, origin=id(data.observations))
     arc = checked.arc
     if require_phase:
         obs, arc = obs.loc[arc >= 0], arc[arc >= 0]
-
     sub, sat, epoch, el, arc = _selected_rows(obs, arc, elevation_mask_deg, min_satellites)
-    t = sub["t"].to_numpy(float)
-    az = sub["az"].to_numpy(float) * DEG
-    sat_pos = sub[["sat_x", "sat_y", "sat_z"]].to_numpy(float)
-    range_rate, sat_vel = _range_rates(sub)
-    doy = day_of_year(data.nav.gps_week, data.nav.start_sow_s)
-    code, phase = _ranges(sub, free, arc)
+    return _Picked(sub, sat, epoch, el, arc, choice, expected, declined, n_dropped, checked)
 
-    epoch_ids, epoch_start, n_per = np.unique(epoch, return_index=True, return_counts=True)
-    epoch_stop = epoch_start + n_per
-    cn0 = _cn0(sub)
-    sigma_scale = sigma_factor(el, cn0, sigma_model, cn0_ref_dbhz)
-    _say_missing_cn0(cn0, sigma_model, variance_components, id(data.observations))
-    sat_names, sat_index, systems, system_index = _systems_of(sat)
 
-    n_measured, iono_fits = 0, {}
-    if not free and not data.nav.iono_corrected:
-        rough = _rough_positions(sat_pos, code, sigma_scale, el, doy, t, epoch_start, epoch_stop, system_index)
-        iono = _klobuchar_delay(data.nav, t, rough, el, az, sat)
-        if choice == IonosphereMode.measured:
-            found, stretch = _measured_delays(sub, iono, sat, t, declined)
-            if not found.fits and ionosphere == IonosphereMode.auto:
-                # no system's second frequency measures the delay better than the broadcast model
-                choice = IonosphereMode.broadcast
-            else:
-                iono, n_measured, iono_fits = found.delay_m, int(found.measured.sum()), found.fits
-                # a carrier phase takes the delay's changes at its millimetre weight: it is kept where
-                # the delay is levelled (a stretch is then an arc) and nowhere else, since there are no
-                # slant-ionosphere states in this mode to take up a modelled delay's drift
-                arc = split_arcs(np.where((stretch >= 0) & found.measured, arc, -1), stretch)
-                phase = np.where(arc >= 0, phase, np.nan)
-        code = code - iono
-        phase = phase + iono
-    sigma_code, factors = _scaled_code_sigmas(
-        variance_components, code_sigma_m * sigma_scale, systems, system_index, cn0, n_per, sat_pos, code, el, doy
+@dataclass
+class _Rows:
+    """What :func:`prepare_ppp` reads off the picked rows: times, geometry, weights, systems, epochs."""
+
+    t: np.ndarray  #: [s]
+    az: np.ndarray  #: [rad]
+    sat_pos: np.ndarray  #: (n, 3) ECEF [m]
+    range_rate: np.ndarray  #: [m/s]
+    sat_vel: np.ndarray  #: (n, 3) [m/s]
+    doy: float
+    cn0: np.ndarray  #: [dB-Hz]
+    sigma_scale: np.ndarray
+    sat_names: np.ndarray
+    sat_index: np.ndarray
+    systems: tuple[str, ...]
+    system_index: np.ndarray
+    epoch_ids: np.ndarray
+    epoch_start: np.ndarray
+    epoch_stop: np.ndarray
+
+    @classmethod
+    def of(cls, data: ReceiverData, picked: _Picked, weighting: _Weighting) -> _Rows:
+        """The rows of ``picked``, weighted by ``weighting``."""
+        sub = picked.sub
+        range_rate, sat_vel = _range_rates(sub)
+        epoch_ids, epoch_start, n_per = np.unique(picked.epoch, return_index=True, return_counts=True)
+        cn0 = _cn0(sub)
+        sat_names, sat_index, systems, system_index = _systems_of(picked.sat)
+        return cls(
+            t=sub["t"].to_numpy(float),
+            az=sub["az"].to_numpy(float) * DEG,
+            sat_pos=sub[["sat_x", "sat_y", "sat_z"]].to_numpy(float),
+            range_rate=range_rate,
+            sat_vel=sat_vel,
+            doy=day_of_year(data.nav.gps_week, data.nav.start_sow_s),
+            cn0=cn0,
+            sigma_scale=weighting.factor(picked.el, cn0),
+            sat_names=sat_names,
+            sat_index=sat_index,
+            systems=systems,
+            system_index=system_index,
+            epoch_ids=epoch_ids,
+            epoch_start=epoch_start,
+            epoch_stop=epoch_start + n_per,
+        )
+
+
+@dataclass
+class _Corrected:
+    """Code and phase [m] with the ionospheric delay removed, the arcs that keep their phase, and the
+    mode that did it."""
+
+    code: np.ndarray
+    phase: np.ndarray
+    arc: np.ndarray
+    choice: IonosphereMode
+    n_measured: int = 0
+    fits: dict[str, Any] = field(default_factory=dict)
+
+
+def _without_ionosphere(data: ReceiverData, picked: _Picked, rows: _Rows, ionosphere: IonosphereMode) -> _Corrected:
+    """Correct: the combination's code and phase (``free``), or the first frequency's less the broadcast or
+    measured delay."""
+    free = picked.choice == IonosphereMode.free
+    code, phase = _ranges(picked.sub, free, picked.arc)
+    out = _Corrected(code, phase, picked.arc.copy(), picked.choice)
+    if free or data.nav.iono_corrected:
+        return out
+    rough = _rough_positions(
+        rows.sat_pos,
+        code,
+        rows.sigma_scale,
+        picked.el,
+        rows.doy,
+        rows.t,
+        rows.epoch_start,
+        rows.epoch_stop,
+        rows.system_index,
     )
+    iono = _klobuchar_delay(data.nav, rows.t, rough, picked.el, rows.az, picked.sat)
+    if out.choice == IonosphereMode.measured:
+        found, stretch = _measured_delays(picked.sub, iono, picked.sat, rows.t, picked.declined)
+        if not found.fits and ionosphere == IonosphereMode.auto:
+            # no system's second frequency measures the delay better than the broadcast model
+            out.choice = IonosphereMode.broadcast
+        else:
+            iono, out.n_measured, out.fits = found.delay_m, int(found.measured.sum()), found.fits
+            # a carrier phase takes the delay's changes at its millimetre weight: it is kept where
+            # the delay is levelled (a stretch is then an arc) and nowhere else, since there are no
+            # slant-ionosphere states in this mode to take up a modelled delay's drift
+            out.arc = split_arcs(np.where((stretch >= 0) & found.measured, out.arc, -1), stretch)
+            out.phase = np.where(out.arc >= 0, out.phase, np.nan)
+    out.code = out.code - iono
+    out.phase = out.phase + iono
+    return out
+
+
+def _observations(
+    data: ReceiverData,
+    picked: _Picked,
+    rows: _Rows,
+    corrected: _Corrected,
+    sigma_code: np.ndarray,
+    sigma_phase: np.ndarray,
+    factors: dict[str, float],
+) -> PppObservations:
+    """Output: the :class:`PppObservations`, arcs renumbered in order of their start."""
+    arc = corrected.arc
     _, renumbered = np.unique(arc[arc >= 0], return_inverse=True)  # monotone: keeps the start order
     arc[arc >= 0] = renumbered
+    epoch_t = rows.t[rows.epoch_start]
     return PppObservations(
-        epoch=epoch,
-        t=t,
-        sat=sat,
-        sat_index=sat_index.astype(np.int64),
-        sat_pos=sat_pos,
-        code=code,
-        phase=phase,
-        el=el,
-        az=az,
+        epoch=picked.epoch,
+        t=rows.t,
+        sat=picked.sat,
+        sat_index=rows.sat_index.astype(np.int64),
+        sat_pos=rows.sat_pos,
+        code=corrected.code,
+        phase=corrected.phase,
+        el=picked.el,
+        az=rows.az,
         arc=arc.astype(np.int64),
         sigma_code=sigma_code,
-        sigma_phase=phase_sigma_m * sigma_scale,
-        sigma_scale=sigma_scale,
-        cn0=cn0,
-        epoch_ids=epoch_ids,
-        epoch_t=t[epoch_start],
-        epoch_start=epoch_start,
-        epoch_stop=epoch_stop,
-        sat_names=tuple(str(s) for s in sat_names),
+        sigma_phase=sigma_phase,
+        sigma_scale=rows.sigma_scale,
+        cn0=rows.cn0,
+        epoch_ids=rows.epoch_ids,
+        epoch_t=epoch_t,
+        epoch_start=rows.epoch_start,
+        epoch_stop=rows.epoch_stop,
+        sat_names=tuple(str(s) for s in rows.sat_names),
         n_arcs=int(arc.max(initial=-1)) + 1,
-        ionosphere_free=free,
-        ionosphere=choice,
-        n_ionosphere_measured=n_measured,
-        ionosphere_fits=iono_fits,
-        ionosphere_expected_m=expected,
-        doy=doy,
-        systems=systems,
-        system_index=system_index,
-        range_rate=range_rate,
-        sat_vel=sat_vel,
-        odometry=_odometry_per_epoch(data.odometry, t[epoch_start]) if len(data.odometry) else None,
-        n_single_frequency_dropped=n_dropped,
+        ionosphere_free=picked.choice == IonosphereMode.free,
+        ionosphere=corrected.choice,
+        n_ionosphere_measured=corrected.n_measured,
+        ionosphere_fits=corrected.fits,
+        ionosphere_expected_m=picked.expected,
+        doy=rows.doy,
+        systems=rows.systems,
+        system_index=rows.system_index,
+        range_rate=rows.range_rate,
+        sat_vel=rows.sat_vel,
+        odometry=_odometry_per_epoch(data.odometry, epoch_t) if len(data.odometry) else None,
+        n_single_frequency_dropped=picked.n_dropped,
         variance_factors=factors,
-        phase_check=_phase_check_info(checked),
+        phase_check=_phase_check_info(picked.checked),
     )
 
 

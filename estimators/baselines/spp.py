@@ -3,7 +3,7 @@
 Every epoch is solved on its own from its code rows (no motion model, no phase):
 position plus one receiver clock per GNSS system, by
 :func:`simbench.gnss.spp.solve_epochs` on the shared measurement preparation
-(:func:`estimators.measurement.prepare_ppp`: the same corrections, ionosphere
+(:func:`estimators.model.measurement.prepare_ppp`: the same corrections, ionosphere
 mode, sigma model and variance components as every other GNSS estimator). They
 are the floor a real-log table needs: an estimator with a motion model and a
 robust loss that loses to a per-epoch fix on the same rows has a defect in its
@@ -22,8 +22,8 @@ import pandas as pd
 
 from estimators import register
 from estimators.base import Estimator, solution_frame
-from estimators.measurement import PppObservations, prepare_ppp
-from estimators.ppp_config import (
+from estimators.model.measurement import PppObservations, prepare_ppp
+from estimators.model.ppp_config import (
     GnssModelConfig,
     IonosphereMode,
     MeasurementMode,
@@ -52,9 +52,9 @@ class WlsSppConfig:
     sigma_model: SigmaModel = GnssModelConfig.sigma_model
     cn0_ref_dbhz: float = StochasticModelConfig.cn0_ref_dbhz  #: C/N0 at which the ``cn0`` factor is 1 [dB-Hz]
     elevation_mask_deg: float = StochasticModelConfig.elevation_mask_deg  #: [deg]
-    #: auto | broadcast | free (:class:`~estimators.ppp_config.IonosphereMode`)
+    #: auto | broadcast | free (:class:`~estimators.model.ppp_config.IonosphereMode`)
     ionosphere: IonosphereMode = GnssModelConfig.ionosphere
-    #: none | system | system_cn0 (:class:`~estimators.ppp_config.VarianceComponents`)
+    #: none | system | system_cn0 (:class:`~estimators.model.ppp_config.VarianceComponents`)
     variance_components: VarianceComponents = GnssModelConfig.variance_components
 
     def validate(self, where: str) -> None:

@@ -1,6 +1,6 @@
 """The shared PPP factor-graph model used by every GTSAM estimator (batch and incremental).
 
-The model is the one of :mod:`estimators.measurement` (dissertation eqs. 4.1-4.4),
+The model is the one of :mod:`estimators.model.measurement` (dissertation eqs. 4.1-4.4),
 written with GTSAM's native C++ GNSS factors so that no Python callback sits in
 the optimiser's hot path.
 
@@ -8,7 +8,7 @@ Variables and keys
 ------------------
 All keys are :func:`gtsam.symbol` keys; ``k`` is the index of a *solved* epoch
 (row ``k`` of ``obs.epoch_ids``), ``r`` an observation row of
-:class:`~estimators.measurement.PppObservations`, ``a`` an arc id (``obs.arc``).
+:class:`~estimators.model.measurement.PppObservations`, ``a`` an arc id (``obs.arc``).
 
 =================  ==========  ===============================================
 key                type        meaning
@@ -105,14 +105,15 @@ with ``rows=obs.epoch_slice(k)``) for estimators that gate or reweight measureme
 
 from __future__ import annotations
 
+import functools
 from dataclasses import asdict, dataclass, fields, replace
 from typing import Any
 
 import gtsam
 import numpy as np
 
-from estimators.measurement import PppObservations, content_digest, zenith_wet_delay_m
-from estimators.ppp_config import (
+from estimators.model.measurement import PppObservations, content_digest, zenith_wet_delay_m
+from estimators.model.ppp_config import (
     DIRECTION_MIN_SPEED_MPS,
     MIN_ODOMETRY_VARIANCE,
     STANDSTILL_MPS,
@@ -153,39 +154,21 @@ __all__ = [
 ]
 
 
-def pos_key(k: int) -> int:
-    """Position key of solved epoch ``k``."""
-    return gtsam.symbol("x", k)
-
-
-def clock_key(k: int) -> int:
-    """Receiver clock key (seconds) of solved epoch ``k``."""
-    return gtsam.symbol("c", k)
-
-
-def zwd_key(k: int) -> int:
-    """Zenith wet delay key of solved epoch ``k``."""
-    return gtsam.symbol("w", k)
-
-
-def iono_key(row: int) -> int:
-    """Slant ionosphere residual key of observation row ``row``."""
-    return gtsam.symbol("i", row)
-
-
-def amb_key(arc: int) -> int:
-    """Carrier-phase bias key (metres) of phase arc ``arc``."""
-    return gtsam.symbol("b", arc)
-
-
-def vel_key(k: int) -> int:
-    """Velocity key (Point3, ECEF m/s) of solved epoch ``k`` (constant-velocity model only)."""
-    return gtsam.symbol("v", k)
-
-
-def drift_key(k: int) -> int:
-    """Receiver clock drift key (double, m/s) of solved epoch ``k`` (constant-velocity model only)."""
-    return gtsam.symbol("f", k)
+# One gtsam key per variable: its letter and an index (a solved epoch ``k``, an observation row, a phase arc).
+#: Position key of solved epoch ``k``.
+pos_key = functools.partial(gtsam.symbol, "x")
+#: Receiver clock key (seconds) of solved epoch ``k``.
+clock_key = functools.partial(gtsam.symbol, "c")
+#: Zenith wet delay key of solved epoch ``k``.
+zwd_key = functools.partial(gtsam.symbol, "w")
+#: Slant ionosphere residual key of observation row ``row``.
+iono_key = functools.partial(gtsam.symbol, "i")
+#: Carrier-phase bias key (metres) of phase arc ``arc``.
+amb_key = functools.partial(gtsam.symbol, "b")
+#: Velocity key (Point3, ECEF m/s) of solved epoch ``k`` (constant-velocity model only).
+vel_key = functools.partial(gtsam.symbol, "v")
+#: Receiver clock drift key (double, m/s) of solved epoch ``k`` (constant-velocity model only).
+drift_key = functools.partial(gtsam.symbol, "f")
 
 
 def sysclock_key(system: int, k: int) -> int:
@@ -203,8 +186,50 @@ ZERO_KEY = gtsam.symbol("z", 0)
 
 
 @dataclass
+class _NoiseModels:
+    """One (robust) scalar noise model per distinct sigma: the rows of one cluster share their sigma."""
+
+    def __init__(self, robust: gtsam.noiseModel.mEstimator.Base | None) -> None:
+        self.robust = robust
+        self.models: dict[float, gtsam.noiseModel.Base] = {}
+
+    def __call__(self, sigma: float) -> gtsam.noiseModel.Base:
+        """The model of standard deviation ``sigma`` [m]."""
+        model = self.models.get(sigma)
+        if model is None:
+            base = gtsam.noiseModel.Isotropic.Sigma(1, sigma)
+            robust = self.robust
+            model = self.models[sigma] = base if robust is None else gtsam.noiseModel.Robust.Create(robust, base)
+        return model
+
+
+# The split pair's factor inputs are returned as plain Python lists: numpy scalar access per
+# argument dominates the build time of the factor loop.
+
+
+def _split_code(
+    zc: np.ndarray, zp: np.ndarray, sc: np.ndarray, rho_c: np.ndarray, iono_c: np.ndarray
+) -> tuple[list[float], list[float], list[float], list[float]]:
+    """Measurement, sigma, ionosphere and bias coefficients of each row's code factor (the conditional
+    ``(code - rho phase) / (1 - rho)`` where ``rho_c`` is not 0; :meth:`PppGraph.measurement_factors`)."""
+    fac = 1.0 - rho_c
+    meas = np.where(rho_c == 0.0, zc, (zc - rho_c * zp) / fac)
+    iono = np.where(rho_c == 0.0, iono_c, -iono_c * (1.0 + rho_c) / fac)
+    return meas.tolist(), (sc / np.abs(fac)).tolist(), iono.tolist(), (-rho_c / fac).tolist()
+
+
+def _split_phase(
+    zc: np.ndarray, zp: np.ndarray, sp: np.ndarray, rho_p: np.ndarray, iono_c: np.ndarray
+) -> tuple[list[float], list[float], list[float], list[float]]:
+    """Measurement, sigma, ionosphere and bias coefficients of each row's phase factor (the conditional
+    ``(phase - rho' code) / (1 - rho')``; plain phase where ``rho_p`` is 0)."""
+    fac = 1.0 - rho_p
+    meas = (zp - rho_p * zc) / fac
+    return meas.tolist(), (sp / np.abs(fac)).tolist(), (iono_c * (1.0 + rho_p) / fac).tolist(), (1.0 / fac).tolist()
+
+
 class PppGraphConfig(MotionModelConfig):
-    """Stochastic model of the PPP graph: the shared model of :class:`~estimators.ppp_config.MotionModelConfig`.
+    """Stochastic model of the PPP graph: the shared model of :class:`~estimators.model.ppp_config.MotionModelConfig`.
 
     In the graph the clock prior holds at every epoch and the slant ionosphere
     residual is one key per row, a random walk along its arc. With
@@ -231,7 +256,7 @@ class PppGraph:
     Parameters
     ----------
     obs : PppObservations
-        From :func:`~estimators.measurement.prepare_ppp`.
+        From :func:`~estimators.model.measurement.prepare_ppp`.
     cfg : PppGraphConfig
 
     Attributes
@@ -246,7 +271,7 @@ class PppGraph:
     zwd0 : float
         Zenith wet delay at the first single point fix [m]: the modelled one (``wet_delay`` resolved
         to ``model``) or the ZWD state's prior mean (``estimate``),
-        :func:`~estimators.measurement.zenith_wet_delay_m`.
+        :func:`~estimators.model.measurement.zenith_wet_delay_m`.
     estimate_zwd : bool
         Whether there are ZWD states (``zwd_key``); else the factors' ZWD slot is ``ZERO_KEY``.
     row_epoch : ndarray of int, shape (N,)
@@ -686,28 +711,10 @@ class PppGraph:
 
         sc, rho_c, sp, rho_p = conditional_split(sc, sp, code_phase_cov, uc & up)
 
-        # rows of one cluster share their sigma: one noise model per distinct value, and plain
-        # Python lists in the loop (numpy scalar access per argument dominates the build time)
-        models: dict[float, gtsam.noiseModel.Base] = {}
-
-        def noise(s: float) -> gtsam.noiseModel.Base:
-            model = models.get(s)
-            if model is None:
-                base = gtsam.noiseModel.Isotropic.Sigma(1, s)
-                model = models[s] = base if robust is None else gtsam.noiseModel.Robust.Create(robust, base)
-            return model
-
-        code_fac = 1.0 - rho_c
-        phase_fac = 1.0 - rho_p
-        code_meas = np.where(rho_c == 0.0, zc, (zc - rho_c * zp) / code_fac).tolist()
-        code_sig = (sc / np.abs(code_fac)).tolist()
-        code_iono = np.where(rho_c == 0.0, iono_c, -iono_c * (1.0 + rho_c) / code_fac).tolist()
+        noise = _NoiseModels(robust)
+        code_meas, code_sig, code_iono, code_bias = _split_code(zc, zp, sc, rho_c, iono_c)
+        phase_meas, phase_sig, phase_iono, phase_bias = _split_phase(zc, zp, sp, rho_p, iono_c)
         iono_c = iono_c.tolist()
-        code_bias = (-rho_c / code_fac).tolist()
-        phase_meas = ((zp - rho_p * zc) / phase_fac).tolist()
-        phase_sig = (sp / np.abs(phase_fac)).tolist()
-        phase_iono = (iono_c * (1.0 + rho_p) / phase_fac).tolist()
-        phase_bias = (1.0 / phase_fac).tolist()
         coupled = (rho_c != 0.0).tolist()
         g = gtsam.NonlinearFactorGraph()
         for j in np.flatnonzero(uc).tolist():
@@ -921,7 +928,7 @@ def wet_delay_choice(obs: PppObservations, cfg: MotionModelConfig) -> WetDelayCh
     ----------
     obs : PppObservations
     cfg : MotionModelConfig
-        The estimator's model (its :class:`~estimators.ppp_config.MotionModelConfig` fields are used).
+        The estimator's model (its :class:`~estimators.model.ppp_config.MotionModelConfig` fields are used).
 
     Returns
     -------

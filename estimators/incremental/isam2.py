@@ -1,7 +1,7 @@
 """Incremental PPP on iSAM2: iSAM2-PPP (incremental L2), incremental DCS and max-mixtures.
 
 All incremental estimators share one loop over the epochs of the shared PPP graph
-(:class:`~estimators.ppp_graph.PppGraph`) updated with :class:`gtsam.ISAM2`
+(:class:`~estimators.model.ppp_graph.PppGraph`) updated with :class:`gtsam.ISAM2`
 (dissertation Ch. 4 and the Ch. 7 comparators):
 
 1. *Predict*: a snapshot solve of the new epoch's position and clock from its code
@@ -35,7 +35,7 @@ iSAM2 (``lag_s = 0``) each update scans all factors of the continuing arcs and t
 back-substitution of the changed biases reaches every past epoch of the arc: the
 update time grows with the run (measured in IF mode: ~0.6 ms per update at the start,
 ~30 ms after 850 epochs). By default the loop runs iSAM2 in a fixed-lag window
-(:mod:`estimators.fixed_lag`): keys last used more than ``lag_s`` seconds and
+(:mod:`estimators.incremental.fixed_lag`): keys last used more than ``lag_s`` seconds and
 ``lag_min_epochs`` epochs ago are marginalised, the arc biases of tracked arcs stay
 alive as long as their arc, an arc that resumes after its bias left the window starts
 anew, and the update cost is bounded by the window. The window is decided from the
@@ -58,9 +58,9 @@ import pandas as pd
 
 from estimators import register
 from estimators.base import Estimator, solution_frame
-from estimators.fixed_lag import FixedLagSmoother, LagSchedule, restart_stale_arcs
-from estimators.measurement import predict_given_troposphere, prepare_ppp
-from estimators.ppp_graph import (
+from estimators.incremental.fixed_lag import FixedLagSmoother, LagSchedule, restart_stale_arcs
+from estimators.model.measurement import predict_given_troposphere, prepare_ppp
+from estimators.model.ppp_graph import (
     ZERO_KEY,
     PppGraph,
     PppGraphConfig,
@@ -75,7 +75,7 @@ from estimators.ppp_graph import (
     vel_key,
     zwd_key,
 )
-from estimators.robust_models import (
+from estimators.model.robust_models import (
     DcsFields,
     MaxMixtureFields,
     max_mixture_outliers,
@@ -112,7 +112,7 @@ class IncrementalConfig(PppGraphConfig):
     wildfire_threshold: float = 0.001
     #: check relinearisation only in the cliques an update touches (GTSAM default False)
     partial_relinearization_check: bool = False
-    #: fixed-lag window [s]: keys last used longer ago are marginalised (estimators.fixed_lag);
+    #: fixed-lag window [s]: keys last used longer ago are marginalised (estimators.incremental.fixed_lag);
     #: 0 keeps every epoch in plain iSAM2, whose update cost then grows with the run (module notes)
     lag_s: float = 10.0
     #: the window holds at least this many epochs, whatever the data interval (a 30 s station file)

@@ -1,6 +1,6 @@
 """Per-epoch GNSS measurements for the GNSS/INS estimators: corrected code, Doppler, first fixes.
 
-The code is :func:`estimators.measurement.prepare_ppp`'s corrected L1 code
+The code is :func:`estimators.model.measurement.prepare_ppp`'s corrected L1 code
 (satellite clock and broadcast ionosphere removed, elevation-dependent sigma)
 minus the modelled troposphere; the Doppler becomes an observed range rate
 ``-lambda D + satellite drift`` with a C/N0-dependent sigma (elevation-dependent without C/N0). All epochs' single
@@ -15,9 +15,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from estimators.gnss_ins_config import GnssInsConfig
-from estimators.measurement import prepare_ppp, sigma_factor
-from estimators.ppp_config import IonosphereMode, MeasurementMode, SigmaModel
+from estimators.gnss_ins.config import GnssInsConfig
+from estimators.model.measurement import prepare_ppp, sigma_factor
+from estimators.model.ppp_config import IonosphereMode, MeasurementMode, SigmaModel
 from simbench.contract import ReceiverData
 from simbench.core import atmosphere
 from simbench.core.frames import geodetic_from_ecef

@@ -1,7 +1,7 @@
 """GNSS/INS error-state EKF and iterated EKF (the paper's comparison filters).
 
-Both run on the window engine of :mod:`estimators.window_solver` through
-:func:`estimators.gnss_ins_driver.run_gnss_ins` with one GNSS epoch (L = 1),
+Both run on the window engine of :mod:`estimators.gnss_ins.window_solver` through
+:func:`estimators.gnss_ins.driver.run_gnss_ins` with one GNSS epoch (L = 1),
 so the three estimators share the strapdown mechanisation (GTSAM IMU
 preintegration in ECEF), the 17-state error vector (attitude, position,
 velocity, accelerometer and gyro biases, receiver clock and drift), the
@@ -28,8 +28,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from estimators import register
-from estimators.gnss_ins_config import GnssInsConfig, LssConfig
-from estimators.gnss_ins_driver import GnssInsEstimator, lss_arguments
+from estimators.gnss_ins.config import GnssInsConfig, LssConfig
+from estimators.gnss_ins.driver import GnssInsEstimator, lss_arguments
 from simbench.errors import require_positive
 
 __all__ = ["EkfIns", "EkfInsConfig", "IekfIns", "IekfInsConfig"]

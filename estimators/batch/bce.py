@@ -2,15 +2,15 @@
 
 BCE iterates
 
-1. solve the PPP graph (:mod:`estimators.ppp_graph`); the first solve is batch L2
+1. solve the PPP graph (:mod:`estimators.model.ppp_graph`); the first solve is batch L2
    (Gauss-Newton steps from the single point solution, Levenberg-Marquardt where a step
    would raise the error; a-priori model scaled by ``prior_scale``), every re-solve one
    Gauss-Newton step from the previous solution on the linearised rows
-   (:class:`~estimators.whitened_rows.WhitenedRows`: the graph is linear but for the
+   (:class:`~estimators.batch.whitened_rows.WhitenedRows`: the graph is linear but for the
    range's micrometre-level curvature, so one step is the least-squares solution),
 2. form the 2-D residual ``(code, phase)`` of every satellite-epoch,
 3. fit a variational Dirichlet-process GMM to the raw residuals
-   (:func:`estimators.clustering.fit_dpgmm`, warm-started from the previous fit), by
+   (:func:`estimators.model.clustering.fit_dpgmm`, warm-started from the previous fit), by
    default on a fixed random sub-sample of ``fit_sample = 5000`` residuals (all of
    them when there are fewer, e.g. in 10 minutes of 1 Hz urban data),
 4. hard-assign every satellite-epoch to its most likely component; its code and
@@ -51,7 +51,7 @@ on every seed. The late BCE iterations are a slow mode of the alternation itself
 down-weighted, whatever the variational tolerance), which the stopping rule is left
 to decide.
 
-Measurement modes (``measurements``, :mod:`estimators.ppp_config`): the mixture is
+Measurement modes (``measurements``, :mod:`estimators.model.ppp_config`): the mixture is
 over the residual vector that exists. When every row has carrier phase it is the
 2-D ``(code, phase)`` mixture above. When no row has phase (a code-only log, or
 ``measurements = code``) it is a 1-D mixture over the code residual and each row
@@ -63,7 +63,7 @@ standardised) and computes each cluster's code statistics over all its members.
 
 BCE-AD augments the residuals with elevation, azimuth and C/N0, selects
 ``n_features`` of the five by MCFS every iteration
-(:func:`estimators.clustering.select_features`), clusters in the selected
+(:func:`estimators.model.clustering.select_features`), clusters in the selected
 (standardised) space, and gives each cluster the mean and covariance of its
 members' residuals. Selected features per iteration go to ``selected_features``.
 """
@@ -77,10 +77,10 @@ import numpy as np
 from sklearn.mixture import BayesianGaussianMixture
 
 from estimators import register
-from estimators.batch_robust import BatchConfig, BatchGraphEstimator, stop_reason
-from estimators.clustering import Mixture, code_marginal_labels, fit_dpgmm, select_features
-from estimators.measurement import PppObservations
-from estimators.ppp_graph import PppGraph
+from estimators.batch.robust import BatchConfig, BatchGraphEstimator, stop_reason
+from estimators.model.clustering import Mixture, code_marginal_labels, fit_dpgmm, select_features
+from estimators.model.measurement import PppObservations
+from estimators.model.ppp_graph import PppGraph
 from simbench.contract import ReceiverData
 from simbench.errors import SimbenchError, require_at_least
 
@@ -121,7 +121,7 @@ class BceConfig(BatchConfig):
                 f"{where}.{name}",
                 getattr(self, name),
                 low,
-                f"the defaults are in {type(self).__name__} (estimators/bce.py)",
+                f"the defaults are in {type(self).__name__} (estimators/batch/bce.py)",
             )
 
 

@@ -1,17 +1,17 @@
 """Batch PPP on the shared factor graph: L2, DCS and max-mixtures (dissertation Ch. 3, eqs. 3.18-3.20).
 
 All three solve the whole data set at once on
-:class:`~estimators.ppp_graph.PppGraph`; they differ only in the measurement
+:class:`~estimators.model.ppp_graph.PppGraph`; they differ only in the measurement
 noise models:
 
 * ``l2``: the a-priori Gaussian model (elevation-weighted sigmas), solved by
-  Gauss-Newton steps (:meth:`~estimators.whitened_rows.WhitenedRows.solve`;
+  Gauss-Newton steps (:meth:`~estimators.batch.whitened_rows.WhitenedRows.solve`;
   Levenberg-Marquardt where an undamped step would raise the error).
 * ``dcs``: the same wrapped in GTSAM's dynamic covariance scaling m-estimator
   (kernel width ``kernel_width``, phi in the DCS papers, whitened units), applied as GTSAM
   applies it when it linearises a robust factor, on the linearised rows
-  (:class:`~estimators.whitened_rows.DcsKernel`), so each Gauss-Newton step
-  (:class:`~estimators.gauss_newton.GaussNewton`) is one iteration of
+  (:class:`~estimators.batch.whitened_rows.DcsKernel`), so each Gauss-Newton step
+  (:class:`~estimators.batch.gauss_newton.GaussNewton`) is one iteration of
   iteratively re-weighted least squares; the steps go on until the relative
   error decrease is below ``rel_tol`` or ``max_iterations`` is reached
   (:func:`stop_reason`, GTSAM's ``checkConvergence``); each iteration's total error and
@@ -26,7 +26,7 @@ noise models:
   component given the current residual (eq. 3.20), then the graph is re-solved by
   one Gauss-Newton step from the previous solution (exact: the graph is Gaussian
   and linear but for the range's micrometre curvature) on its linearised rows
-  (:class:`~estimators.whitened_rows.WhitenedRows`: the outlier rows' sigmas change, no
+  (:class:`~estimators.batch.whitened_rows.WhitenedRows`: the outlier rows' sigmas change, no
   factor is rebuilt), until the relative change
   of the total error is below ``rel_tol`` or the assignment no longer changes or
   ``max_iterations`` is reached.
@@ -51,17 +51,17 @@ import pandas as pd
 
 from estimators import register
 from estimators.base import Estimator, solution_frame
-from estimators.gauss_newton import GaussNewton
-from estimators.measurement import PppObservations, prepare_ppp
-from estimators.ppp_graph import PppGraph, PppGraphConfig, solve
-from estimators.robust_models import (
+from estimators.batch.gauss_newton import GaussNewton
+from estimators.batch.whitened_rows import DcsKernel, WhitenedRows
+from estimators.model.measurement import PppObservations, prepare_ppp
+from estimators.model.ppp_graph import PppGraph, PppGraphConfig, solve
+from estimators.model.robust_models import (
     DcsFields,
     MaxMixtureFields,
     max_mixture_outliers,
     validate_dcs,
     validate_max_mixture,
 )
-from estimators.whitened_rows import DcsKernel, WhitenedRows
 from simbench.contract import ReceiverData
 from simbench.errors import require_at_least, require_positive
 
@@ -98,7 +98,7 @@ class BatchConfig(PppGraphConfig):
 
 
 #: The L2 solve stops when the relative error decrease is below this (Levenberg-Marquardt's default
-#: in :func:`~estimators.ppp_graph.solve`).
+#: in :func:`~estimators.model.ppp_graph.solve`).
 L2_RELATIVE_TOL = 1e-6
 
 

@@ -27,8 +27,8 @@ import gtsam
 import numpy as np
 import scipy.sparse as sp
 
-from estimators.gauss_newton import GaussNewton
-from estimators.ppp_graph import PppGraph, conditional_split, pos_key
+from estimators.batch.gauss_newton import GaussNewton
+from estimators.model.ppp_graph import PppGraph, conditional_split, pos_key
 
 __all__ = ["RELINEARIZE_M", "DcsKernel", "RowsState", "WhitenedRows"]
 

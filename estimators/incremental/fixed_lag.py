@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
-from estimators.measurement import PppObservations, split_arcs
+from estimators.model.measurement import PppObservations, split_arcs
 
 __all__ = ["FixedLagSmoother", "LagSchedule", "restart_stale_arcs"]
 

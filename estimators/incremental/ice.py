@@ -1,6 +1,6 @@
 """ICE: incremental covariance estimation on iSAM2 (dissertation Sec. 7.2).
 
-Each epoch the iSAM2 loop of :mod:`estimators.incremental` predicts the 2-D
+Each epoch the iSAM2 loop of :mod:`estimators.incremental.isam2` predicts the 2-D
 residual ``r = (code, phase)`` of every satellite [m]. :class:`AdaptiveNoiseModel`
 then
 
@@ -10,9 +10,9 @@ then
    noise model and its mean subtracted from the measurements;
 3. buffers the outliers (they never enter the graph); when more than ``T_c`` are
    buffered it fits a variational DP-GMM to them
-   (:func:`estimators.clustering.fit_dpgmm`) and merges each new component into the
+   (:func:`estimators.model.clustering.fit_dpgmm`) and merges each new component into the
    model when both the W covariance test and the Hotelling mean test accept, else
-   adds it (:meth:`estimators.mixture_tests.MixtureModel.adapt`, eqs. 7.4-7.12),
+   adds it (:meth:`estimators.model.mixture_tests.MixtureModel.adapt`, eqs. 7.4-7.12),
    then clears the buffer.
 
 An epoch with fewer than ``min_satellites`` inlier satellites gets no GNSS
@@ -51,15 +51,15 @@ from typing import Any
 import numpy as np
 
 from estimators import register
-from estimators.clustering import code_marginal_labels, fit_dpgmm
-from estimators.incremental import (
+from estimators.incremental.isam2 import (
     EpochPrediction,
     IncrementalConfig,
     IncrementalGraphEstimator,
 )
-from estimators.mixture_tests import MixtureModel
-from estimators.ppp_config import GnssModelConfig
-from estimators.ppp_graph import PppGraph
+from estimators.model.clustering import code_marginal_labels, fit_dpgmm
+from estimators.model.mixture_tests import MixtureModel
+from estimators.model.ppp_config import GnssModelConfig
+from estimators.model.ppp_graph import PppGraph
 from simbench.errors import SimbenchError
 
 __all__ = ["AdaptiveNoiseModel", "Ice", "IceConfig"]
@@ -104,7 +104,7 @@ class IceConfig(IncrementalConfig):
                 raise SimbenchError(
                     f"{where}.{name}",
                     f"out of range: {getattr(self, name)}",
-                    "the defaults are in IceConfig (estimators/ice.py)",
+                    "the defaults are in IceConfig (estimators/incremental/ice.py)",
                 )
 
 

@@ -27,7 +27,7 @@ which the linear clock term makes irrelevant); ``"random_walk"`` adds that varia
 instead. The a priori 3e6 m is the variance at the first epoch.
 
 Motion model (``motion_model``, the fields of
-:class:`~estimators.ppp_config.MotionModelConfig` the graph estimators share):
+:class:`~estimators.model.ppp_config.MotionModelConfig` the graph estimators share):
 ``random_walk`` (default) is the position random walk above. ``constant_velocity``
 appends ``[vx, vy, vz, drift]`` to the state (ECEF velocity [m/s], receiver clock
 drift times c [m/s]): per axis the exact discretisation of white acceleration
@@ -99,14 +99,14 @@ from filterpy.kalman import ExtendedKalmanFilter
 
 from estimators import register
 from estimators.base import Estimator, solution_frame
-from estimators.measurement import (
+from estimators.model.measurement import (
     N_BASE_STATES,
     PppObservations,
     predict_given_troposphere,
     prepare_ppp,
     zenith_wet_delay_m,
 )
-from estimators.ppp_config import (
+from estimators.model.ppp_config import (
     DIRECTION_MIN_SPEED_MPS,
     MIN_ODOMETRY_VARIANCE,
     STANDSTILL_MPS,
@@ -115,7 +115,7 @@ from estimators.ppp_config import (
     MotionModelConfig,
     WetDelayMode,
 )
-from estimators.ppp_graph import WetDelayChoice, wet_delay_choice
+from estimators.model.ppp_graph import WetDelayChoice, wet_delay_choice
 from simbench.contract import ReceiverData
 from simbench.core.frames import geodetic_from_ecef
 from simbench.errors import SimbenchError
@@ -135,7 +135,7 @@ _POS, _CLK, _ZWD = slice(0, 3), 3, 4
 
 @dataclass
 class EkfPppConfig(MotionModelConfig):
-    """EKF-PPP parameters: the shared model of :class:`~estimators.ppp_config.MotionModelConfig`.
+    """EKF-PPP parameters: the shared model of :class:`~estimators.model.ppp_config.MotionModelConfig`.
 
     ``measurements = code`` makes it a code-only filter (no bias states);
     ``motion_model = constant_velocity`` adds velocity and clock drift states.
@@ -196,15 +196,15 @@ class EkfPpp(Estimator):
         Parameters
         ----------
         obs : PppObservations
-            From :func:`~estimators.measurement.prepare_ppp` with this config's
-            :meth:`~estimators.ppp_config.StochasticModelConfig.prepare_kwargs`.
+            From :func:`~estimators.model.measurement.prepare_ppp` with this config's
+            :meth:`~estimators.model.ppp_config.StochasticModelConfig.prepare_kwargs`.
         anchor : EkfTrack, optional
             The code-only filter's pass over the same epochs (the phase guard): at every
             epoch where the position departs from the anchor's by more than the anchor's
             covariance allows (``d^T P_code^-1 d > GUARD_CHI2``), the filter takes the anchor's
             position and covariance and restarts every phase arc.
         wet : WetDelayChoice, optional
-            The resolved ``wet_delay`` (default: :func:`~estimators.ppp_graph.wet_delay_choice` on ``obs``).
+            The resolved ``wet_delay`` (default: :func:`~estimators.model.ppp_graph.wet_delay_choice` on ``obs``).
 
         Returns
         -------
@@ -498,7 +498,7 @@ class EkfPass:
 
     def update_odometry(self, sample: np.ndarray, with_doppler: bool) -> int:
         """Wheel-speed update of the velocity (one epoch's mean odometry ``sample``, the columns of
-        :data:`~estimators.measurement.EPOCH_ODOMETRY`); the non-holonomic row only ``with_doppler`` (the
+        :data:`~estimators.model.measurement.EPOCH_ODOMETRY`); the non-holonomic row only ``with_doppler`` (the
         epoch has range rates, which measure the direction it is taken along); returns 1 when an
         update was made."""
         kf, vel0 = self.kf, self.layout.vel0

@@ -87,7 +87,7 @@ class GnssInsConfig:
             require_positive(
                 f"{where}.{name}",
                 getattr(self, name),
-                "give a positive value; the defaults are in estimators/gnss_ins_config.py",
+                "give a positive value; the defaults are in estimators/gnss_ins/config.py",
             )
         check_imu_sigmas(self, where)  # positive above, and below what any IMU has
         require_elevation_mask(

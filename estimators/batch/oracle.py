@@ -16,7 +16,7 @@ estimator allowed to read the error labels (``requires`` holds ``Need.labels``):
   phase jitter, and leaving it out makes the oracle over-trust the phase.
 
 Labels are row-aligned with the observation table; prepared rows (dropped and
-sorted by :func:`~estimators.measurement.prepare_ppp`) find theirs by (epoch, satellite).
+sorted by :func:`~estimators.model.measurement.prepare_ppp`) find theirs by (epoch, satellite).
 One Levenberg-Marquardt solve, as ``l2``.
 """
 
@@ -28,9 +28,9 @@ import numpy as np
 import pandas as pd
 
 from estimators import register
-from estimators.batch_robust import BatchConfig, BatchGraphEstimator
-from estimators.measurement import prepare_ppp
-from estimators.ppp_graph import PppGraph
+from estimators.batch.robust import BatchConfig, BatchGraphEstimator
+from estimators.model.measurement import prepare_ppp
+from estimators.model.ppp_graph import PppGraph
 from simbench.contract import Need, ReceiverData
 from simbench.errors import SimbenchError
 

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators.ppp_config import GnssModelConfig
+from estimators.model.ppp_config import GnssModelConfig
 from simbench.errors import SimbenchError, require_positive
 
 __all__ = ["DcsFields", "MaxMixtureFields", "validate_dcs", "validate_max_mixture", "max_mixture_outliers"]

@@ -9,11 +9,11 @@ Factors, all whitened:
 
 * a Gaussian prior on ``x_{k-L}`` (the marginal of everything that left the window);
 * GTSAM ``CombinedImuFactor`` between consecutive states (IMU preintegration,
-  see :mod:`estimators.ins_mechanisation`), linearised natively in C++ (one
+  see :mod:`estimators.gnss_ins.mechanisation`), linearised natively in C++ (one
   call per pair; whitening and assembly are batched over the window,
   :func:`pair_terms`);
 * a two-state receiver clock model (bias and drift, Allan h0 / h-2);
-* per satellite an L1 pseudorange (:class:`estimators.gnss_ins_data.GnssEpoch`)
+* per satellite an L1 pseudorange (:class:`estimators.gnss_ins.data.GnssEpoch`)
   and a Doppler range rate ``-lambda D + satellite drift = rdot + receiver drift``,
   with Jacobians in numpy, vectorised over the window's satellites
   (:func:`window_gnss_terms`; range and gradient from
@@ -73,9 +73,9 @@ from gtsam.symbol_shorthand import B, V, X
 from scipy.linalg import cho_factor, cho_solve, solve_triangular
 from scipy.linalg.lapack import dpbsv
 
-from estimators.gnss_ins_config import GnssInsConfig
-from estimators.gnss_ins_data import GnssEpoch
-from estimators.ins_mechanisation import (
+from estimators.gnss_ins.config import GnssInsConfig
+from estimators.gnss_ins.data import GnssEpoch
+from estimators.gnss_ins.mechanisation import (
     DEG_PER_HOUR,
     ImuNoise,
     preintegration_params,

@@ -1,10 +1,11 @@
-"""Run a GNSS/INS estimator over a scenario: the epoch loop around :class:`~estimators.window_solver.WindowSolver`.
+"""Run a GNSS/INS estimator over a scenario: the epoch loop around
+:class:`~estimators.gnss_ins.window_solver.WindowSolver`.
 
 Per GNSS epoch, in order: predict the next state with the IMU samples since
 the previous epoch, append the epoch's GNSS measurements (marginalising the
 oldest state when the window is full), turn the heading to the course over
 ground the first time the vehicle moves (see
-:class:`~estimators.gnss_ins_config.GnssInsConfig`), solve the window
+:class:`~estimators.gnss_ins.config.GnssInsConfig`), solve the window
 (Algorithm 1) or make the EKF update, and record the newest state. The filter
 starts at the first epoch after ``level_s`` seconds of static IMU data that has
 a trusted single point solution: levelled from the mean specific force, yaw 0,
@@ -24,21 +25,21 @@ import numpy as np
 import pandas as pd
 
 from estimators.base import Estimator, solution_frame
-from estimators.gnss_ins_config import GnssInsConfig, LssConfig
-from estimators.gnss_ins_data import (
+from estimators.gnss_ins.config import GnssInsConfig, LssConfig
+from estimators.gnss_ins.data import (
     GnssEpoch,
     GnssInsData,
     SinglePointFix,
     prepare_gnss_ins,
 )
-from estimators.ins_mechanisation import (
+from estimators.gnss_ins.mechanisation import (
     DEG_PER_HOUR,
     attitude_ecef,
     course_over_ground,
     level_roll_pitch,
     yaw_of,
 )
-from estimators.window_solver import CLK, POS, WindowNode, WindowSolver, initial_sigmas
+from estimators.gnss_ins.window_solver import CLK, POS, WindowNode, WindowSolver, initial_sigmas
 from simbench.contract import Need, ReceiverData
 from simbench.core.constants import DEG
 from simbench.errors import SimbenchError
