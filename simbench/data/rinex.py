@@ -1055,41 +1055,36 @@ def load_rinex(
     SimbenchWarning
         Observed satellites without a record near their epochs: their rows are left out.
     """
-    obs = read_rinex_obs(obs_path, systems)
-    return rinex_scenario(
-        obs,
-        nav_path,
-        truth_path,
-        systems=systems,
-        nav_bds_path=nav_bds_path,
-        nav_glo_path=nav_glo_path,
-        nav_gal_path=nav_gal_path,
-        name=name,
-        truth_max_gap_s=truth_max_gap_s,
-    )
+    inputs = LogInputs(nav_path, truth_path, systems, nav_bds_path, nav_glo_path, nav_gal_path, name, truth_max_gap_s)
+    return rinex_scenario(read_rinex_obs(obs_path, systems), inputs)
 
 
-def rinex_scenario(
-    obs: RinexObs,
-    nav_path: NavPaths,
-    truth_path: str | os.PathLike[str] | None = None,
-    *,
-    systems: str = "G",
-    nav_bds_path: NavPaths | None = None,
-    nav_glo_path: NavPaths | None = None,
-    nav_gal_path: NavPaths | None = None,
-    name: str = "",
-    truth_max_gap_s: float = 2.0,
-) -> Scenario:
+@dataclass(frozen=True)
+class LogInputs:
+    """What makes a log's observations a scenario besides them: :func:`load_rinex`'s parameters after
+    ``obs_path`` (the same meaning; the file parameters without their ``_path``)."""
+
+    nav: NavPaths
+    truth: str | os.PathLike[str] | None = None
+    systems: str = "G"
+    nav_bds: NavPaths | None = None
+    nav_glo: NavPaths | None = None
+    nav_gal: NavPaths | None = None
+    name: str = ""
+    truth_max_gap_s: float = 2.0
+
+
+def rinex_scenario(obs: RinexObs, inputs: LogInputs) -> Scenario:
     """The :class:`~simbench.contract.Scenario` of observations already read into a :class:`RinexObs`.
 
     Every step of :func:`load_rinex` after the observation file is read: ephemerides, satellite
     states at transmit time, the rough fix, the observation and truth tables. Another reader of
     raw observables (:mod:`simbench.data.gnsslogger`) fills a :class:`RinexObs` and comes here,
-    so one pipeline serves every format. The parameters after ``obs`` are :func:`load_rinex`'s;
-    ``obs.path`` stands for the observation file (the default name is its stem).
+    so one pipeline serves every format. ``obs.path`` stands for the observation file (the default
+    name is its stem).
     """
-    paths, settings = _navigation_plan(nav_path, nav_bds_path, nav_glo_path, nav_gal_path)
+    systems = inputs.systems
+    paths, settings = _navigation_plan(inputs.nav, inputs.nav_bds, inputs.nav_glo, inputs.nav_gal)
     used = [s for s in dict.fromkeys(systems) if s in obs.signals]
     loaded = {s: _load_ephemeris(paths[s], settings[s], s) for s in used}
     ephs = {s: eph for s, (eph, _) in loaded.items()}
@@ -1140,13 +1135,13 @@ def rinex_scenario(
 
     t0_gps = float(obs.epoch_t_int[0]) + obs.epoch_t_frac[0]
     week_hint = int(obs.epoch_t_int[0] // SECONDS_PER_WEEK)
-    ref = read_reference(truth_path, week_hint=week_hint) if truth_path else None
-    truth = log_truth(grid, t0_gps, ref, truth_max_gap_s, observations["epoch"].to_numpy(), rough)
+    ref = read_reference(inputs.truth, week_hint=week_hint) if inputs.truth else None
+    truth = log_truth(grid, t0_gps, ref, inputs.truth_max_gap_s, observations["epoch"].to_numpy(), rough)
     nav = _nav_info(obs, ephs, t0_gps, bool(second.has_l2.any()))
     second_used = {s: sorted(set(second.signal[(letters == s) & second.has_l2].tolist())) for s in used}
     used_text = "".join(used)
     meta = {
-        "name": name or Path(obs.path).stem,
+        "name": inputs.name or Path(obs.path).stem,
         "seed": 0,
         "source": "rinex",
         "files": {
@@ -1155,7 +1150,7 @@ def rinex_scenario(
             "nav_bds": ", ".join(paths["C"]),
             "nav_glo": ", ".join(paths["R"]),
             "nav_gal": ", ".join(paths["E"]),
-            "truth": str(truth_path or ""),
+            "truth": str(inputs.truth or ""),
         },
         "rinex_version": obs.version,
         "systems": used_text,
