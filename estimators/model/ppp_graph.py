@@ -717,24 +717,16 @@ class PppGraph:
         iono_c = iono_c.tolist()
         coupled = (rho_c != 0.0).tolist()
         g = gtsam.NonlinearFactorGraph()
+
+        def carrier(j: int, meas: list[float], iono: list[float], bias: list[float], sig: list[float]) -> Any:
+            keys = (pk[j], ck[j], wk[j], ikeys[j], bk[j])
+            return gtsam.UndifferencedCarrierPhaseFactor(
+                *keys, meas[j], sat[j], mw[j], iono[j], bias[j], 0.0, noise(sig[j])
+            )
+
         for j in np.flatnonzero(uc).tolist():
-            if coupled[j]:
-                g.add(
-                    gtsam.UndifferencedCarrierPhaseFactor(
-                        pk[j],
-                        ck[j],
-                        wk[j],
-                        ikeys[j],
-                        bk[j],
-                        code_meas[j],
-                        sat[j],
-                        mw[j],
-                        code_iono[j],
-                        code_bias[j],
-                        0.0,
-                        noise(code_sig[j]),
-                    )
-                )
+            if coupled[j]:  # the conditional code factor has the phase's bias term
+                g.add(carrier(j, code_meas, code_iono, code_bias, code_sig))
             else:
                 g.add(
                     gtsam.UndifferencedPseudorangeFactor(
@@ -742,22 +734,7 @@ class PppGraph:
                     )
                 )
         for j in np.flatnonzero(up).tolist():
-            g.add(
-                gtsam.UndifferencedCarrierPhaseFactor(
-                    pk[j],
-                    ck[j],
-                    wk[j],
-                    ikeys[j],
-                    bk[j],
-                    phase_meas[j],
-                    sat[j],
-                    mw[j],
-                    phase_iono[j],
-                    phase_bias[j],
-                    0.0,
-                    noise(phase_sig[j]),
-                )
-            )
+            g.add(carrier(j, phase_meas, phase_iono, phase_bias, phase_sig))
         return g
 
     # ------------------------------------------------------------------ values
