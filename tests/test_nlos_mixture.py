@@ -1,4 +1,4 @@
-"""The self-tuning NLOS mixture (estimators.nlos_mixture) and the batch estimator that learns it (``mm_em``)."""
+"""The self-tuning NLOS mixture (estimators.model.nlos_mixture) and the batch estimator that learns it (``mm_em``)."""
 
 from __future__ import annotations
 
@@ -9,10 +9,10 @@ import pandas as pd
 import pytest
 
 import simbench
-from estimators.batch_robust import MmEm, MmEmConfig
-from estimators.clustering import conditioned_labels
-from estimators.nlos_mixture import Assignment, NlosMixture, predictors
-from estimators.ppp_config import MeasurementMode
+from estimators.batch.robust import MmEm, MmEmConfig
+from estimators.model.clustering import conditioned_labels
+from estimators.model.nlos_mixture import Assignment, NlosMixture, predictors
+from estimators.model.ppp_config import MeasurementMode
 from simbench.contract import Scenario
 from simbench.errors import SimbenchError
 

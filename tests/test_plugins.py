@@ -10,24 +10,21 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
-import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 import pytest
-from conftest import FakeEntryPoint, one_line_error
+from conftest import EXAMPLE_MISSING, EXAMPLE_PACKAGE, FakeEntryPoint, cli_error_line, one_line_error, simbench_summary
 from omegaconf import OmegaConf
 
 import estimators
 import simbench.cli.main as cli
-from simbench.runs.compose import compose_config, plugin_config_node, register_schemas
+from simbench.runs.compose import compose_config, plugin_config_node
 from simbench.typed import to_typed
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = "cauchy_spp"
-EXAMPLE_PACKAGE = "simbench-example-estimator"
 
 
 def fake_estimator(name: str, config: Any = "dataclass") -> type[estimators.Estimator]:
@@ -40,20 +37,8 @@ def fake_estimator(name: str, config: Any = "dataclass") -> type[estimators.Esti
     return type(f"Fake_{name}", (estimators.Estimator,), body)
 
 
-@pytest.fixture
-def fresh_discovery():
-    """Discovery and the ConfigStore registration run again in the test, and again after it."""
-    estimators.plugins.cache_clear()
-    register_schemas.cache_clear()
-    yield
-    estimators.plugins.cache_clear()
-    register_schemas.cache_clear()
-
-
 def test_installed_example_is_listed_and_configured_from_its_dataclass() -> None:
-    assert EXAMPLE in estimators.plugins(), (
-        "the example plug-in is not installed: pip install -e examples/simbench-example-estimator (.ci/run does)"
-    )
+    assert EXAMPLE in estimators.plugins(), EXAMPLE_MISSING
     assert estimators.source(EXAMPLE) == EXAMPLE_PACKAGE and estimators.source("l2") == estimators.BUILT_IN
     table = cli.estimator_table().set_index("name")
     assert table.loc[EXAMPLE, "source"] == EXAMPLE_PACKAGE
@@ -105,12 +90,8 @@ def test_the_same_class_from_two_entry_points_is_no_clash() -> None:
 
 def test_cli_stops_on_a_clashing_plugin_in_one_line(fresh_discovery, monkeypatch, capsys) -> None:
     monkeypatch.setattr(estimators, "entry_points", lambda group: [FakeEntryPoint("dcs", fake_estimator("dcs"))])
-    monkeypatch.setattr(sys, "argv", ["simbench", "--estimators"])
-    with pytest.raises(SystemExit) as info:
-        cli.main()
-    assert info.value.code == 2
-    lines = capsys.readouterr().err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("error: estimator plug-in 'dcs': package 'fake-plugins'")
+    line = cli_error_line(monkeypatch, capsys, "--estimators")
+    assert line.startswith("error: estimator plug-in 'dcs': package 'fake-plugins'")
 
 
 def _plugin_module(tmp_path: Path, monkeypatch, yaml_text: str | None) -> estimators.Plugin:
@@ -165,27 +146,8 @@ def test_a_bad_shipped_yaml_is_one_line_naming_the_package(
 
 def test_the_example_runs_in_a_sweep_through_the_cli(tmp_path: Path) -> None:
     out = tmp_path / "sweep"
-    proc = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "simbench",
-            "-m",
-            "scenario=open_sky",
-            "receiver=high",
-            "scenario.duration_s=30",
-            "seed=0",
-            f"estimator=[{EXAMPLE}]",
-            f"results_dir={out}",
-            "progress=false",
-        ],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    summary = pd.read_parquet(out / "summary.parquet")
+    sweep = ("-m", "scenario=open_sky", "receiver=high", "scenario.duration_s=30", "seed=0", f"estimator=[{EXAMPLE}]")
+    summary = simbench_summary(out, *sweep)
     assert list(summary["estimator"]) == [EXAMPLE] and (summary["status"] == "ok").all()
     assert (summary["availability"] == 1.0).all()
     # open sky, single-point code with Klobuchar: about a metre horizontally (1.0 m when written with

@@ -18,8 +18,8 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 import estimators
-from estimators.ppp_config import GnssModelConfig
-from simbench import source as sources
+from estimators.model.ppp_config import GnssModelConfig
+from simbench import source_registry as sources
 from simbench.errors import SimbenchError
 from simbench.paths import data_path
 from simbench.runs.groups import CONF_DIR, available, check_group_choices, config_groups, record_built_in_estimators
@@ -40,7 +40,7 @@ def register_schemas() -> None:
     from the dataclass defaults. A plug-in estimator gets the same node from
     :func:`plugin_config_node`, and ``estimator/all`` lists every registered
     estimator, built-in and plug-in, so the default run and the sweeps include
-    the plug-ins without an edit to ``conf/``. Each scenario source (:mod:`simbench.source`)
+    the plug-ins without an edit to ``conf/``. Each scenario source (:mod:`simbench.source_registry`)
     gets its typed node ``scenario/<name>_schema`` from its ``Config`` (the simulator's presets
     use ``scenario/schema``, ``rinex.yaml`` uses ``rinex_schema``), and a source without a
     ``conf/scenario/<name>.yaml`` a preset of its ``Config`` defaults, so ``scenario=<name>`` runs it.
@@ -48,7 +48,8 @@ def register_schemas() -> None:
     Raises
     ------
     SimbenchError
-        For a broken plug-in, naming its package (:func:`estimators.discover`, :func:`simbench.source.discover`).
+        For a broken plug-in, naming its package (:func:`estimators.discover`,
+        :func:`simbench.source_registry.discover`).
     """
     cs = ConfigStore.instance()
     for group, node in (

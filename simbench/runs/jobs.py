@@ -20,7 +20,7 @@ from threadpoolctl import threadpool_limits
 from tqdm.auto import tqdm
 
 import estimators
-from simbench import source as sources
+from simbench import source_registry as sources
 from simbench.analysis.variants import overrides_json, overrides_of, variant_label
 from simbench.errors import SimbenchError, one_line
 from simbench.runs.compose import preset_estimator_config
@@ -36,7 +36,7 @@ from simbench.runs.store import (
     result_stem,
     write_result,
 )
-from simbench.source import SIMULATED
+from simbench.source_registry import SIMULATED
 from simbench.typed import to_typed
 
 

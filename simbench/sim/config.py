@@ -18,7 +18,7 @@ from simbench.bounds import check_bounds
 from simbench.errors import SimbenchError, require_at_least, require_elevation_mask, require_positive
 from simbench.paths import require_file
 from simbench.sim.tracking import antenna_gain_dbi
-from simbench.source import SIMULATED, SourceConfig
+from simbench.source_registry import SIMULATED, SourceConfig
 from simbench.typed import Choice, check_choices
 
 #: Coherent integration a GPS C/A receiver can use [s]: one code period up to one navigation data bit.
@@ -305,10 +305,10 @@ class OdometryConfig:
 
 @dataclass
 class ScenarioConfig(SourceConfig):
-    """The simulator's scenario (source ``simulated``); real logs have their own (:mod:`simbench.data.sources`)."""
+    """The simulator's scenario (source ``simulated``); real logs have their own (:mod:`simbench.data.log_sources`)."""
 
     name: str = "urban"
-    source: str = SIMULATED  #: the simulator (:mod:`simbench.sim.source`)
+    source: str = SIMULATED  #: the simulator (:mod:`simbench.sim.simulator_source`)
     duration_s: float = 600.0
     rate_hz: float = 1.0  #: GNSS epoch rate
     gps_week: int = 2032
