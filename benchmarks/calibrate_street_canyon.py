@@ -4,9 +4,9 @@ A real urban log lifts a code solution's height because its NLOS delays are
 one-sided and grow as the elevation falls. This script measures that pattern
 on the Hong Kong TST u-blox log (``scenario=hk_tst_2019 scenario.systems=G``)
 and on a simulated world *on the same trajectory and sky*: the log's reference
-trajectory replayed (``trajectory.kind=replay``) under its own GPS broadcast
-orbits, the street drawn by the world's canyon model, so sim and real differ
-only in the street and the receiver.
+trajectory replayed under its own GPS broadcast orbits
+(:func:`simbench.runs.scenarios.replay_overrides`), the street drawn by the
+world's canyon model, so sim and real differ only in the street and the receiver.
 
 1. Target: :func:`simbench.analysis.validation.residual_by_elevation` of the
    log's first half (by epoch): per elevation bin the 90th percentile of the
@@ -47,7 +47,7 @@ from simbench.analysis.validation import ValidationSample, residual_by_elevation
 from simbench.contract import Scenario  # noqa: E402
 from simbench.runs.compose import compose_config  # noqa: E402
 from simbench.runs.runner import run_estimators  # noqa: E402
-from simbench.runs.scenarios import build_scenario, scenario_settings  # noqa: E402
+from simbench.runs.scenarios import build_scenario, replay_overrides, scenario_settings  # noqa: E402
 
 #: Calibration seeds (>= 1000).
 SEEDS = (1000, 1001, 1002)
@@ -60,24 +60,6 @@ GRID: dict[str, list[object]] = {
 }
 #: Elevation bins scored [deg]: the log has no satellite between 10 and 25 deg.
 EDGES = (0.0, 25.0, 35.0, 45.0, 55.0, 90.0)
-
-
-def replay_overrides(real: Scenario, folder: Path) -> list[str]:
-    """Overrides that simulate on ``real``'s reference trajectory, GPS week and broadcast orbits."""
-    truth = real.truth.dropna(subset=["x", "y", "z"])
-    sow = real.nav.start_sow_s + truth["t"].to_numpy(float)
-    path = folder / "reference.xyz"
-    np.savetxt(path, np.c_[sow, truth[["x", "y", "z"]].to_numpy(float)], fmt="%.3f")
-    assert real.rinex is not None
-    return [
-        "scenario.trajectory.kind=replay",
-        f"scenario.trajectory.replay.path={path}",
-        f"scenario.trajectory.replay.gps_week={real.nav.gps_week}",
-        f"scenario.gps_week={real.nav.gps_week}",
-        "scenario.constellation.kind=broadcast",
-        f"scenario.constellation.nav_path={real.rinex.nav[0]}",
-        f"scenario.duration_s={float(sow[-1] - sow[0]) + 1.0}",
-    ]
 
 
 def halves(sample: ValidationSample) -> tuple[ValidationSample, ValidationSample]:

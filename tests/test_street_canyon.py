@@ -7,16 +7,18 @@ sky) used seeds 1000-1002; these tests evaluate seeds 0-2.
 from __future__ import annotations
 
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 from omegaconf import OmegaConf
 
+from simbench.analysis.validation import residual_by_elevation, residual_sample
 from simbench.contract import Scenario
 from simbench.runs.compose import compose_config
 from simbench.runs.runner import run_estimators
-from simbench.runs.scenarios import build_scenario, scenario_settings
+from simbench.runs.scenarios import build_scenario, replay_overrides, scenario_settings
 from simbench.sim.canyon import canyon_rays, visible_reflector_m
 from simbench.sim.config import MaskedReflection, NlosConfig
 
@@ -106,24 +108,20 @@ def test_any_height_rule_is_unchanged_by_the_new_fields() -> None:
     np.testing.assert_array_equal(a.amplitude, b.amplitude)
 
 
-def _world(seed: int) -> tuple[Scenario, dict]:
-    cfg = compose_config(
-        [
-            "scenario=street_canyon",
-            "receiver=consumer",
-            f"seed={seed}",
-            "scenario.duration_s=300",
-            "estimator=[wls_spp]",
-        ]
-    )
+def _world(seed: int, *overrides: str, world: str = "street_canyon") -> tuple[Scenario, dict]:
+    cfg = compose_config([f"scenario={world}", "receiver=consumer", f"seed={seed}", "estimator=[wls_spp]", *overrides])
     est = OmegaConf.to_container(cfg.estimator, resolve=True, enum_to_str=True)
     assert isinstance(est, dict)
     return build_scenario(scenario_settings(cfg)), est
 
 
+def _wls_up_median(scenario: Scenario, est: dict) -> float:
+    return float(np.nanmedian(run_estimators(scenario, est, progress=False).epochs["u"].to_numpy(float)))
+
+
 @pytest.fixture(scope="module")
 def worlds() -> list[tuple[Scenario, dict]]:
-    return [_world(seed) for seed in EVALUATION_SEEDS]
+    return [_world(seed, "scenario.duration_s=300") for seed in EVALUATION_SEEDS]
 
 
 def test_street_canyon_nlos_delay_grows_as_the_elevation_falls(worlds) -> None:
@@ -147,5 +145,26 @@ def test_street_canyon_lifts_the_wls_height(worlds) -> None:
     """The WLS up-error median is positive on every evaluation seed: +1..+10 m (measured +2.4, +7.4, +3.7 m;
     the Hong Kong log +3.0 m with GPS)."""
     for scenario, est in worlds:
-        up = run_estimators(scenario, est, progress=False).epochs["u"].to_numpy(float)
-        assert 1.0 <= float(np.nanmedian(up)) <= 10.0
+        assert 1.0 <= _wls_up_median(scenario, est) <= 10.0
+
+
+def test_street_canyon_lifts_heights_as_the_hong_kong_street_does(shared_data: Path, tmp_path: Path) -> None:
+    """On the log's own trajectory and sky (seeds 0-2): the WLS up-error median of the middle seed within 5 m of
+    the log's (+3.0 m; measured +3.4, +4.6, +13.1 m; urban_deep +16.1, +26.9, +33.3 m), and the share of rows
+    more than 10 m late within 0.06 of the log's per elevation bin above 35 deg (log 0.23 / 0.10 / 0.04,
+    measured 0.28 / 0.13 / 0.08; urban_deep 0.34 / 0.19 / 0.10)."""
+    real, est = _world(0, "scenario.systems=G", world="hk_tst_2019")
+    edges = (0.0, 25.0, 35.0, 45.0, 55.0, 90.0)
+    log = residual_by_elevation(residual_sample(real), edges).set_index("el_low_deg")
+    log_up = _wls_up_median(real, est)
+    assert log_up == pytest.approx(3.0, abs=0.1)
+    replay = replay_overrides(real, tmp_path)
+    sims = [_world(seed, *replay)[0] for seed in EVALUATION_SEEDS]
+    assert np.median([_wls_up_median(s, est) for s in sims]) == pytest.approx(log_up, abs=5.0)
+    rows = pd.concat(
+        [residual_sample(s).rows.assign(epoch=lambda r, k=k: r["epoch"] + 10_000 * k) for k, s in enumerate(sims)]
+    )
+    pooled = replace(residual_sample(sims[0]), rows=rows, reference_epochs=np.unique(rows["epoch"]))
+    sim = residual_by_elevation(pooled, edges).set_index("el_low_deg")
+    for low in (35.0, 45.0, 55.0):
+        assert sim.loc[low, "share_late"] == pytest.approx(log.loc[low, "share_late"], abs=0.06), low
