@@ -242,11 +242,12 @@ def canyon_rays(
     facade = np.maximum(d_far + relief, 0.5 * d_far)  # never behind the antenna
     horizontal = 2.0 * cos_inc
     beyond = np.where(blocked, _reflector_beyond_m(n, columns, cfg, dt_s, rng, ei, si), 0.0)
-    reflector = facade + beyond
     if cfg.masked_reflection == MaskedReflection.visible:
-        behind, reachable = visible_reflector_m(k, d_near, h_near, facade, h_far, beyond)
-        reflector = np.where(blocked, behind, facade)
-        single = np.where(blocked, gate & reachable & (behind <= cfg.reflector_max_m), single)
+        distance, reachable = visible_reflector_m(k, d_near, h_near, facade, h_far, beyond)
+        reflector = np.where(blocked, distance, facade)
+        single = np.where(blocked, gate & reachable & (distance <= cfg.reflector_max_m), single)
+    else:
+        reflector = facade + beyond
     amplitude = np.stack([a_direct, np.where(single, a_single, 0.0), np.where(double, a_double, 0.0)], axis=-1)
     delay = np.stack([d_direct, horizontal * reflector, horizontal * (facade + d_near)], axis=-1)
     phase = -2.0 * np.pi / LAMBDA_L1 * delay + np.pi * np.arange(N_RAYS)  # each bounce turns the carrier by pi
