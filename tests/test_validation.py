@@ -16,6 +16,7 @@ from simbench.analysis.validation import (
     ValidationSample,
     comparison_table,
     ks_distances,
+    residual_by_elevation,
     residual_sample,
     world_statistics,
 )
@@ -142,6 +143,17 @@ def test_hong_kong_log_reproduces_the_issue_table(hk: Scenario) -> None:
         assert getattr(stats, field) == pytest.approx(HK_TABLE[field], abs=1.0), field
     # a u-blox log: code without phase on many rows, short phase arcs
     assert 0.4 < stats.phase_availability < 0.8 and stats.arc_median_s < 10
+
+
+def test_hong_kong_residual_by_elevation(hk: Scenario) -> None:
+    """The log's NLOS tail thickens towards the horizon (notebook "A street that lifts heights"): p90 56.5 m and
+    36 % of rows > 10 m late at 25-35 deg, 4.1 m and 4 % above 55 deg; no satellite tracked below 25 deg."""
+    table = residual_by_elevation(residual_sample(hk), (0.0, 25.0, 35.0, 45.0, 55.0, 90.0)).set_index("el_low_deg")
+    assert table.index.tolist() == [25.0, 35.0, 45.0, 55.0]
+    np.testing.assert_allclose(table["p90_m"], [56.5, 36.0, 9.5, 4.1], rtol=0.05)
+    np.testing.assert_allclose(table["share_late"], [0.36, 0.23, 0.10, 0.04], atol=0.01)
+    assert np.all(np.diff(table["share_late"]) < 0.0) and np.all(np.diff(table["mean_m"].iloc[:3]) < 0.0)
+    assert table["rows_per_epoch"].sum() == pytest.approx(len(residual_sample(hk).abs_residual) / 485, rel=1e-9)
 
 
 def test_side_by_side_table_measures_ks_against_the_real_log(hk: Scenario, thermal: Scenario) -> None:

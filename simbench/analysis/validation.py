@@ -49,6 +49,7 @@ from simbench.gnss.geometry import elevation_azimuth, sagnac_range
 from simbench.gnss.troposphere import troposphere_terms
 
 __all__ = [
+    "ELEVATION_EDGES_DEG",
     "MIN_ROWS_PER_CLOCK",
     "RESIDUAL_COLUMNS",
     "TAIL_THRESHOLDS_M",
@@ -57,6 +58,7 @@ __all__ = [
     "cn0_by_elevation",
     "comparison_table",
     "ks_distances",
+    "residual_by_elevation",
     "residual_sample",
     "world_label",
     "world_statistics",
@@ -329,6 +331,56 @@ def world_statistics(sample: ValidationSample) -> WorldStatistics:
         arc_mean_s=float(arcs.mean()) if len(arcs) else np.nan,
         lli_rate=float(rows.loc[phase, "lli"].mean()) if phase.any() else np.nan,
     )
+
+
+#: Default elevation bins of :func:`residual_by_elevation` [deg]: the low sky finely, where NLOS delays grow.
+ELEVATION_EDGES_DEG = (0.0, 15.0, 25.0, 35.0, 45.0, 55.0, 90.0)
+
+
+def residual_by_elevation(
+    sample: ValidationSample, edges_deg: Sequence[float] = ELEVATION_EDGES_DEG, threshold_m: float = 10.0
+) -> pd.DataFrame:
+    """The signed code residual per elevation bin: how much later low satellites arrive than high ones.
+
+    A street's NLOS delays are one-sided and grow as the elevation falls; in the
+    per-epoch median-clock residual they show as a positive upper tail that
+    thickens towards the horizon, the pattern that lifts a code solution's
+    height. Signed, so late (positive) and early rows are told apart.
+
+    Parameters
+    ----------
+    sample : ValidationSample
+    edges_deg : sequence of float
+        Bin edges of the elevation [deg], increasing; a bin is ``(low, high]``.
+    threshold_m : float
+        The share of rows later than this is reported [m].
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per bin with rows (``el_low_deg``, ``el_high_deg``): ``rows_per_epoch``
+        (rows with a residual over the sample's reference epochs), ``mean_m``,
+        ``p50_m``, ``p75_m``, ``p90_m`` of the residual [m] and ``share_late``
+        (residual above ``threshold_m``); empty bins are left out.
+    """
+    rows = sample.rows.loc[np.isfinite(sample.rows["residual"].to_numpy(float))]
+    edges = np.asarray(edges_deg, float)
+    bins = pd.cut(rows["el"], edges)
+    res = rows["residual"].groupby(bins, observed=True)
+    n_epochs = max(len(sample.reference_epochs), 1)
+    out = pd.DataFrame(
+        {
+            "el_low_deg": [b.left for b in res.size().index],
+            "el_high_deg": [b.right for b in res.size().index],
+            "rows_per_epoch": res.size().to_numpy() / n_epochs,
+            "mean_m": res.mean().to_numpy(),
+            "p50_m": res.median().to_numpy(),
+            "p75_m": res.quantile(0.75).to_numpy(),
+            "p90_m": res.quantile(0.9).to_numpy(),
+            "share_late": res.apply(lambda r: float(np.mean(r > threshold_m))).to_numpy(),
+        }
+    )
+    return out.reset_index(drop=True)
 
 
 def cn0_by_elevation(sample: ValidationSample, bin_deg: float = 10.0) -> pd.DataFrame:

@@ -163,40 +163,28 @@ def solve_epochs(
         )
     nk = int(n_epochs if n_epochs is not None else (epoch.max() + 1 if n else 0))
     sys_idx = np.zeros(n, np.int64) if system_index is None else np.asarray(system_index, np.int64).reshape(-1)
-    n_sys = int(sys_idx.max(initial=0)) + 1
     w = np.ones(n) if sigma is None else 1.0 / np.asarray(sigma, dtype=float).reshape(-1) ** 2
-    with_tropo = el is not None and doy is not None
-    el_rows = np.asarray(el, dtype=float).reshape(-1) if with_tropo else None
-
+    el_rows = np.asarray(el, dtype=float).reshape(-1) if el is not None and doy is not None else None
     ok = np.isfinite(code) & np.isfinite(sat_pos).all(axis=1) & np.isfinite(w) & (epoch >= 0) & (epoch < nk)
     rows = np.flatnonzero(ok)
     rows = rows[np.argsort(epoch[rows], kind="stable")]
-    e, s, c, wr, sy = epoch[rows], sat_pos[rows], code[rows], w[rows], sys_idx[rows]
-    el_r = None if el_rows is None else el_rows[rows]
-    present, starts, n_rows_present = np.unique(e, return_index=True, return_counts=True)
+    fit = _Fit.of(rows, epoch, sat_pos, code, w, sys_idx, el_rows, doy, int(sys_idx.max(initial=0)) + 1)
     n_rows = np.zeros(nk, np.int64)
-    n_rows[present] = n_rows_present
+    n_rows[fit.present] = np.diff(np.append(fit.starts, len(rows)))
     # systems present per epoch decide how many unknowns the epoch has
-    has_sys = np.zeros((nk, n_sys), bool)
-    has_sys[e, sy] = True
+    has_sys = np.zeros((nk, fit.n_systems), bool)
+    has_sys[fit.e, fit.sy] = True
     solvable = n_rows >= 3 + has_sys.sum(axis=1)
 
     pos = np.zeros((nk, 3))
     if x0 is not None:
         pos[:] = np.broadcast_to(np.asarray(x0, dtype=float), (nk, 3))
-    clock = np.zeros((nk, n_sys))
-    A = np.zeros((len(rows), 3 + n_sys))
-    A[np.arange(len(rows)), 3 + sy] = 1.0
-    fit = _Fit(e, s, c, wr, sy, el_r, doy, A, starts, present)
+    clock = np.zeros((nk, fit.n_systems))
     passes = 1 + (max(int(reweightings), 0) if huber_k is not None else 0)
     robust, step = fit.iterate(pos, clock, solvable, passes, iterations, tol_m, huber_k)
-    res = c - fit.predicted(pos, clock)
+    res = fit.c - fit.predicted(pos, clock)
     rms = np.full(nk, np.nan)
-    rms[present] = np.sqrt(np.add.reduceat(res * res, starts) / n_rows_present)
-    # redundancy numbers 1 - w_i a_i^T N^-1 a_i of the final weighted fit
-    n_inv = pinv_stack(_normal_matrices(A, wr * robust, starts))
-    index = np.repeat(np.arange(len(present)), n_rows_present)
-    leverage = wr * robust * np.einsum("ri,rij,rj->r", A, n_inv[index], A)
+    rms[fit.present] = np.sqrt(np.add.reduceat(res * res, fit.starts) / n_rows[fit.present])
     height = _lat_height(pos)[1]
     trusted = (
         solvable
@@ -206,14 +194,7 @@ def solve_epochs(
         & (height < _MAX_HEIGHT_M)
         & (rms < max_rms_m)
     )
-    own = trusted[e]
-    residual = np.full(n, np.nan)
-    redundancy = np.full(n, np.nan)
-    weight = np.ones(n)
-    residual[rows[own]] = res[own]
-    redundancy[rows[own]] = 1.0 - leverage[own]
-    weight[rows] = robust
-    per_row = {"residual_m": residual, "redundancy": redundancy, "weight": weight}
+    per_row = fit.per_row(n, rows, trusted, res, robust)
     if not fill_untrusted:
         pos[~trusted] = np.nan
         clock[~trusted] = np.nan
@@ -236,6 +217,50 @@ class _Fit:
     A: np.ndarray  #: design matrix (position columns filled per iteration, clock columns fixed)
     starts: np.ndarray  #: first row of each present epoch
     present: np.ndarray  #: epochs with rows
+
+    @classmethod
+    def of(
+        cls,
+        rows: np.ndarray,
+        epoch: np.ndarray,
+        sat_pos: np.ndarray,
+        code: np.ndarray,
+        w: np.ndarray,
+        sys_idx: np.ndarray,
+        el: np.ndarray | None,
+        doy: float | None,
+        n_systems: int,
+    ) -> _Fit:
+        """The fit of input ``rows`` (sorted by epoch) of the per-row arrays; ``n_systems`` clock columns."""
+        e, sy = epoch[rows], sys_idx[rows]
+        present, starts = np.unique(e, return_index=True)
+        design = np.zeros((len(rows), 3 + n_systems))
+        design[np.arange(len(rows)), 3 + sy] = 1.0
+        el_r = None if el is None else el[rows]
+        return cls(e, sat_pos[rows], code[rows], w[rows], sy, el_r, doy, design, starts, present)
+
+    @property
+    def n_systems(self) -> int:
+        """Clock columns of the design matrix."""
+        return int(self.A.shape[1]) - 3
+
+    def per_row(
+        self, n: int, rows: np.ndarray, trusted: np.ndarray, res: np.ndarray, robust: np.ndarray
+    ) -> dict[str, np.ndarray]:
+        """:class:`SppSolution`'s per-input-row fields (``n`` input rows, ``rows`` the fitted ones): residual
+        [m] and redundancy number ``1 - w_i a_i^T N^-1 a_i`` of the final weighted fit where the row's
+        epoch is trusted, and the final Huber weight factor."""
+        n_inv = pinv_stack(_normal_matrices(self.A, self.w * robust, self.starts))
+        index = np.repeat(np.arange(len(self.present)), np.diff(np.append(self.starts, len(rows))))
+        leverage = self.w * robust * np.einsum("ri,rij,rj->r", self.A, n_inv[index], self.A)
+        own = trusted[self.e]
+        residual = np.full(n, np.nan)
+        redundancy = np.full(n, np.nan)
+        weight = np.ones(n)
+        residual[rows[own]] = res[own]
+        redundancy[rows[own]] = 1.0 - leverage[own]
+        weight[rows] = robust
+        return {"residual_m": residual, "redundancy": redundancy, "weight": weight}
 
     def predicted(self, pos: np.ndarray, clock: np.ndarray) -> np.ndarray:
         """Predicted code of every row at ``pos``/``clock`` (fills the design matrix's position columns)."""

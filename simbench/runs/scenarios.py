@@ -11,8 +11,10 @@ import dataclasses
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
+import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
 from simbench import source_registry as sources
@@ -192,3 +194,50 @@ def simulation_config(
     sim = sim_config_of(settings)
     check_scenario(sim)  # the simulator's check
     return sim
+
+
+def replay_overrides(real: Scenario, folder: Path) -> list[str]:
+    """Overrides that simulate a world on a real log's own street: its reference trajectory and sky.
+
+    The log's reference positions are written to ``folder/reference.xyz`` (``SOW X Y
+    Z``) and replayed (``trajectory.kind=replay``) in the log's GPS week under its
+    GPS navigation file, for the log's span; appended to ``scenario=<world>``
+    they give a simulated log that differs from the real one only in the street
+    and the receiver (``benchmarks/calibrate_street_canyon.py``).
+
+    Parameters
+    ----------
+    real : Scenario
+        A real log with a reference trajectory and a GPS navigation file (``rinex`` source).
+    folder : Path
+        Where the trajectory file is written.
+
+    Returns
+    -------
+    list of str
+        Command-line style overrides.
+
+    Raises
+    ------
+    SimbenchError
+        When the log has no reference positions or no RINEX navigation file.
+    """
+    truth = real.truth.dropna(subset=["x", "y", "z"])
+    if len(truth) < 2 or real.rinex is None or not real.rinex.nav:
+        raise SimbenchError(
+            f"scenario {real.meta.get('name', '')}",
+            "has no reference trajectory or no RINEX navigation file to replay",
+            "give a RINEX log with scenario.truth and scenario.nav",
+        )
+    sow = real.nav.start_sow_s + truth["t"].to_numpy(float)
+    path = Path(folder) / "reference.xyz"
+    np.savetxt(path, np.c_[sow, truth[["x", "y", "z"]].to_numpy(float)], fmt="%.3f")
+    return [
+        "scenario.trajectory.kind=replay",
+        f"scenario.trajectory.replay.path={path}",
+        f"scenario.trajectory.replay.gps_week={real.nav.gps_week}",
+        f"scenario.gps_week={real.nav.gps_week}",
+        "scenario.constellation.kind=broadcast",
+        f"scenario.constellation.nav_path={real.rinex.nav[0]}",
+        f"scenario.duration_s={float(sow[-1] - sow[0]) + 1.0}",
+    ]

@@ -24,7 +24,12 @@ Multisensor Integrated Navigation Systems*, 2nd ed., sec. 10.4):
    alone would remove most delayed NLOS receptions of ``urban`` (13 % -> 4 % of
    the observations). Its reflecting building may stand ``reflector_beyond_m``
    beyond the far facade (a taller building behind a lower one, or across a
-   crossing street), which adds ``2 (extra) cos(el) |s|`` to the delay;
+   crossing street), which adds ``2 (extra) cos(el) |s|`` to the delay. With
+   ``masked_reflection: visible`` the rays must clear the roofs instead
+   (:func:`visible_reflector_m`): the reflector stands no nearer than where the
+   bounced ray clears the near roof, a reflector behind the far facade is seen
+   only over the far roof, and none arrives from beyond ``reflector_max_m``; so
+   the delay grows as the elevation falls until the low sky is not received;
 2. far facade then near facade (only possible when the direct ray is masked),
    extra path ``2 (d_f + d_n) cos(el) |s|``, with the bounces at ``k (2 d_n + d_f)``
    on the far and ``k d_n`` on the near facade, clearing the near roof at
@@ -52,7 +57,7 @@ import numpy as np
 from scipy.stats import norm
 
 from simbench.core.constants import F_L1, LAMBDA_L1
-from simbench.sim.config import FacadeMaterial, NlosConfig
+from simbench.sim.config import FacadeMaterial, MaskedReflection, NlosConfig
 from simbench.sim.processes import Columns, gauss_markov
 
 #: Persistence of a reflection path; reflections come and go as the car passes facades.
@@ -237,8 +242,14 @@ def canyon_rays(
     facade = np.maximum(d_far + relief, 0.5 * d_far)  # never behind the antenna
     horizontal = 2.0 * cos_inc
     beyond = np.where(blocked, _reflector_beyond_m(n, columns, cfg, dt_s, rng, ei, si), 0.0)
+    if cfg.masked_reflection == MaskedReflection.visible:
+        distance, reachable = visible_reflector_m(k, d_near, h_near, facade, h_far, beyond)
+        reflector = np.where(blocked, distance, facade)
+        single = np.where(blocked, gate & reachable & (distance <= cfg.reflector_max_m), single)
+    else:
+        reflector = facade + beyond
     amplitude = np.stack([a_direct, np.where(single, a_single, 0.0), np.where(double, a_double, 0.0)], axis=-1)
-    delay = np.stack([d_direct, horizontal * (facade + beyond), horizontal * (facade + d_near)], axis=-1)
+    delay = np.stack([d_direct, horizontal * reflector, horizontal * (facade + d_near)], axis=-1)
     phase = -2.0 * np.pi / LAMBDA_L1 * delay + np.pi * np.arange(N_RAYS)  # each bounce turns the carrier by pi
     shape = (n, m) if where is None else (len(ei),)
     return CanyonRays(
@@ -247,6 +258,52 @@ def canyon_rays(
         delay_m=delay.reshape(shape + (N_RAYS,)),
         phase_rad=phase.reshape(shape + (N_RAYS,)),
     )
+
+
+def visible_reflector_m(
+    k: np.ndarray,
+    d_near_m: np.ndarray,
+    h_near_m: np.ndarray,
+    facade_m: np.ndarray,
+    h_far_m: np.ndarray,
+    beyond_m: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Where a masked satellite's single bounce comes from, and whether it reaches the antenna at all.
+
+    In the vertical plane across the street the bounced ray descends to the
+    antenna at ``k = tan(el) / |s|`` per metre. Off a reflector at distance
+    ``D`` on the far side it came over the near facade at height
+    ``k (2 D + d_n)``, so it clears the near roof only from
+    ``D >= D_min = (H_n / k - d_n) / 2``. The far facade (``d_f``) reflects
+    when it is far enough (``D_min <= d_f``) and the bounce point ``k d_f``
+    is below its roof; otherwise the reflector stands behind it, at
+    ``max(d_f, D_min) + beyond``, and the bounced ray must pass over the far
+    roof (``k d_f >= H_f``; an open side has ``H_f = 0``). So the extra path
+    ``2 D cos(el) |s|`` is at least ``|s| cos(el) (H_n |s| / tan(el) - d_n)``
+    and grows as the elevation falls, until no reflection gets over the roofs.
+
+    Parameters
+    ----------
+    k : ndarray
+        Climb of the ray per metre across the street, ``tan(el) / |s|`` [-], > 0.
+    d_near_m, h_near_m : ndarray
+        Distance of the near facade from the antenna and its height above it [m].
+    facade_m, h_far_m : ndarray
+        Distance of the far facade and its height [m] (0 where the side is open).
+    beyond_m : ndarray
+        How far behind the far facade (or behind ``D_min``) a reflector behind it stands [m].
+
+    Returns
+    -------
+    distance_m : ndarray
+        Distance of the reflecting surface across the street [m].
+    reachable : ndarray of bool
+        The bounced ray clears both roofs.
+    """
+    nearest = 0.5 * (h_near_m / k - d_near_m)
+    own = (nearest <= facade_m) & (k * facade_m < h_far_m)
+    behind = np.maximum(facade_m, nearest) + beyond_m
+    return np.where(own, facade_m, behind), own | (k * facade_m >= h_far_m)
 
 
 def _reflector_beyond_m(

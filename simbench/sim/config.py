@@ -78,6 +78,16 @@ class HeightDistribution(Choice):
     rayleigh = "rayleigh"  #: Rayleigh with scale ``building_height_scale_m`` (ITU-R P.1410-5 statistical city)
 
 
+class MaskedReflection(Choice):
+    """Where a masked satellite's reflecting building stands (:func:`simbench.sim.canyon.canyon_rays`)."""
+
+    #: the far facade at any height, plus ``reflector_beyond_m`` (the canyon model's original rule)
+    any_height = "any_height"
+    #: where the bounced ray clears both roofs (plus ``reflector_beyond_m`` behind the far facade),
+    #: no reception beyond ``reflector_max_m``: the delay grows as the elevation falls
+    visible = "visible"
+
+
 # --------------------------------------------------------------------------- trajectory
 
 
@@ -222,6 +232,12 @@ class NlosConfig:
     #: a masked satellite's reflecting building stands this far beyond the far facade (taller buildings
     #: behind, across crossing streets), uniform and persistent per satellite [m]; (0, 0): the far facade
     reflector_beyond_m: tuple[float, float] = (0.0, 0.0)
+    #: any_height (the far facade reflects a masked satellite at any height) | visible (the reflector
+    #: stands where the bounced ray clears both roofs: simbench.sim.canyon.visible_reflector_m)
+    masked_reflection: MaskedReflection = MaskedReflection.any_height
+    #: with masked_reflection=visible: no reflector of a masked satellite further than this from the
+    #: road axis [m] (the street's surroundings offer no specular facade beyond it)
+    reflector_max_m: float = 200.0
     #: replayed routes: length of road along which one building side keeps its height and setback [m]
     roadside_segment_m: float = 60.0
 
