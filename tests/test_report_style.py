@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 from PIL import Image
 
-from estimators import registered
+from estimators import built_in, registered
 from simbench.analysis.metrics import block_bootstrap, block_length, reference_percentiles, rmse, row_rmse
 from simbench.analysis.tables import epoch_intervals, with_rmse
 from simbench.cli.report import report_settings
@@ -52,6 +52,7 @@ def test_every_built_in_estimator_has_its_own_colour_and_the_reference_none() ->
     colors = [estimator_color(n) for n in names]
     assert len(set(colors)) == len(colors), dict(zip(names, colors))
     assert REFERENCE_COLOR not in colors and set(ESTIMATOR_COLORS) <= set(names)
+    assert set(built_in()) <= set(ESTIMATOR_COLORS)  # a built-in's colour is chosen, not hashed
     of = families(names)
     assert of["oracle"] == "oracle" and of["huber_spp"] == of["wls_spp"] == of["rtklib_spp"] == "SPP baselines"
 

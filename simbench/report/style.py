@@ -69,6 +69,7 @@ ESTIMATOR_COLORS: dict[str, str] = {
     "l2": OKABE_ITO["blue"],
     "dcs": OKABE_ITO["vermillion"],
     "mm": OKABE_ITO["bluish green"],
+    "mm_em": "#225522",  # Tol dark green: the learned max-mixture beside MM, told apart by lightness
     "bce": OKABE_ITO["reddish purple"],
     "bce_ad": OKABE_ITO["orange"],
     "isam2_ppp": TOL_MUTED["indigo"],
