@@ -151,6 +151,10 @@ class EpochPrediction:
         Rows that start an arc.
     amb_new : ndarray, shape (m,)
         Initial bias of new arcs (``phase - predicted range``) [m]; NaN elsewhere.
+    los_var : ndarray, shape (m,)
+        Variance of the motion model's predicted position along each row's line of sight
+        [m^2] (``u' P u``, before this epoch's measurements); 0 where there is no motion
+        prediction (the first epoch, or ``motion_model = random_walk``).
     """
 
     pos: np.ndarray
@@ -159,6 +163,7 @@ class EpochPrediction:
     res_phase: np.ndarray
     new_arc: np.ndarray
     amb_new: np.ndarray
+    los_var: np.ndarray
 
 
 class IncrementalGraphEstimator(Estimator):
@@ -238,7 +243,7 @@ class IncrementalGraphEstimator(Estimator):
             [isam.double(isb_key(s, k - 1)) if k else g.isb0_m[s - 1] for s in range(1, obs.n_isb + 1)],
         ]
         offset = isb[g.row_system[rows]]
-        prior_pos, prior_root = None, None
+        prior_pos, prior_root, prior_cov = None, None, np.zeros((3, 3))
         # the ZWD state beyond what code_z/phase_z had removed (wet_delay=model: nothing)
         zwd = 0.0
         if k == 0:
@@ -251,7 +256,8 @@ class IncrementalGraphEstimator(Estimator):
                 zwd = isam.double(zwd_key(k - 1))
             clock = float(g.spp_clock_m[k])
             if g.constant_velocity:
-                prior_pos, prior_root = self._motion_prior(k, g, isam, pos)
+                prior_pos, prior_cov = self._motion_prior(k, g, isam, pos)
+                prior_root = np.linalg.inv(np.linalg.cholesky(prior_cov))
                 pos = prior_pos.copy()
         amb = np.full(m, np.nan)
         iono = np.zeros(m)
@@ -287,11 +293,14 @@ class IncrementalGraphEstimator(Estimator):
         res_code = zc - (p + iono)
         res_phase = zp - (p - iono + amb)
         amb_new = np.where(new_arc, zp - (p - iono), np.nan)
-        return EpochPrediction(pos, clock, res_code, res_phase, new_arc, amb_new)
+        los = sat - pos
+        los /= np.linalg.norm(los, axis=1, keepdims=True)
+        los_var = np.einsum("ij,jk,ik->i", los, prior_cov, los)
+        return EpochPrediction(pos, clock, res_code, res_phase, new_arc, amb_new, los_var)
 
     @staticmethod
     def _motion_prior(k: int, g: PppGraph, isam: FixedLagSmoother, pos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Constant-velocity prediction of epoch ``k``'s position and the whitening root of its covariance.
+        """Constant-velocity prediction of epoch ``k``'s position and its covariance.
 
         ``p = p_{k-1} + v_{k-1} dt`` with ``P = P_p + dt^2 P_v + q^2 dt^3 / 3 I`` from the filtered
         marginals (their cross-covariance dropped). Without it a snapshot of four or fewer
@@ -302,7 +311,7 @@ class IncrementalGraphEstimator(Estimator):
         q = g.cfg.accel_sigma_mps2_rts
         joint = isam.joint_marginal_covariance([pos_key(k - 1), vel_key(k - 1)])
         cov = joint[:3, :3] + dt * dt * joint[3:, 3:] + (q * q * dt**3 / 3.0) * np.eye(3)
-        return pos + vel * dt, np.linalg.inv(np.linalg.cholesky(cov))
+        return pos + vel * dt, cov
 
     def _initial_values(
         self, k: int, rows: slice, g: PppGraph, isam: FixedLagSmoother, pred: EpochPrediction

@@ -79,7 +79,9 @@ def _as_samples(residuals: np.ndarray) -> np.ndarray:
     return r
 
 
-def w_statistic_test(residuals: np.ndarray, cov_g: np.ndarray, alpha: float = 0.05) -> TestResult:
+def w_statistic_test(
+    residuals: np.ndarray, cov_g: np.ndarray, alpha: float = 0.05, center: np.ndarray | None = None
+) -> TestResult:
     """Covariance equivalence test of eqs. 7.4-7.5 (Ledoit-Wolf ``W``).
 
     Parameters
@@ -90,6 +92,10 @@ def w_statistic_test(residuals: np.ndarray, cov_g: np.ndarray, alpha: float = 0.
         Hypothesis covariance ``Lambda_g`` [m^2].
     alpha : float
         Significance level.
+    center : ndarray, shape (d,), optional
+        The new component's mean where some of its dimensions are fixed rather than estimated
+        (:attr:`MixtureModel.zero_mean`): ``S`` is then the second moment about it (divisor
+        ``m - 1`` as for the sample covariance; the test is asymptotic). None: the sample covariance.
 
     Returns
     -------
@@ -100,7 +106,11 @@ def w_statistic_test(residuals: np.ndarray, cov_g: np.ndarray, alpha: float = 0.
     m, d = r.shape
     L = np.linalg.cholesky(np.atleast_2d(cov_g))
     y = np.linalg.solve(L, r.T).T
-    S = np.atleast_2d(np.cov(y, rowvar=False))
+    if center is None:
+        S = np.atleast_2d(np.cov(y, rowvar=False))
+    else:
+        dev = y - np.linalg.solve(L, np.atleast_1d(center))
+        S = dev.T @ dev / (m - 1)
     tr = np.trace(S) / d
     D = S - np.eye(d)
     W = np.einsum("ij,ji->", D, D) / d - d / m * tr**2 + d / m
@@ -147,9 +157,17 @@ def hotelling_t2_test(
 
 
 def components_equivalent(
-    residuals: np.ndarray, mean_g: np.ndarray, cov_g: np.ndarray, alpha: float = 0.05
+    residuals: np.ndarray,
+    mean_g: np.ndarray,
+    cov_g: np.ndarray,
+    alpha: float = 0.05,
+    zero_mean: np.ndarray | None = None,
 ) -> tuple[bool, float]:
     """Both tests of Sec. 7.2.2 against one model component.
+
+    With ``zero_mean`` (a mask of dimensions whose means the model holds at zero) the mean
+    test covers the other dimensions only (none: it accepts), and the covariance test the
+    second moment about the mean the new component would get.
 
     Returns
     -------
@@ -158,8 +176,17 @@ def components_equivalent(
     p_min : float
         The smaller of the two p-values (to rank several accepting components).
     """
-    w = w_statistic_test(residuals, cov_g, alpha)
-    t = hotelling_t2_test(residuals, mean_g, cov_g, alpha)
+    if zero_mean is None or not zero_mean.any():
+        w = w_statistic_test(residuals, cov_g, alpha)
+        t = hotelling_t2_test(residuals, mean_g, cov_g, alpha)
+        return w.accept and t.accept, min(w.p_value, t.p_value)
+    r = _as_samples(residuals)
+    center = np.where(zero_mean, 0.0, r.mean(axis=0))
+    w = w_statistic_test(r, cov_g, alpha, center=center)
+    free = ~zero_mean
+    if not free.any():
+        return w.accept, w.p_value
+    t = hotelling_t2_test(r[:, free], np.atleast_1d(mean_g)[free], np.atleast_2d(cov_g)[np.ix_(free, free)], alpha)
     return w.accept and t.accept, min(w.p_value, t.p_value)
 
 
@@ -211,17 +238,26 @@ class MixtureModel:
         Points each component represents (``N w_k``).
     history : list of dict
         Snapshot of the model after each adaptation.
+    zero_mean : ndarray of bool, shape (d,), optional
+        Dimensions whose component means are held at zero: a new cluster's mean there is 0
+        and its covariance the second moment about that constrained mean (the
+        maximum-likelihood estimate under the constraint), so eqs. 7.8-7.9 keep them at zero.
+        ICE holds its phase channel so (:mod:`estimators.incremental.ice`).
     """
 
     means: np.ndarray
     covs: np.ndarray
     counts: np.ndarray
     history: list[dict] = field(default_factory=list)
+    zero_mean: np.ndarray | None = None
 
     @classmethod
-    def single(cls, mean: np.ndarray, cov: np.ndarray, count: float = 1.0) -> MixtureModel:
+    def single(
+        cls, mean: np.ndarray, cov: np.ndarray, count: float = 1.0, zero_mean: np.ndarray | None = None
+    ) -> MixtureModel:
         """A one-component (a priori) model."""
-        return cls(np.atleast_2d(mean).astype(float), np.atleast_2d(cov)[None].astype(float), np.array([float(count)]))
+        means = np.atleast_2d(mean).astype(float)
+        return cls(means, np.atleast_2d(cov)[None].astype(float), np.array([float(count)]), zero_mean=zero_mean)
 
     @property
     def n_components(self) -> int:
@@ -290,10 +326,13 @@ class MixtureModel:
                 dropped += 1
                 continue
             mean_n = pts.mean(axis=0)
-            cov_n = np.atleast_2d(np.cov(pts, rowvar=False, bias=True))
+            if self.zero_mean is not None:
+                mean_n[self.zero_mean] = 0.0
+            dev = pts - mean_n
+            cov_n = dev.T @ dev / m  # maximum likelihood about the (constrained) mean
             best, best_p = -1, -1.0
             for k in range(base):
-                ok, p = components_equivalent(pts, self.means[k], self.covs[k], alpha)
+                ok, p = components_equivalent(pts, self.means[k], self.covs[k], alpha, self.zero_mean)
                 if ok and p > best_p:
                     best, best_p = k, p
             if best >= 0:
