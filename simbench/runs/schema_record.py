@@ -41,6 +41,8 @@ __all__ = [
     "RECORD",
     "NotRecorded",
     "Record",
+    "package_folders",
+    "record_path",
     "code_stamp",
     "describe",
     "rebuild",
@@ -71,7 +73,7 @@ class Record:
     valid: dict[str, list[str]]  #: estimator name -> :func:`node_text` of nodes that passed its checks
 
 
-def _package_folders() -> list[Path]:
+def package_folders() -> list[Path]:
     """The folders whose ``.py`` files the schemas come from: simbench, estimators, and each plug-in's package
     (found, not imported: a plug-in's package may import every estimator)."""
     names = {"simbench", "estimators"}
@@ -87,12 +89,12 @@ def _package_folders() -> list[Path]:
 
 def code_stamp() -> list[Any]:
     """What the record is valid for: every entry point of both groups and the size and modification time of
-    each ``.py`` file of the :func:`_package_folders` (a few hundred stat calls)."""
+    each ``.py`` file of the :func:`package_folders` (a few hundred stat calls)."""
     points = sorted(
         f"{e.group}:{e.name}={e.value}" for g in (ESTIMATOR_GROUP, SOURCE_GROUP) for e in entry_points(group=g)
     )
     files = []
-    for folder in _package_folders():
+    for folder in package_folders():
         for path in sorted(folder.rglob("*.py")):
             stat = path.stat()
             files.append([str(path), stat.st_size, stat.st_mtime_ns])
@@ -179,7 +181,14 @@ def _python_value(text: Any, value: Any) -> Any:
 
 def rebuild(description: Mapping[str, Any]) -> type:
     """The dataclass a :func:`describe` output describes: same name, fields, types, choices and defaults
-    (no methods), which OmegaConf types as it types the original."""
+    (no methods), which OmegaConf types as it types the original. One class per description and process,
+    so a nested field's type and its default's class are one."""
+    return _rebuilt(json.dumps(description, sort_keys=True))
+
+
+@functools.cache
+def _rebuilt(text: str) -> type:
+    description = json.loads(text)
     fields = []
     for name, text, default in description["fields"]:
         value = _python_value(text, default)
@@ -212,13 +221,14 @@ def class_or_rebuilt(description: Mapping[str, Any]) -> type:
     return real_class(description) if module is not None else rebuild(description)
 
 
-def _record_path() -> Path | None:
+def record_path() -> Path | None:
+    """Where the record is kept: beside the ``estimators`` package's bytecode (None without the package)."""
     folder = estimators_folder()
     return None if folder is None else folder / "__pycache__" / RECORD
 
 
 def _read() -> dict[str, Any] | None:
-    path = _record_path()
+    path = record_path()
     try:
         record = json.loads(path.read_text()) if path is not None else None
     except (OSError, ValueError):  # none yet, or unreadable
@@ -229,7 +239,7 @@ def _read() -> dict[str, Any] | None:
 def _write(record: dict[str, Any]) -> bool:
     """Replace the record atomically (a parallel process reads the old one or the new, never half); False
     when the folder is read-only."""
-    path = _record_path()
+    path = record_path()
     if path is None:
         return False
     try:
