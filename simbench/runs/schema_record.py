@@ -5,8 +5,8 @@ Composing a run needs each estimator's and source's ``Config`` dataclass in Hydr
 the simulator) takes longer than the rest of a refused command line. So the process that registers
 the real classes also writes their description here (:func:`write_record`): field names, types,
 choices and defaults, and where each class and each source's check live. While no code file changed
-(:func:`code_stamp`: the size and time of every ``.py`` file of ``simbench``, ``estimators`` and the
-installed plug-ins, and the plug-ins' entry points), :func:`read_record` gives it back and
+(:func:`code_stamp`: the size and time of every ``.py`` and ``.yaml`` file of ``simbench``, ``estimators``
+and the installed plug-ins, and the plug-ins' entry points), :func:`read_record` gives it back and
 :func:`rebuild` turns a description into a dataclass OmegaConf types exactly as the original (same
 name, fields, types, choices, defaults), so composing refuses the same values with the same words.
 
@@ -89,13 +89,14 @@ def package_folders() -> list[Path]:
 
 def code_stamp() -> list[Any]:
     """What the record is valid for: every entry point of both groups and the size and modification time of
-    each ``.py`` file of the :func:`package_folders` (a few hundred stat calls)."""
+    each ``.py`` and ``.yaml`` file of the :func:`package_folders` (a few hundred stat calls)."""
     points = sorted(
         f"{e.group}:{e.name}={e.value}" for g in (ESTIMATOR_GROUP, SOURCE_GROUP) for e in entry_points(group=g)
     )
     files = []
     for folder in package_folders():
-        for path in sorted(folder.rglob("*.py")):
+        # the YAML a plug-in ships beside its module too (plugin_config_node reads it)
+        for path in sorted([*folder.rglob("*.py"), *folder.rglob("*.yaml")]):
             stat = path.stat()
             files.append([str(path), stat.st_size, stat.st_mtime_ns])
     return [points, files]
