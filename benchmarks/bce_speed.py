@@ -18,8 +18,8 @@ import argparse
 import time
 
 import simbench
-from estimators.batch_robust import L2Batch
-from estimators.bce import Bce, BceAd, BceConfig
+from estimators.batch.bce import Bce, BceAd, BceConfig
+from estimators.batch.robust import L2Batch
 from simbench.analysis.metrics import enu_errors
 
 #: Issue 27's target (issue 3's was 5x): BCE total wall time at most this multiple of batch L2.

@@ -25,7 +25,7 @@ import pandas as pd
 
 import simbench
 from estimators.base import Solution
-from estimators.batch_robust import DcsBatch, DcsConfig, L2Batch, L2Config
+from estimators.batch.robust import DcsBatch, DcsConfig, L2Batch, L2Config
 from simbench.analysis.metrics import enu_errors
 
 

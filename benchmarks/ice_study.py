@@ -21,8 +21,8 @@ import numpy as np
 import pymap3d
 
 import simbench
-from estimators.ice import Ice
-from estimators.incremental import Isam2Dcs, Isam2Mm, Isam2Ppp
+from estimators.incremental.ice import Ice
+from estimators.incremental.isam2 import Isam2Dcs, Isam2Mm, Isam2Ppp
 
 ESTIMATORS = {"L2": Isam2Ppp, "DCS": Isam2Dcs, "MM": Isam2Mm, "ICE": Ice}
 

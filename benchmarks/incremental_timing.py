@@ -26,7 +26,7 @@ import numpy as np
 
 import estimators
 import simbench
-from estimators.incremental import IncrementalGraphEstimator
+from estimators.incremental.isam2 import IncrementalGraphEstimator
 
 TARGET_RATIO = 2.0
 #: Issue 27's: ICE no slower than the incremental L2 it adapts.

@@ -22,9 +22,9 @@ from typing import Any
 import numpy as np
 
 import simbench
-from estimators.ekf_ppp import EkfPpp
-from estimators.incremental import Isam2Ppp
-from estimators.ppp_config import IonosphereMode
+from estimators.filters.ekf_ppp import EkfPpp
+from estimators.incremental.isam2 import Isam2Ppp
+from estimators.model.ppp_config import IonosphereMode
 from simbench.runs.compose import preset_estimator_config
 
 CONVERGENCE_S = 900.0

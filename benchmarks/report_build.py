@@ -50,7 +50,7 @@ from hydra.core.override_parser.overrides_parser import OverridesParser
 from omegaconf import DictConfig, OmegaConf
 
 import estimators
-from simbench import source as sources
+from simbench import source_registry as sources
 from simbench.analysis.variants import overrides_json, variant_label
 from simbench.contract import Scenario
 from simbench.report.build import finalize

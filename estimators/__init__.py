@@ -1,8 +1,11 @@
 """Estimator registry.
 
-Built-in estimators: every module of this package registers its class with
-:func:`register`; the modules are discovered, not listed, so a new estimator
-family is a new module that registers its class.
+Built-in estimators live in family packages (``model/`` holds the shared GNSS
+model and registers nothing; ``batch/``, ``incremental/``, ``filters/``,
+``gnss_ins/``, ``baselines/`` hold the estimators; a family imports ``model/``,
+never another family). Every module registers its class with :func:`register`;
+the modules are discovered, not listed, so a new estimator is a new module in
+its family that registers its class.
 
 Plug-in estimators: an installed package names an :class:`Estimator` subclass
 in the entry-point group ``simbench.estimators`` (:data:`ENTRY_POINT_GROUP`),
@@ -61,8 +64,9 @@ def register(cls: E) -> E:
 
 
 def _load_all() -> None:
-    for module in pkgutil.iter_modules(__path__, prefix=f"{__name__}."):
-        importlib.import_module(module.name)
+    # every module of every family package: an estimator registers itself on import
+    for module in pkgutil.walk_packages(__path__, prefix=f"{__name__}."):
+        importlib.import_module(module.name)  # dynamic: discovered, not listed
 
 
 def built_in() -> dict[str, type[Estimator]]:

@@ -81,6 +81,7 @@ def scenario(name: str, seed: int = 0, **overrides: Any) -> Scenario:
     Returns
     -------
     Scenario
+        What a receiver gives (``receiver_view()``) beside the truth; a real log's ``labels`` is None.
 
     Raises
     ------

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from importlib.metadata import EntryPoint, entry_points
-from typing import Generic, TypeVar
+from typing import Generic, NoReturn, TypeVar
 
 from simbench.errors import SimbenchError, one_line
 
@@ -16,7 +16,8 @@ __all__ = ["ALL_ESTIMATORS", "ESTIMATOR_GROUP", "SOURCE_GROUP", "LoadedPlugin", 
 
 #: Entry-point group in which installed packages name their estimator classes (:mod:`estimators`).
 ESTIMATOR_GROUP = "simbench.estimators"
-#: Entry-point group in which packages (simbench itself too) name their source classes (:mod:`simbench.source`).
+#: Entry-point group in which packages (simbench itself too) name their source classes
+#: (:mod:`simbench.source_registry`).
 SOURCE_GROUP = "simbench.sources"
 #: The ``estimator`` option that selects every registered estimator (the default run); no
 #: estimator may take this name.
@@ -33,6 +34,26 @@ class LoadedPlugin(Generic[T]):
     package: str  #: the distribution that declares the entry point (``pip install`` name)
     field: str  #: the ``field`` of an error about this plug-in, e.g. ``source plug-in 'x'``
     fix: str  #: the generic fix: mend the package or uninstall it
+    name: str = ""  #: the entry point's name
+    kind: str = ""  #: the group's noun in messages, e.g. ``estimator``
+
+    def check_name(self) -> None:
+        """One line naming the package when the class's ``name`` is not the entry point's."""
+        name = getattr(self.cls, "name", None)
+        if name != self.name:
+            raise SimbenchError(
+                self.field,
+                f"package '{self.package}': {self.cls.__name__}.name is {name!r}, not the entry point's name",
+                self.fix,
+            )
+
+    def refuse_taken(self, owner: str) -> NoReturn:
+        """One line: ``owner`` (``package 'x'``, ``a built-in estimator``) already has the entry point's name."""
+        raise SimbenchError(
+            self.field,
+            f"package '{self.package}' registers the name '{self.name}' of {owner}",
+            f"rename the {self.kind} in package '{self.package}' or pip uninstall one of them",
+        )
 
 
 def load_plugin(entry: EntryPoint, base: type[T], kind: str, readme_section: str) -> LoadedPlugin[T]:
@@ -68,7 +89,7 @@ def load_plugin(entry: EntryPoint, base: type[T], kind: str, readme_section: str
         raise SimbenchError(
             field, f"package '{package}' names {entry.value}, not {article} {base.__name__} subclass", fix
         )
-    return LoadedPlugin(cls=cls, package=package, field=field, fix=fix)
+    return LoadedPlugin(cls=cls, package=package, field=field, fix=fix, name=entry.name, kind=kind)
 
 
 def entry_point_names(group: str) -> list[str]:

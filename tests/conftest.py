@@ -10,17 +10,28 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import subprocess
+import sys
 from collections.abc import Mapping
 from pathlib import Path
 from types import SimpleNamespace
 from typing import Any
 
+import numpy as np
+import pandas as pd
 import pytest
 from threadpoolctl import threadpool_limits
 
+import estimators
+import simbench.cli.main as cli
+from estimators.model.measurement import PppObservations, prepare_ppp
+from estimators.model.ppp_config import MeasurementMode
+from simbench import source_registry
+from simbench.contract import ReceiverData
 from simbench.errors import SimbenchError
+from simbench.gnss.spp import SppSolution, solve_epochs
 from simbench.paths import data_home
-from simbench.runs.compose import preset_estimator_config
+from simbench.runs.compose import preset_estimator_config, register_schemas
 
 # One BLAS thread per test process, here and in the CLI runs the tests start: with
 # ``pytest -n 2`` on 2 cores, OpenBLAS's spinning threads made the suite several times slower.
@@ -130,3 +141,77 @@ class FakeEntryPoint:
         if isinstance(self.target, Exception):
             raise self.target
         return self.target
+
+
+# --- plug-ins and the command line ---------------------------------------------------------------
+
+#: The example plug-in package (``examples/simbench-example-estimator``: estimator ``cauchy_spp``,
+#: source ``static_receiver``); ``.ci/run`` installs it.
+EXAMPLE_PACKAGE = "simbench-example-estimator"
+#: What a test of the example says when it is not installed.
+EXAMPLE_MISSING = (
+    "the example plug-in is not installed: pip install -e examples/simbench-example-estimator (.ci/run does)"
+)
+
+
+@pytest.fixture
+def fresh_discovery():
+    """Plug-in discovery (estimators and sources) and the ConfigStore registration run again in the
+    test, and again after it."""
+
+    def clear() -> None:
+        estimators.plugins.cache_clear()
+        source_registry.plugins.cache_clear()
+        register_schemas.cache_clear()
+
+    clear()
+    yield
+    clear()
+
+
+def run_simbench(*args: str, **kwargs: Any) -> subprocess.CompletedProcess:
+    """``python -m simbench ARGS`` in a process of its own from the repository root, its output captured
+    as text (at most 10 minutes; ``kwargs`` go to :func:`subprocess.run`)."""
+    return subprocess.run(
+        [sys.executable, "-m", "simbench", *args], cwd=REPO_ROOT, capture_output=True, text=True, timeout=600, **kwargs
+    )
+
+
+def simbench_summary(out: Path, *args: str) -> pd.DataFrame:
+    """``python -m simbench ARGS results_dir=OUT progress=false`` (:func:`run_simbench`); assert it
+    exits 0; its ``summary.parquet``."""
+    proc = run_simbench(*args, f"results_dir={out}", "progress=false")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return pd.read_parquet(out / "summary.parquet")
+
+
+def cli_error_line(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], *argv: str) -> str:
+    """Run ``python -m simbench ARGV`` in this process; assert it exits with code 2 and one line on
+    stderr; return that line."""
+    monkeypatch.setattr(sys, "argv", ["simbench", *argv])
+    with pytest.raises(SystemExit) as info:
+        cli.main()
+    assert info.value.code == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1, lines
+    return lines[0]
+
+
+def single_point_fixes(
+    view: ReceiverData, code_sigma_m: float, phase_sigma_m: float, elevation_mask_deg: float
+) -> tuple[PppObservations, SppSolution]:
+    """The shared model's rows of a receiver view (broadcast ionosphere, measurements ``auto``) and the
+    single-point fix of each of its epochs (one clock per system)."""
+    obs = prepare_ppp(
+        view,
+        ionosphere="broadcast",
+        code_sigma_m=code_sigma_m,
+        phase_sigma_m=phase_sigma_m,
+        elevation_mask_deg=elevation_mask_deg,
+        measurements=MeasurementMode.auto,
+    )
+    row_k = np.repeat(np.arange(obs.n_epochs), obs.epoch_stop - obs.epoch_start)
+    fixes = solve_epochs(
+        row_k, obs.sat_pos, obs.code, sigma=obs.sigma_code, el=obs.el, doy=obs.doy, system_index=obs.system_index
+    )
+    return obs, fixes

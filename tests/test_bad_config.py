@@ -86,7 +86,7 @@ CASES: list[tuple[list[str], str, str]] = [
     # physical consistency: L2 generated for an L1-only chip on 100 % of rows, without a word
     (["scenario.dual_frequency=true", "receiver=consumer"], "scenario.dual_frequency", "tracks L1 only"),
     (["scenario=flight", "receiver=consumer"], "scenario.dual_frequency", "tracks L1 only"),
-    # real logs' settings (simbench.source.Source.check): a false "does not overlap" after loading before
+    # real logs' settings (simbench.source_registry.Source.check): a false "does not overlap" after loading before
     (["scenario=hk_tst_2019", "scenario.truth_max_gap_s=-1"], "scenario.truth_max_gap_s", "positive"),
     (["scenario=hk_tst_2019", "scenario.truth_max_gap_s=nan"], "scenario.truth_max_gap_s", "got nan"),
     (["scenario=librsf", f"scenario.obs={TINY_FILE}", "scenario.start_sow_s=nan"], "scenario.start_sow_s", "week"),

@@ -19,7 +19,7 @@ import pandas as pd
 import pytest
 from conftest import one_line_error
 
-from simbench.data.beidou import read_beidou_navigation
+from simbench.data.broadcast import read_navigation
 from simbench.data.librsf import read_librsf, write_synthetic_librsf
 from simbench.data.reference import read_reference
 from simbench.data.rinex import RinexObs, load_rinex, read_rinex_obs
@@ -301,7 +301,7 @@ def test_navigation_files_read_the_same(tmp_path: Path, make: Callable[[bytes], 
     bds.write_bytes(make(NAV_BDS.read_bytes()))
     for a, b in (
         (read_gps_navigation(NAV), read_gps_navigation(gps)),
-        (read_beidou_navigation(NAV_BDS, setting="scenario.nav_bds"), read_beidou_navigation(bds, setting="x")),
+        (read_navigation("C", NAV_BDS, setting="scenario.nav_bds"), read_navigation("C", bds, setting="x")),
     ):
         assert np.array_equal(a.sats, b.sats)
         assert np.array_equal(a.tgd, b.tgd, equal_nan=True)

@@ -43,6 +43,7 @@ import simbench.cli.report
 import simbench.cli.score
 import simbench.cli.validate
 import simbench.cli.zero_baseline
+import simbench.runs.zero_baseline
 from simbench.cli.callbacks import FinalizeRun
 from simbench.cli.main import SUBCOMMANDS
 from simbench.contract import Scenario
@@ -575,9 +576,9 @@ def _stub_computation(case: Case, world: World, monkeypatch: pytest.MonkeyPatch)
     monkeypatch.setattr(
         simbench.cli.validate, "scenario_from_overrides", reached if forbidden else lambda o: (None, world.scenario)
     )
-    monkeypatch.setattr(simbench.cli.zero_baseline, "zero_baseline", reached if forbidden else lambda *a, **k: canned)
+    monkeypatch.setattr(simbench.runs.zero_baseline, "zero_baseline", reached if forbidden else lambda *a, **k: canned)
     if not forbidden:  # a fault while writing: the three receivers' configs were checked by the cases above
-        monkeypatch.setattr(simbench.cli.zero_baseline, "check_zero_baseline", lambda *a, **k: None, raising=False)
+        monkeypatch.setattr(simbench.runs.zero_baseline, "check_zero_baseline", lambda *a, **k: None)
 
 
 # --- the test ------------------------------------------------------------------------------------

@@ -10,18 +10,18 @@ import pytest
 from conftest import dissertation
 
 import simbench
-from estimators import whitened_rows
-from estimators.batch_robust import DcsBatch, DcsConfig, L2Batch, MmBatch
-from estimators.bce import FEATURES, Bce, BceAd, BceAdConfig, BceConfig
-from estimators.clustering import fit_dpgmm, mcfs_scores, select_features
-from estimators.ekf_ppp import EkfPpp, EkfPppConfig
-from estimators.gauss_newton import GaussNewton
-from estimators.measurement import prepare_ppp
-from estimators.oracle import Oracle
-from estimators.ppp_config import IonosphereMode, VarianceComponents, WetDelayMode
-from estimators.ppp_graph import PppGraph, PppGraphConfig, solve
-from estimators.robust_models import max_mixture_outliers
-from estimators.whitened_rows import DcsKernel, WhitenedRows
+from estimators.batch import whitened_rows
+from estimators.batch.bce import FEATURES, Bce, BceAd, BceAdConfig, BceConfig
+from estimators.batch.gauss_newton import GaussNewton
+from estimators.batch.oracle import Oracle
+from estimators.batch.robust import DcsBatch, DcsConfig, L2Batch, MmBatch
+from estimators.batch.whitened_rows import DcsKernel, WhitenedRows
+from estimators.filters.ekf_ppp import EkfPpp, EkfPppConfig
+from estimators.model.clustering import fit_dpgmm, mcfs_scores, select_features
+from estimators.model.measurement import prepare_ppp
+from estimators.model.ppp_config import IonosphereMode, VarianceComponents, WetDelayMode
+from estimators.model.ppp_graph import PppGraph, PppGraphConfig, solve
+from estimators.model.robust_models import max_mixture_outliers
 from simbench.analysis.metrics import enu_errors
 from simbench.contract import Scenario
 from simbench.gnss.geometry import sagnac_range

@@ -9,7 +9,7 @@ import pytest
 from conftest import one_line_error
 
 from simbench.bounds import FINITE, RULES, Bound, bound_of, check_bounds
-from simbench.data.sources import GnssLoggerConfig, LibrsfConfig, RinexConfig
+from simbench.data.log_sources import GnssLoggerConfig, LibrsfConfig, RinexConfig
 from simbench.sim.config import SimConfig
 
 #: Fields that may take any finite value on purpose.

@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from estimators.ice import AdaptiveNoiseModel, IceConfig
+from estimators.incremental.ice import AdaptiveNoiseModel, IceConfig
 from simbench.analysis.claims import CLAIMS, CONVERGENCE_S, adaptation_outcome, claims_by_world, claims_table
 from simbench.analysis.variants import overrides_json, variant_label
 from simbench.runs.runner import SUMMARY_COLUMNS
@@ -145,15 +145,6 @@ def test_ch5_bce_low_holds_only_when_bce_is_clearly_lower() -> None:
     )
 
 
-def test_ch5_high_comparable_holds_within_15_percent() -> None:
-    close = _rows("ch5_bce", _scaled(bce=1.0, l2=1.05, dcs=1.1, mm=1.12), receiver="high")
-    row = _verdict(close, "ch5_high_comparable")
-    assert row["holds"] == "holds" and row["measured"] == pytest.approx(0.12)
-    spread = _rows("ch5_bce", _scaled(bce=1.0, l2=1.05, dcs=1.3, mm=1.0), receiver="high")
-    row = _verdict(spread, "ch5_high_comparable")
-    assert row["holds"] == "does not hold" and row["measured"] == pytest.approx(0.3)
-
-
 def _sensitivity(medians: dict[str, list[float]]) -> pd.DataFrame:
     """ch5_sensitivity rows: per estimator one median per prior scale 0.1, 1 (the default) and 10."""
     frames = []
@@ -173,20 +164,11 @@ def test_ch5_sensitivity_holds_when_bce_varies_least_over_the_prior_scales() -> 
 
 
 def test_ch5_runtime_holds_when_bce_is_the_slowest() -> None:
-    slow = _rows(
-        "ch5_bce",
-        {name: BASE * f * 1e-5 for name, f in (("bce", 4.0), ("l2", 1.0), ("dcs", 2.0), ("mm", 1.5))},
-        "time_per_obs_s",
-    )
-    row = _verdict(slow, "ch5_runtime")
-    assert row["holds"] == "holds" and row["measured"] == pytest.approx(2.0)
-    fast = _rows(
-        "ch5_bce",
-        {name: BASE * f * 1e-5 for name, f in (("bce", 1.0), ("l2", 1.0), ("dcs", 2.0), ("mm", 1.5))},
-        "time_per_obs_s",
-    )
-    row = _verdict(fast, "ch5_runtime")
-    assert row["holds"] == "does not hold" and row["measured"] == pytest.approx(0.5)
+    for bce, holds, measured in ((4.0, "holds", 2.0), (1.0, "does not hold", 0.5)):
+        factors = {"bce": bce, "l2": 1.0, "dcs": 2.0, "mm": 1.5}
+        rows = _rows("ch5_bce", {name: BASE * f * 1e-5 for name, f in factors.items()}, "time_per_obs_s")
+        row = _verdict(rows, "ch5_runtime")
+        assert row["holds"] == holds and row["measured"] == pytest.approx(measured)
 
 
 def test_ch6_bce_ad_holds_when_it_is_below_bce() -> None:
@@ -196,22 +178,27 @@ def test_ch6_bce_ad_holds_when_it_is_below_bce() -> None:
     assert row["holds"] == "does not hold" and row["measured"] == pytest.approx(1.1)
 
 
-def test_ch7_ice_low_holds_when_ice_beats_every_incremental_competitor() -> None:
-    lower = _rows("ch7_ice", _scaled(ice=0.6, isam2_ppp=1.0, isam2_dcs=0.8, isam2_mm=0.9))
-    row = _verdict(lower, "ch7_ice_low")
-    assert row["holds"] == "holds" and row["measured"] == pytest.approx(0.75)
-    higher = _rows("ch7_ice", _scaled(ice=0.9, isam2_ppp=1.0, isam2_dcs=0.8, isam2_mm=0.9))
-    row = _verdict(higher, "ch7_ice_low")
-    assert row["holds"] == "does not hold" and row["measured"] == pytest.approx(0.9 / 0.8)
+#: The estimators of a sweep whose claims :func:`test_a_ratio_claim_holds_or_not_by_the_medians` checks.
+SWEEP_ESTIMATORS = {"ch5_bce": ("bce", "l2", "dcs", "mm"), "ch7_ice": ("ice", "isam2_ppp", "isam2_dcs", "isam2_mm")}
 
 
-def test_ch7_high_comparable_holds_within_15_percent() -> None:
-    close = _rows("ch7_ice", _scaled(ice=1.0, isam2_ppp=1.1, isam2_dcs=1.0, isam2_mm=1.05), receiver="high")
-    row = _verdict(close, "ch7_high_comparable")
-    assert row["holds"] == "holds" and row["measured"] == pytest.approx(0.1)
-    spread = _rows("ch7_ice", _scaled(ice=1.0, isam2_ppp=1.5, isam2_dcs=1.0, isam2_mm=1.05), receiver="high")
-    row = _verdict(spread, "ch7_high_comparable")
-    assert row["holds"] == "does not hold" and row["measured"] == pytest.approx(0.5)
+@pytest.mark.parametrize(
+    "claim, sweep, receiver, medians, holds, measured",
+    [  # each claim once where it holds and once where it does not; medians in SWEEP_ESTIMATORS order
+        ("ch5_high_comparable", "ch5_bce", "high", (1.0, 1.05, 1.1, 1.12), "holds", 0.12),
+        ("ch5_high_comparable", "ch5_bce", "high", (1.0, 1.05, 1.3, 1.0), "does not hold", 0.3),
+        ("ch7_ice_low", "ch7_ice", "low", (0.6, 1.0, 0.8, 0.9), "holds", 0.75),
+        ("ch7_ice_low", "ch7_ice", "low", (0.9, 1.0, 0.8, 0.9), "does not hold", 0.9 / 0.8),
+        ("ch7_high_comparable", "ch7_ice", "high", (1.0, 1.1, 1.0, 1.05), "holds", 0.1),
+        ("ch7_high_comparable", "ch7_ice", "high", (1.0, 1.5, 1.0, 1.05), "does not hold", 0.5),
+    ],
+)
+def test_a_ratio_claim_holds_or_not_by_the_medians(
+    claim: str, sweep: str, receiver: str, medians: tuple[float, ...], holds: str, measured: float
+) -> None:
+    scales = dict(zip(SWEEP_ESTIMATORS[sweep], medians))
+    row = _verdict(_rows(sweep, _scaled(**scales), receiver=receiver), claim)
+    assert row["holds"] == holds and row["measured"] == pytest.approx(measured)
 
 
 def test_adaptation_claim_reads_the_ice_diagnostics() -> None:

@@ -3,14 +3,14 @@
 from __future__ import annotations
 
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import run_simbench, simbench_summary
 
-from estimators.rtklib_spp import RtklibSpp
+from estimators.baselines.rtklib_spp import RtklibSpp
 from simbench.cli.main import SUBCOMMANDS, planned_jobs, suggest_names
 from simbench.cli.score import scenario_key_of
 from simbench.cli.terminal import SUMMARY_WIDTH, compact_summary
@@ -23,17 +23,11 @@ from simbench.runs.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def _run(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "simbench", *args], cwd=ROOT, capture_output=True, text=True, timeout=600
-    )
-
-
 @pytest.mark.slow
 def test_cli_writes_store_and_report(tmp_path: Path) -> None:
     out = tmp_path / "run"
     # 90 s as the smoke sweep: long enough for every estimator to run
-    proc = _run("scenario.duration_s=90", f"results_dir={out}", "progress=false", "seed=2")
+    proc = run_simbench("scenario.duration_s=90", f"results_dir={out}", "progress=false", "seed=2")
     assert proc.returncode == 0, proc.stderr[-2000:]
     summary = pd.read_parquet(out / "summary.parquet")
     epochs = pd.read_parquet(out / "epochs.parquet")
@@ -63,24 +57,16 @@ def test_cli_writes_store_and_report(tmp_path: Path) -> None:
 def test_cli_overrides_scenario_and_receiver(tmp_path: Path) -> None:
     out = tmp_path / "flight"
     # two estimators suffice: the rows must carry the scenario and receiver the command line chose
-    proc = _run(
-        "scenario=flight",
-        "receiver=high",
-        "seed=3",
-        "scenario.duration_s=30",
-        "estimator=[l2,ekf_ppp]",
-        f"results_dir={out}",
-        "progress=false",
+    summary = simbench_summary(
+        out, "scenario=flight", "receiver=high", "seed=3", "scenario.duration_s=30", "estimator=[l2,ekf_ppp]"
     )
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    summary = pd.read_parquet(out / "summary.parquet")
     assert len(summary) == 2 and (summary["status"] == "ok").all()
     assert (summary["scenario"] == "flight").all() and (summary["receiver"] == "high").all()
     assert (summary["seed"] == 3).all() and (summary["n_epochs"] == 30).all()
 
 
 def test_cli_unknown_scenario_is_one_line() -> None:
-    proc = _run("scenario=mars")
+    proc = run_simbench("scenario=mars")
     assert proc.returncode == 2
     assert proc.stderr.strip().count("\n") == 0
     assert "unknown scenario 'mars'" in proc.stderr and "urban" in proc.stderr
@@ -88,20 +74,22 @@ def test_cli_unknown_scenario_is_one_line() -> None:
 
 def test_a_misspelt_report_format_is_refused_before_any_job(tmp_path: Path) -> None:
     out = tmp_path / "run"
-    line = _one_error_line(_run("report.formats=[png,pfd]", "estimator=[l2]", f"results_dir={out}", "progress=false"))
+    line = _one_error_line(
+        run_simbench("report.formats=[png,pfd]", "estimator=[l2]", f"results_dir={out}", "progress=false")
+    )
     assert line == "error: report.formats: unknown pfd -- choose from png, pdf, svg"
     assert not out.exists()  # refused at the door: no job ran, no folder was made
     with pytest.raises(SimbenchError, match=r"^report.formats: is 'pdf', not a list -- .*report.formats=\[png,pdf\]"):
         check_run(compose_config(["report.formats=pdf"]))
     check_run(compose_config(["report.formats=[png,pdf,svg]", f"results_dir={out}"]))
     # a thesis run too: before its first study, not after its last
-    thesis = _run("+sweep=thesis", "report.formats=[pfd]", f"results_dir={out}")
+    thesis = run_simbench("+sweep=thesis", "report.formats=[pfd]", f"results_dir={out}")
     assert _one_error_line(thesis) == "error: report.formats: unknown pfd -- choose from png, pdf, svg"
     assert not out.exists()
 
 
 def test_cli_negative_duration_is_one_line(tmp_path: Path) -> None:
-    proc = _run("scenario.duration_s=-3", f"results_dir={tmp_path}")
+    proc = run_simbench("scenario.duration_s=-3", f"results_dir={tmp_path}")
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines()[-1].startswith("error: scenario.duration_s")
     assert "Traceback" not in proc.stderr
@@ -123,7 +111,7 @@ def test_cli_scenario_that_cannot_be_built_ends_the_run_in_one_line(tmp_path: Pa
         bad.write_text("garbage line\n1 2 3\n")
         args, problem = ("scenario=librsf", f"scenario.obs={bad}"), "unknown line types"
     out = tmp_path / "run"
-    proc = _run(*args, "estimator=[ekf_ppp,l2]", f"results_dir={out}", "progress=false")
+    proc = run_simbench(*args, "estimator=[ekf_ppp,l2]", f"results_dir={out}", "progress=false")
     line = _one_error_line(proc)
     assert line.startswith("error: scenario.obs") and problem in line
     assert "failed" not in proc.stdout and "ekf_ppp" not in proc.stdout
@@ -134,7 +122,7 @@ def test_cli_sweep_records_a_scenario_failure_and_goes_on(tmp_path: Path) -> Non
     bad = tmp_path / "bad.txt"
     bad.write_text("garbage line\n")
     out = tmp_path / "sweep"
-    proc = _run(
+    proc = run_simbench(
         "-m",
         "scenario=librsf",
         f"scenario.obs={bad}",
@@ -161,19 +149,19 @@ def test_cli_sweep_records_a_scenario_failure_and_goes_on(tmp_path: Path) -> Non
     ],
 )
 def test_cli_unknown_estimator_names_the_known_ones(args: tuple[str, ...]) -> None:
-    line = _one_error_line(_run(*args))
+    line = _one_error_line(run_simbench(*args))
     assert line.startswith("error: estimator: unknown estimator 'nosuch'")
     assert all(name in line for name in available("estimator"))
     assert "Could not load" not in line
 
 
 def test_cli_unknown_scenario_in_a_sweep_is_one_line() -> None:
-    line = _one_error_line(_run("-m", "scenario=urban,mars"))
+    line = _one_error_line(run_simbench("-m", "scenario=urban,mars"))
     assert "unknown scenario 'mars'" in line and "flight" in line
 
 
 def test_cli_help_says_what_simbench_is_and_lists_the_groups() -> None:
-    proc = _run("--help")
+    proc = run_simbench("--help")
     assert proc.returncode == 0, proc.stderr[-2000:]
     text = proc.stdout
     assert text.startswith("simbench -- a simulation-and-benchmark harness")

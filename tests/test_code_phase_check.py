@@ -2,7 +2,7 @@
 
 A converted phone log whose code is steered and whose phase is raw drifts 151 m/s on every satellite:
 the phase estimators trusted it and ended kilometres off with status ok. The check in
-:func:`estimators.measurement.prepare_ppp` (:func:`simbench.gnss.arcs.check_code_phase`) drops such
+:func:`estimators.model.measurement.prepare_ppp` (:func:`simbench.gnss.arcs.check_code_phase`) drops such
 phase with one warning, breaks an arc at a jump, and leaves a healthy log alone. Synthetic arrays for
 the rules; cuts of the Nagoya log (``../shared``) for a real receiver.
 """
@@ -20,8 +20,8 @@ import pytest
 from omegaconf import OmegaConf
 from test_rinex_wild import NG_NAV, NG_OBS, NG_POINT, cut
 
-from estimators.measurement import prepare_ppp
-from estimators.ppp_config import StochasticModelConfig
+from estimators.model.measurement import prepare_ppp
+from estimators.model.ppp_config import StochasticModelConfig
 from simbench.contract import Scenario
 from simbench.data.rinex import load_rinex
 from simbench.errors import SimbenchWarning

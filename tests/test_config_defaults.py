@@ -26,7 +26,7 @@ from omegaconf import OmegaConf
 import estimators
 import simbench.sim.config
 import simbench.sim.generator
-from estimators.ppp_config import GnssModelConfig
+from estimators.model.ppp_config import GnssModelConfig
 from simbench.analysis.tables import seed_statistics
 from simbench.analysis.variants import overrides_of
 from simbench.errors import SimbenchError

@@ -23,7 +23,7 @@ import yaml
 from omegaconf import OmegaConf
 
 import estimators
-from estimators.ppp_config import (
+from estimators.model.ppp_config import (
     GnssModelConfig,
     IonosphereMode,
     MotionModel,
@@ -31,7 +31,7 @@ from estimators.ppp_config import (
     VarianceComponents,
     WetDelayMode,
 )
-from simbench.data.sources import RinexConfig
+from simbench.data.log_sources import RinexConfig
 from simbench.errors import SimbenchError
 from simbench.runs.compose import CONF_DIR, available, compose_config, estimator_yaml, overrides_from_kwargs
 from simbench.runs.scenarios import ScenarioSettings, check_scenario, scenario_settings

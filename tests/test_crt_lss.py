@@ -10,10 +10,10 @@ import pytest
 from scipy.optimize import minimize_scalar
 
 import simbench
-from estimators.crt_lss import CrtLss, CrtLssConfig
-from estimators.gnss_ins_data import prepare_gnss_ins
-from estimators.gnss_ins_driver import run_gnss_ins
-from estimators.window_solver import (
+from estimators.gnss_ins.crt_lss import CrtLss, CrtLssConfig
+from estimators.gnss_ins.data import prepare_gnss_ins
+from estimators.gnss_ins.driver import run_gnss_ins
+from estimators.gnss_ins.window_solver import (
     BA,
     BG,
     CLK,

@@ -12,8 +12,8 @@ import pytest
 from conftest import dissertation
 
 import simbench
-from estimators.ekf_ppp import EkfPpp, EkfPppConfig, EkfTrack
-from estimators.measurement import prepare_ppp
+from estimators.filters.ekf_ppp import EkfPpp, EkfPppConfig, EkfTrack
+from estimators.model.measurement import prepare_ppp
 from simbench.errors import SimbenchError
 from simbench.gnss.geometry import enu_basis
 from simbench.runs.runner import run_estimators

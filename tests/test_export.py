@@ -13,7 +13,7 @@ import pandas as pd
 import pytest
 
 import estimators
-from estimators.rtklib_spp import EXECUTABLE
+from estimators.baselines.rtklib_spp import EXECUTABLE
 from simbench.analysis.metrics import enu_errors
 from simbench.cli.export import main as export_main
 from simbench.contract import NavInfo, Need, Scenario, available_needs

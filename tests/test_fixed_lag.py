@@ -8,9 +8,9 @@ import pytest
 
 import estimators
 import simbench
-from estimators.fixed_lag import LagSchedule, restart_stale_arcs
-from estimators.incremental import IncrementalConfig, IncrementalGraphEstimator
-from estimators.measurement import prepare_ppp
+from estimators.incremental.fixed_lag import LagSchedule, restart_stale_arcs
+from estimators.incremental.isam2 import IncrementalConfig, IncrementalGraphEstimator
+from estimators.model.measurement import prepare_ppp
 from simbench.contract import ReceiverData
 
 INCREMENTAL = sorted(n for n, c in estimators.registered().items() if issubclass(c, IncrementalGraphEstimator))

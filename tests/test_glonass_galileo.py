@@ -24,10 +24,9 @@ from simbench.core.galileo_orbits import GalileoEphemeris
 from simbench.core.glonass_orbits import GlonassEphemeris
 from simbench.core.gpstime import datetime64_to_gps
 from simbench.core.orbits import BroadcastEphemeris
-from simbench.data.galileo import read_galileo_navigation
-from simbench.data.glonass import read_glonass_navigation
+from simbench.data.broadcast import read_navigation
+from simbench.data.log_sources import RinexConfig
 from simbench.data.rinex import load_rinex
-from simbench.data.sources import RinexConfig
 from simbench.errors import SimbenchError
 from simbench.gnss.geometry import sagnac_range
 from simbench.gnss.navigation import KEPLER_CLOCK_FIELDS
@@ -63,14 +62,19 @@ def _glonass_truth(pos: np.ndarray, vel: np.ndarray, acc: np.ndarray, dt: float)
     return sol.y[:, -1]
 
 
-def _kepler(el: dict[str, float], tk: float, mu: float, we: float) -> np.ndarray:
-    """Textbook broadcast Kepler position (IS-GPS-200 Table 20-IV) with the given constants."""
+def _eccentric_anomaly(el: dict[str, float], tk: float, mu: float) -> tuple[float, float]:
+    """Semi-major axis [m] and eccentric anomaly [rad] at ``tk`` [s] after Toe (Kepler's equation, fixed point)."""
     a = el["sqrta"] ** 2
-    n = math.sqrt(mu / a**3) + el["dn"]
-    m = el["m0"] + n * tk
+    m = el["m0"] + (math.sqrt(mu / a**3) + el["dn"]) * tk
     e_anom = m
     for _ in range(30):
         e_anom = m + el["e"] * math.sin(e_anom)
+    return a, e_anom
+
+
+def _kepler(el: dict[str, float], tk: float, mu: float, we: float) -> np.ndarray:
+    """Textbook broadcast Kepler position (IS-GPS-200 Table 20-IV) with the given constants."""
+    a, e_anom = _eccentric_anomaly(el, tk, mu)
     nu = math.atan2(math.sqrt(1 - el["e"] ** 2) * math.sin(e_anom), math.cos(e_anom) - el["e"])
     phi = nu + el["w"]
     u = phi + el["cus"] * math.sin(2 * phi) + el["cuc"] * math.cos(2 * phi)
@@ -88,12 +92,7 @@ def _kepler(el: dict[str, float], tk: float, mu: float, we: float) -> np.ndarray
 
 
 def _kepler_clock(el: dict[str, float], tk: float) -> float:
-    a = el["sqrta"] ** 2
-    n = math.sqrt(MU / a**3) + el["dn"]
-    m = el["m0"] + n * tk
-    e_anom = m
-    for _ in range(30):
-        e_anom = m + el["e"] * math.sin(e_anom)
+    _, e_anom = _eccentric_anomaly(el, tk, MU)
     f_rel = -2 * math.sqrt(MU) / C_LIGHT**2
     return el["af0"] + el["af1"] * tk + el["af2"] * tk * tk + f_rel * el["e"] * el["sqrta"] * math.sin(e_anom)
 
@@ -265,7 +264,7 @@ def test_glonass_reader_time_scale_and_bad_records(tmp_path: Path) -> None:
     nav = tmp_path / "r13.rnx"
     rec = _record("R13", "2023 01 08 11 45 00", _glonass_values(R13))
     nav.write_text(NAV_HEADER + rec + "\n")
-    eph = read_glonass_navigation(nav)
+    eph = read_navigation("R", nav)
     assert eph.sats.tolist() == ["R13"] and eph.freq_number.tolist() == [-2]
     # the RINEX epoch is UTC: the record's own state holds at UTC + 18 s in GPS time
     tb_gps = float(datetime64_to_gps(np.datetime64("2023-01-08T11:45:00"))) + GPS_MINUS_UTC_2019
@@ -275,13 +274,13 @@ def test_glonass_reader_time_scale_and_bad_records(tmp_path: Path) -> None:
     # a malformed number and an impossible channel give one line each
     bad = tmp_path / "bad.rnx"
     bad.write_text(NAV_HEADER + rec.replace("1.948561668396E+00", "1.948561668396X+00") + "\n")
-    assert "malformed R13 record" in one_line_error(read_glonass_navigation, bad)
+    assert "malformed R13 record" in one_line_error(read_navigation, "R", bad)
     chan = tmp_path / "chan.rnx"
     chan.write_text(NAV_HEADER + _record("R13", "2023 01 08 11 45 00", _glonass_values({**R13, "k": 20})) + "\n")
-    assert "frequency number 20" in one_line_error(read_glonass_navigation, chan)
+    assert "frequency number 20" in one_line_error(read_navigation, "R", chan)
     only_e = tmp_path / "e.rnx"
     only_e.write_text(NAV_HEADER + _record("E01", "2017 01 01 00 10 00", _galileo_values(E01)) + "\n")
-    msg = one_line_error(read_glonass_navigation, only_e)
+    msg = one_line_error(read_navigation, "R", only_e)
     assert "scenario.nav_glo" in msg and "no GLONASS records" in msg
 
 
@@ -298,7 +297,7 @@ def test_galileo_kepler_uses_galileo_constants(tmp_path: Path) -> None:
         + _record("E01", "2017 01 01 00 10 00", _galileo_values(fnav))
         + "\n"
     )
-    eph = read_galileo_navigation(nav)
+    eph = read_navigation("E", nav)
     assert isinstance(eph, GalileoEphemeris) and eph.tgd.tolist() == [E01["bgd_b"]]
     toe = 1930 * SECONDS_PER_WEEK + 600.0
     tks = np.array([-3000.0, 0.0, 3600.0])

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 import simbench
-from estimators.crt_lss import CrtLssConfig
-from estimators.gnss_ins_data import prepare_gnss_ins
-from estimators.gnss_ins_driver import run_gnss_ins
-from estimators.gnss_ins_ekf import EkfIns, EkfInsConfig, IekfIns, IekfInsConfig
-from estimators.ins_mechanisation import level_roll_pitch
-from estimators.window_solver import WindowSolver
+from estimators.gnss_ins.crt_lss import CrtLssConfig
+from estimators.gnss_ins.data import prepare_gnss_ins
+from estimators.gnss_ins.driver import run_gnss_ins
+from estimators.gnss_ins.ekf import EkfIns, EkfInsConfig, IekfIns, IekfInsConfig
+from estimators.gnss_ins.mechanisation import level_roll_pitch
+from estimators.gnss_ins.window_solver import WindowSolver
 from simbench.analysis.metrics import enu_errors
 from simbench.contract import Need, ReceiverData
 from simbench.errors import SimbenchError

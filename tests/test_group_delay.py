@@ -17,11 +17,11 @@ import pytest
 
 import estimators
 import simbench
-from estimators.measurement import IonosphereMode
+from estimators.model.measurement import IonosphereMode
 from simbench.analysis.metrics import enu_errors
 from simbench.contract import OPTIONAL_OBSERVATION_COLUMNS, ReceiverData, Scenario
 from simbench.core.constants import C_LIGHT, F_B1I, F_L1, F_L2
-from simbench.data.galileo import load_galileo_navigation
+from simbench.data.broadcast import load_navigation
 from simbench.data.rinex import load_rinex
 
 F_E5A, F_E5B = 1_176.45e6, 1_207.14e6  # Galileo E5a, E5b carriers [Hz]
@@ -114,7 +114,7 @@ def test_fnav_records_carry_no_e5b_group_delay(nagoya_dir: Path, tmp_path: Path)
             fnav += lines[i : i + 8]
     only_fnav = tmp_path / "fnav.rnx"
     only_fnav.write_text("\n".join(lines[:end] + fnav) + "\n")
-    eph, delays = load_galileo_navigation(only_fnav)
+    eph, delays = load_navigation("E", only_fnav)
     assert eph.sats.size > 5 and np.isnan(delays["bgd_e5b"]).all() and np.isfinite(delays["bgd_e5a"]).all()
     np.testing.assert_array_equal(eph.tgd, delays["bgd_e5a"])  # the F/NAV clock's own group delay
 

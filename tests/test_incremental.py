@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 import simbench
-from estimators.batch_robust import L2Batch, L2Config
-from estimators.ice import AdaptiveNoiseModel, Ice, IceConfig
-from estimators.incremental import IncrementalConfig, Isam2Mm, Isam2Ppp
+from estimators.batch.robust import L2Batch, L2Config
+from estimators.incremental.ice import AdaptiveNoiseModel, Ice, IceConfig
+from estimators.incremental.isam2 import IncrementalConfig, Isam2Mm, Isam2Ppp
 
 
 @pytest.fixture(scope="module")

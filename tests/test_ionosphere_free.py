@@ -13,8 +13,8 @@ import pytest
 from test_measurement import synthetic_data
 
 import simbench.contract
-from estimators.measurement import SAT_DCB_COLUMN, klobuchar_scale, predict, prepare_ppp
-from estimators.ppp_config import IonosphereMode
+from estimators.model.measurement import SAT_DCB_COLUMN, klobuchar_scale, predict, prepare_ppp
+from estimators.model.ppp_config import IonosphereMode
 from simbench.contract import ReceiverData
 from simbench.core.constants import F_B1I, F_L1, IONO_L2_SCALE
 from simbench.core.frames import geodetic_from_ecef

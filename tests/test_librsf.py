@@ -6,10 +6,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import one_line_error
+from conftest import one_line_error, single_point_fixes
 
-from estimators.measurement import prepare_ppp
-from estimators.ppp_config import MeasurementMode
 from simbench.contract import OBSERVATION_COLUMNS, ODOMETRY_COLUMNS, Scenario
 from simbench.data.librsf import load_librsf, read_librsf, write_synthetic_librsf
 from simbench.errors import SimbenchError
@@ -57,17 +55,8 @@ def test_mapping_into_the_observation_table(scenario: Scenario) -> None:
 
 def test_shared_model_recovers_the_synthetic_truth(scenario: Scenario) -> None:
     """No Klobuchar applied, hydrostatic delay cancelled: the fit matches the 0.5 m code noise."""
-    obs = prepare_ppp(
-        scenario.receiver_view(),
-        ionosphere="broadcast",
-        code_sigma_m=0.5,
-        phase_sigma_m=0.01,
-        elevation_mask_deg=7.0,
-        measurements=MeasurementMode.auto,
-    )
+    obs, fixes = single_point_fixes(scenario.receiver_view(), 0.5, 0.01, 7.0)
     truth = scenario.truth[["x", "y", "z"]].to_numpy()
-    row_k = np.repeat(np.arange(obs.n_epochs), obs.epoch_stop - obs.epoch_start)
-    fixes = solve_epochs(row_k, obs.sat_pos, obs.code, sigma=obs.sigma_code, el=obs.el, doy=obs.doy)
     assert fixes.trusted.all()
     err = np.linalg.norm(fixes.pos - truth[obs.epoch_ids], axis=1)
     clock = fixes.clock_m[:, 0] - (100.0 + obs.epoch_t)  # the fixture's receiver clock

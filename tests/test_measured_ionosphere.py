@@ -14,8 +14,8 @@ from test_ionosphere_free import KW, RATIOS, with_second_frequency
 
 import estimators
 import simbench
-from estimators.measurement import prepare_ppp
-from estimators.ppp_config import IonosphereMode
+from estimators.model.measurement import prepare_ppp
+from estimators.model.ppp_config import IonosphereMode
 from simbench.analysis.metrics import enu_errors
 from simbench.contract import ReceiverData
 from simbench.core.constants import IONO_L2_SCALE

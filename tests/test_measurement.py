@@ -12,8 +12,8 @@ import pandas as pd
 import pymap3d
 import pytest
 
-from estimators.measurement import arc_ids, predict, prepare_ppp, sigma_factor
-from estimators.ppp_config import IonosphereMode, MeasurementMode, SigmaModel, VarianceComponents
+from estimators.model.measurement import arc_ids, predict, prepare_ppp, sigma_factor
+from estimators.model.ppp_config import IonosphereMode, MeasurementMode, SigmaModel, VarianceComponents
 from simbench.contract import NavInfo, ReceiverData
 from simbench.core import atmosphere
 from simbench.core.constants import DEG, F_L1, F_L2, IONO_L2_SCALE, LAMBDA_L1, LAMBDA_L2, SECONDS_PER_WEEK
@@ -320,6 +320,18 @@ def test_doppler_breaks_arcs_at_unflagged_slips_but_not_at_clock_jumps() -> None
     assert (pd.Series(arc_ids(df), index=df.index).groupby(df["sat"]).nunique() == 1).all()  # check off
 
 
+#: prepare_ppp settings of the variance-component tests: code only, broadcast ionosphere, the C/N0
+#: sigma model with a 1 m a-priori sigma (its factor is 1 at 45 dB-Hz).
+CODE_CN0_1M = dict(
+    ionosphere=IonosphereMode.broadcast,
+    code_sigma_m=1.0,
+    phase_sigma_m=0.01,
+    elevation_mask_deg=10.0,
+    measurements=MeasurementMode.code,
+    sigma_model=SigmaModel.cn0,
+)
+
+
 def test_variance_components_recover_each_systems_noise() -> None:
     """GPS rows with 0.5 m code noise, Galileo rows with 1.5 m (each satellite's geometry serves both,
     a dozen rows per epoch), both given a 1 m a-priori sigma: the estimated factors' ratio is 3
@@ -331,14 +343,7 @@ def test_variance_components_recover_each_systems_noise() -> None:
     galileo = o.assign(sat="E" + o["sat"].str[1:], code_l1=o["code_l1"] + 1.5 * rng.standard_normal(len(o)))
     two_systems = ReceiverData(pd.concat([gps, galileo], ignore_index=True), data.imu, data.nav)
     # C/N0 45 dB-Hz on every row: the cn0 model's factor is 1, the a-priori sigma 1 m everywhere
-    kw = dict(
-        ionosphere=IonosphereMode.broadcast,
-        code_sigma_m=1.0,
-        phase_sigma_m=0.01,
-        elevation_mask_deg=10.0,
-        measurements=MeasurementMode.code,
-        sigma_model=SigmaModel.cn0,
-    )
+    kw = CODE_CN0_1M
     obs = prepare_ppp(two_systems, variance_components=VarianceComponents.system, **kw)
     factors = obs.variance_factors
     assert set(factors) == {"G", "E"}
@@ -370,15 +375,7 @@ def test_variance_components_leave_a_log_without_redundancy_at_its_a_priori_sigm
     galileo = galileo.assign(
         sat="E" + galileo["sat"].str[1:], code_l1=galileo["code_l1"] + 1.5 * rng.standard_normal(len(galileo))
     )
-    kw = dict(
-        ionosphere=IonosphereMode.broadcast,
-        code_sigma_m=1.0,
-        phase_sigma_m=0.01,
-        elevation_mask_deg=10.0,
-        measurements=MeasurementMode.code,
-        sigma_model=SigmaModel.cn0,
-        variance_components=VarianceComponents.system,
-    )
+    kw = dict(CODE_CN0_1M, variance_components=VarianceComponents.system)
     two_galileo = galileo[galileo.groupby("epoch").cumcount() < 2]
     none = prepare_ppp(ReceiverData(pd.concat([gps, two_galileo], ignore_index=True), data.imu, data.nav), **kw)
     assert none.variance_factors == {"G": 1.0, "E": 1.0}

@@ -16,8 +16,8 @@ from conftest import dissertation
 
 import estimators
 import simbench
-from estimators.measurement import prepare_ppp
-from estimators.ppp_config import MeasurementMode
+from estimators.model.measurement import prepare_ppp
+from estimators.model.ppp_config import MeasurementMode
 from simbench.analysis.metrics import enu_errors
 
 ISB_M = 40.0
@@ -88,7 +88,7 @@ def test_auto_keeps_code_rows_without_phase(gps: simbench.Scenario) -> None:
 
 
 def _solve_graph(sc: simbench.Scenario, **config):
-    from estimators.ppp_graph import PppGraph, solve, vel_key
+    from estimators.model.ppp_graph import PppGraph, solve, vel_key
 
     # the graph model of Table 4.4.2 but for ``config``, on L1 code (the bounds below are sized on its noise)
     cfg = dissertation("l2", **{"ionosphere": "broadcast", **config})

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from estimators.mixture_tests import (
+from estimators.model.mixture_tests import (
     MixtureModel,
     components_equivalent,
     hotelling_t2_test,

@@ -11,14 +11,14 @@ import numpy as np
 import pytest
 from conftest import dissertation
 
-from estimators.ekf_ppp import EkfPpp
-from estimators.measurement import prepare_ppp
+from estimators.filters.ekf_ppp import EkfPpp
+from estimators.model.measurement import prepare_ppp
 from simbench.contract import ReceiverData
 from simbench.core.frames import geodetic_from_ecef
 from simbench.core.gpstime import datetime64_to_gps
-from simbench.data.beidou import read_beidou_navigation
+from simbench.data.broadcast import read_navigation
+from simbench.data.log_sources import RinexConfig
 from simbench.data.rinex import load_rinex
-from simbench.data.sources import RinexConfig
 from simbench.errors import SimbenchError
 from simbench.gnss.geometry import sagnac_range
 from simbench.runs.scenarios import ScenarioSettings, build_scenario
@@ -74,7 +74,7 @@ def test_inter_system_bias_state() -> None:
 
 @needs_hk
 def test_beidou_orbits_geo_igso_meo() -> None:
-    eph = read_beidou_navigation(BDS_NAV)
+    eph = read_navigation("C", BDS_NAV)
     t = float(datetime64_to_gps(np.datetime64("2019-04-28T12:50:00")))
     st = eph.states(np.array([t, t + 1.0]))
     sats = eph.sats.tolist()

@@ -9,7 +9,7 @@ import numpy as np
 from conftest import dissertation
 from test_measurement import horizontal_error, synthetic_data
 
-from estimators.ekf_ppp import EkfPpp
+from estimators.filters.ekf_ppp import EkfPpp
 from simbench.contract import ReceiverData
 
 N_EPOCHS = 300

@@ -18,17 +18,16 @@ from typing import Any
 
 import pandas as pd
 import pytest
-from conftest import FakeEntryPoint, one_line_error
+from conftest import EXAMPLE_MISSING, EXAMPLE_PACKAGE, FakeEntryPoint, cli_error_line, one_line_error, simbench_summary
 from omegaconf import OmegaConf
 
 import estimators
 import simbench.cli.main as cli
-from simbench.runs.compose import compose_config, plugin_config_node, register_schemas
+from simbench.runs.compose import compose_config, plugin_config_node
 from simbench.typed import to_typed
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = "cauchy_spp"
-EXAMPLE_PACKAGE = "simbench-example-estimator"
 
 
 def fake_estimator(name: str, config: Any = "dataclass") -> type[estimators.Estimator]:
@@ -41,20 +40,8 @@ def fake_estimator(name: str, config: Any = "dataclass") -> type[estimators.Esti
     return type(f"Fake_{name}", (estimators.Estimator,), body)
 
 
-@pytest.fixture
-def fresh_discovery():
-    """Discovery and the ConfigStore registration run again in the test, and again after it."""
-    estimators.plugins.cache_clear()
-    register_schemas.cache_clear()
-    yield
-    estimators.plugins.cache_clear()
-    register_schemas.cache_clear()
-
-
 def test_installed_example_is_listed_and_configured_from_its_dataclass() -> None:
-    assert EXAMPLE in estimators.plugins(), (
-        "the example plug-in is not installed: pip install -e examples/simbench-example-estimator (.ci/run does)"
-    )
+    assert EXAMPLE in estimators.plugins(), EXAMPLE_MISSING
     assert estimators.source(EXAMPLE) == EXAMPLE_PACKAGE and estimators.source("l2") == estimators.BUILT_IN
     table = cli.estimator_table().set_index("name")
     assert table.loc[EXAMPLE, "source"] == EXAMPLE_PACKAGE
@@ -106,12 +93,8 @@ def test_the_same_class_from_two_entry_points_is_no_clash() -> None:
 
 def test_cli_stops_on_a_clashing_plugin_in_one_line(fresh_discovery, monkeypatch, capsys) -> None:
     monkeypatch.setattr(estimators, "entry_points", lambda group: [FakeEntryPoint("dcs", fake_estimator("dcs"))])
-    monkeypatch.setattr(sys, "argv", ["simbench", "--estimators"])
-    with pytest.raises(SystemExit) as info:
-        cli.main()
-    assert info.value.code == 2
-    lines = capsys.readouterr().err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("error: estimator plug-in 'dcs': package 'fake-plugins'")
+    line = cli_error_line(monkeypatch, capsys, "--estimators")
+    assert line.startswith("error: estimator plug-in 'dcs': package 'fake-plugins'")
 
 
 def _plugin_module(tmp_path: Path, monkeypatch, yaml_text: str | None) -> estimators.Plugin:
@@ -166,27 +149,8 @@ def test_a_bad_shipped_yaml_is_one_line_naming_the_package(
 
 def test_the_example_runs_in_a_sweep_through_the_cli(tmp_path: Path) -> None:
     out = tmp_path / "sweep"
-    proc = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "simbench",
-            "-m",
-            "scenario=open_sky",
-            "receiver=high",
-            "scenario.duration_s=30",
-            "seed=0",
-            f"estimator=[{EXAMPLE}]",
-            f"results_dir={out}",
-            "progress=false",
-        ],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    summary = pd.read_parquet(out / "summary.parquet")
+    sweep = ("-m", "scenario=open_sky", "receiver=high", "scenario.duration_s=30", "seed=0", f"estimator=[{EXAMPLE}]")
+    summary = simbench_summary(out, *sweep)
     assert list(summary["estimator"]) == [EXAMPLE] and (summary["status"] == "ok").all()
     assert (summary["availability"] == 1.0).all()
     # open sky, single-point code with Klobuchar: about a metre horizontally (1.0 m when written with
@@ -213,7 +177,7 @@ NEW_MODULE = '''
 from dataclasses import dataclass
 
 from estimators import register
-from estimators.spp_baselines import WlsSpp, WlsSppConfig
+from estimators.baselines.spp import WlsSpp, WlsSppConfig
 
 
 @dataclass
@@ -231,14 +195,15 @@ class BrandNew(WlsSpp):
     Config = BrandNewConfig
 '''
 
-#: Runs the module above as a module of the ``estimators`` package (its folder joins the package's path, as a
-#: file in estimators/ would be found) through simbench.run, in a process of its own: the registry keeps it.
+#: Runs the module above as a module of the ``estimators.baselines`` family (its folder joins the package's
+#: path, as a file in estimators/baselines/ would be found) through simbench.run, in a process of its own: the
+#: registry keeps it.
 RUN_NEW_MODULE = """
 import sys
-import estimators
+import estimators.baselines
 import simbench
 
-estimators.__path__.append(sys.argv[1])
+estimators.baselines.__path__.append(sys.argv[1])
 result = simbench.run("open_sky", "high", estimators=["wls_spp", "brand_new"], results_dir=sys.argv[2],
                       overrides={"scenario.duration_s": 20, "estimator.brand_new.extra_weight": 2.0}, progress=False)
 print(result.summary[["estimator", "status", "overrides", "horizontal_median"]].to_json(orient="records"))

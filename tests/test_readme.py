@@ -28,7 +28,7 @@ from simbench.contract import (
     Scenario,
 )
 from simbench.runs.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS
-from simbench.source import ENTRY_POINT_GROUP as SOURCE_ENTRY_POINT_GROUP
+from simbench.source_registry import ENTRY_POINT_GROUP as SOURCE_ENTRY_POINT_GROUP
 
 ROOT = Path(__file__).resolve().parent.parent
 README = (ROOT / "README.md").read_text()

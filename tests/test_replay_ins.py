@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 
 import simbench
-from estimators.gnss_ins_ekf import EkfIns
-from estimators.ins_mechanisation import ImuNoise, preintegration_params
+from estimators.gnss_ins.ekf import EkfIns
+from estimators.gnss_ins.mechanisation import ImuNoise, preintegration_params
 from simbench.analysis.metrics import enu_errors
 from simbench.core.constants import OMEGA_EARTH
 from simbench.core.frames import dcm_body_to_ecef, ecef_from_geodetic

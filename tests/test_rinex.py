@@ -9,22 +9,19 @@ import numpy as np
 import pandas as pd
 import pymap3d
 import pytest
-from conftest import one_line_error
+from conftest import one_line_error, single_point_fixes
 
 import estimators
 from estimators.base import Estimator
-from estimators.measurement import prepare_ppp
-from estimators.ppp_config import MeasurementMode
 from simbench.contract import MISSING_NEED_REASONS, OBSERVATION_COLUMNS, Need, Scenario
 from simbench.core.constants import C_LIGHT, SECONDS_PER_WEEK
+from simbench.data.log_sources import RinexConfig
 from simbench.data.reference import match_reference, read_reference
 from simbench.data.rinex import RinexObs, load_rinex, read_rinex_obs, satellite_states
-from simbench.data.sources import RinexConfig
 from simbench.data.sp3 import read_sp3
 from simbench.errors import SimbenchError
 from simbench.gnss.geometry import sagnac_range
 from simbench.gnss.navigation import read_gps_navigation
-from simbench.gnss.spp import solve_epochs
 from simbench.runs.runner import run_estimators
 from simbench.runs.scenarios import ScenarioSettings, build_scenario
 
@@ -122,19 +119,8 @@ def test_time_and_truth_matching(hk: Scenario) -> None:
 @needs_hk
 def test_single_point_solution_within_tens_of_metres(hk: Scenario) -> None:
     """The issue's acceptance check: SPP within the usual 5-30 m of the reference for most epochs."""
-    obs = prepare_ppp(
-        hk.receiver_view(),
-        ionosphere="broadcast",
-        code_sigma_m=2.5,
-        phase_sigma_m=0.03,
-        elevation_mask_deg=10.0,
-        measurements=MeasurementMode.auto,
-    )
+    obs, fixes = single_point_fixes(hk.receiver_view(), 2.5, 0.03, 10.0)
     truth = hk.truth.set_index("epoch")[["x", "y", "z"]]
-    row_k = np.repeat(np.arange(obs.n_epochs), obs.epoch_stop - obs.epoch_start)
-    fixes = solve_epochs(
-        row_k, obs.sat_pos, obs.code, sigma=obs.sigma_code, el=obs.el, doy=obs.doy, system_index=obs.system_index
-    )
     horiz, resid = [], []
     for k, rows in obs.iter_epochs():
         e = int(obs.epoch_ids[k])

@@ -10,6 +10,7 @@ georinex run here.
 
 from __future__ import annotations
 
+import functools
 import json
 from pathlib import Path
 
@@ -20,10 +21,7 @@ import xarray as xr
 from conftest import one_line_error
 
 from simbench.core.gpstime import gps_to_datetime64
-from simbench.data.beidou import read_beidou_navigation
-from simbench.data.galileo import read_galileo_navigation
-from simbench.data.glonass import read_glonass_navigation
-from simbench.data.qzss import read_qzss_navigation
+from simbench.data.broadcast import NAV_SYSTEMS, read_navigation
 from simbench.data.rinex import SIGNALS, RinexObs, read_rinex_obs
 from simbench.gnss.navigation import read_gps_navigation
 
@@ -32,13 +30,7 @@ pytestmark = pytest.mark.filterwarnings("ignore::FutureWarning")
 
 REFERENCE = json.loads((Path(__file__).parent / "data" / "rinex_corpus_counts.json").read_text())
 #: Navigation readers per system.
-NAV_READERS = {
-    "G": read_gps_navigation,
-    "R": read_glonass_navigation,
-    "E": read_galileo_navigation,
-    "C": read_beidou_navigation,
-    "J": read_qzss_navigation,
-}
+NAV_READERS = {"G": read_gps_navigation, **{s: functools.partial(read_navigation, s) for s in NAV_SYSTEMS}}
 #: RINEX 4 navigation files ('> EPH' frames), refused in one line.
 RINEX4_NAV = ("NAV/V4/BRD400DLR_S_20230710000_01D_MN.rnx.gz", "NAV/V4/KMS300DNK_R_20221591000_01H_MN.rnx.gz")
 OBSERVATION_FILES = sorted(n for n in REFERENCE if not n.startswith("NAV/"))

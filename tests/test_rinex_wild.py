@@ -8,6 +8,7 @@ navigation records split by time).
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from pathlib import Path
 
@@ -19,7 +20,7 @@ import simbench
 from simbench.contract import Scenario
 from simbench.core.constants import F_B1I, F_L1, F_L2
 from simbench.core.gpstime import datetime64_to_gps
-from simbench.data.beidou import read_beidou_navigation
+from simbench.data.broadcast import read_navigation
 from simbench.data.reference import read_reference
 from simbench.data.rinex import load_rinex, read_rinex_obs
 from simbench.errors import SimbenchError, SimbenchWarning
@@ -161,7 +162,7 @@ def test_qzss_rows_get_satellite_states_from_the_gps_orbit_code(tmp_path: Path) 
 def test_two_nav_files_per_system_give_the_states_of_the_one_file(tmp_path: Path) -> None:
     """A navigation file split by time (12:00 records in both) gives the same ephemerides, merged and deduplicated."""
     t = datetime64_to_gps(np.datetime64("2019-04-28T11:30:00")) + np.arange(0, 3600, 600.0)  # across the split
-    for path, reader in ((HK_BDS, read_beidou_navigation), (HK_NAV, read_gps_navigation)):
+    for path, reader in ((HK_BDS, functools.partial(read_navigation, "C")), (HK_NAV, read_gps_navigation)):
         # hours 9-15 of the day's file (georinex takes seconds for a whole day), and its two halves
         whole = split_nav(path, tmp_path / f"whole_{path.name}", lambda hour: 9 <= hour <= 15)
         early = split_nav(path, tmp_path / f"early_{path.name}", lambda hour: 9 <= hour <= 12)

@@ -14,7 +14,7 @@ import pytest
 from omegaconf import OmegaConf
 
 import estimators
-from simbench import source as sources
+from simbench import source_registry as sources
 from simbench.errors import SimbenchError
 from simbench.runs import schema_record
 from simbench.runs.schema_record import class_or_rebuilt, describe, read_record, rebuild, write_record
@@ -91,8 +91,8 @@ try:
     main()
 except SystemExit as exc:
     print(exc.code)
-heavy = ("gtsam", "sklearn", "scipy.stats", "simbench.sim.generator", "estimators.batch_robust",
-         "estimators.measurement")
+heavy = ("gtsam", "sklearn", "scipy.stats", "simbench.sim.generator", "estimators.batch.robust",
+         "estimators.model.measurement")
 print(",".join(sorted(m for m in heavy if m in sys.modules)))
 """
 
@@ -118,4 +118,4 @@ def test_a_refused_value_imports_no_estimator_and_no_simulation() -> None:
     # a range only the estimator's code knows: its class is imported, and says it in the same words
     code, imported, err = _refuse("estimator.dcs.kernel_width=-1")
     assert code == "2" and err.startswith("error: estimator.dcs.kernel_width: must be positive, got -1.0")
-    assert "estimators.batch_robust" in imported
+    assert "estimators.batch.robust" in imported

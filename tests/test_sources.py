@@ -3,29 +3,24 @@
 The built-ins (simulated, rinex, librsf) come through simbench's own entry points; the
 example package (``examples/simbench-example-estimator``, source ``static_receiver``;
 ``.ci/run`` installs it) is the real plug-in. Broken packages are simulated with entry
-points handed to :func:`simbench.source.discover` or patched in for the CLI.
+points handed to :func:`simbench.source_registry.discover` or patched in for the CLI.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import subprocess
-import sys
 from pathlib import Path
 
-import pandas as pd
 import pytest
-from conftest import FakeEntryPoint, one_line_error
+from conftest import EXAMPLE_MISSING, EXAMPLE_PACKAGE, FakeEntryPoint, cli_error_line, one_line_error, simbench_summary
 
-import simbench.cli.main as cli
-from simbench import source as sources
+from simbench import source_registry as sources
 from simbench.contract import Scenario
-from simbench.runs.compose import available, compose_config, register_schemas
+from simbench.runs.compose import available, compose_config
 from simbench.runs.scenarios import build_scenario, scenario_settings
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = "static_receiver"
-EXAMPLE_PACKAGE = "simbench-example-estimator"
 
 
 def fake_source(name: str, source: str | None = None) -> type[sources.Source]:
@@ -37,21 +32,9 @@ def fake_source(name: str, source: str | None = None) -> type[sources.Source]:
     return type(f"Fake_{name}", (sources.Source,), body)
 
 
-@pytest.fixture
-def fresh_discovery():
-    """Discovery and the ConfigStore registration run again in the test, and again after it."""
-    sources.plugins.cache_clear()
-    register_schemas.cache_clear()
-    yield
-    sources.plugins.cache_clear()
-    register_schemas.cache_clear()
-
-
 def test_built_ins_and_the_example_are_registered_by_entry_point() -> None:
     found = sources.plugins()
-    assert EXAMPLE in found, (
-        "the example plug-in is not installed: pip install -e examples/simbench-example-estimator (.ci/run does)"
-    )
+    assert EXAMPLE in found, EXAMPLE_MISSING
     assert found[EXAMPLE].package == EXAMPLE_PACKAGE
     built_ins = ("simulated", "rinex", "gnsslogger", "librsf")
     assert {name: found[name].package for name in built_ins} == dict.fromkeys(built_ins, "simbench")
@@ -69,24 +52,7 @@ def test_the_example_source_builds_from_its_config_defaults() -> None:
 
 def test_the_example_source_runs_through_the_cli(tmp_path: Path) -> None:
     out = tmp_path / "run"
-    proc = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "simbench",
-            f"scenario={EXAMPLE}",
-            "scenario.duration_s=20",
-            "estimator=[cauchy_spp]",
-            f"results_dir={out}",
-            "progress=false",
-        ],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    summary = pd.read_parquet(out / "summary.parquet")
+    summary = simbench_summary(out, f"scenario={EXAMPLE}", "scenario.duration_s=20", "estimator=[cauchy_spp]")
     assert list(summary["source"]) == [EXAMPLE] and (summary["status"] == "ok").all()
     # 1 m white code noise on six or more satellites: metre-level single-point fixes
     assert (summary["horizontal_median"] < 3.0).all()
@@ -126,9 +92,5 @@ def test_a_broken_source_plugin_is_one_line_naming_its_package(
 def test_cli_stops_on_a_broken_source_plugin_in_one_line(fresh_discovery, monkeypatch, capsys) -> None:
     broken = [FakeEntryPoint("gone", ImportError("No module named 'fake_plugins'"))]
     monkeypatch.setattr(sources, "entry_points", lambda group: broken)
-    monkeypatch.setattr(sys, "argv", ["simbench", "scenario=urban"])
-    with pytest.raises(SystemExit) as info:
-        cli.main()
-    assert info.value.code == 2
-    lines = capsys.readouterr().err.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("error: source plug-in 'gone': package 'fake-plugins'")
+    line = cli_error_line(monkeypatch, capsys, "scenario=urban")
+    assert line.startswith("error: source plug-in 'gone': package 'fake-plugins'")

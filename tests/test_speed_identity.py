@@ -28,7 +28,7 @@ import pytest
 
 import estimators
 import simbench
-from estimators.crt_lss import CrtLss, CrtLssConfig
+from estimators.gnss_ins.crt_lss import CrtLss, CrtLssConfig
 
 #: label -> (scenario preset, receiver preset, seed, overrides); short, so that the test is fast.
 CASES: dict[str, tuple[str, str, int, dict[str, Any]]] = {

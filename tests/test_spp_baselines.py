@@ -1,4 +1,4 @@
-"""The built-in per-epoch baselines ``wls_spp`` and ``huber_spp`` (estimators/spp_baselines.py).
+"""The built-in per-epoch baselines ``wls_spp`` and ``huber_spp`` (estimators/baselines/spp.py).
 
 Simulated tuning seeds (>= 1000), the ``high`` receiver (dual frequency). Open sky: both
 within a few metres of the truth on every epoch they solve. With code blunders injected on a
@@ -15,7 +15,7 @@ import pytest
 
 import estimators
 import simbench
-from estimators.ppp_config import SigmaModel
+from estimators.model.ppp_config import SigmaModel
 from simbench.analysis.metrics import enu_errors
 
 SEED = 1003

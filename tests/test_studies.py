@@ -10,14 +10,14 @@ import pandas as pd
 import pytest
 
 import simbench.cli.studies
+import simbench.runs.studies
 from simbench.analysis.claims import claims_table
 from simbench.cli.main import config_overrides
-from simbench.cli.studies import StudyProcess, run_study_process
 from simbench.errors import SimbenchError
 from simbench.report.build import build_report
 from simbench.runs.compose import compose_config
 from simbench.runs.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS
-from simbench.runs.studies import STUDY_TIMES, StudiesConfig, plan, time_budget
+from simbench.runs.studies import STUDY_TIMES, StudiesConfig, StudyProcess, plan, run_study_process, time_budget
 
 ROOT = Path("results/thesis")
 
@@ -168,7 +168,7 @@ def test_run_studies_records_every_study_and_keeps_earlier_invocations(tmp_path:
         calls.append(cmd)
         return StudyProcess(1 if "scenario=urban_deep" in cmd else 0, 100.0 + len(calls))
 
-    monkeypatch.setattr(simbench.cli.studies, "run_study_process", fake_process)
+    monkeypatch.setattr(simbench.runs.studies, "run_study_process", fake_process)
     reported: list[list[str]] = []
 
     def fake_finalize(root: Path, config: dict, formats: list[str]) -> Path:

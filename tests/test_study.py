@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-import subprocess
-import sys
 from pathlib import Path
 
 import pandas as pd
 import pytest
-from conftest import REPO_ROOT, one_line_error
+from conftest import one_line_error, simbench_summary
 
 import simbench
 from simbench.errors import SimbenchError
@@ -23,26 +21,8 @@ KEY = ["seed", "estimator"]
 @pytest.fixture(scope="module")
 def cli_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("cli") / "run"
-    proc = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "simbench",
-            "-m",
-            "scenario=urban",
-            "receiver=low",
-            "estimator=[l2,dcs]",
-            "seed=0,1",
-            "scenario.duration_s=60",
-            f"results_dir={out}",
-            "progress=false",
-        ],
-        cwd=REPO_ROOT,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-    assert proc.returncode == 0, proc.stderr[-2000:]
+    sweep = ("-m", "scenario=urban", "receiver=low", "estimator=[l2,dcs]", "seed=0,1", "scenario.duration_s=60")
+    simbench_summary(out, *sweep)
     return out
 
 

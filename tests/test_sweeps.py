@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+from conftest import run_simbench
 
 from simbench.analysis.claims import CLAIM_COLUMNS
 from simbench.contract import read_parquet_metadata
@@ -20,15 +21,9 @@ ROOT = Path(__file__).resolve().parent.parent
 SHORT = ["scenario.duration_s=40", "progress=false", "estimator=[ekf_ppp]"]
 
 
-def _simbench(*args: str, **kwargs) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "simbench", *args], cwd=ROOT, capture_output=True, text=True, timeout=600, **kwargs
-    )
-
-
 def test_multirun_writes_store_claims_and_report(tmp_path: Path) -> None:
     out = tmp_path / "sweep"
-    proc = _simbench("-m", "seed=0,1", "receiver=low,high", f"results_dir={out}", "sweep_name=mini", *SHORT)
+    proc = run_simbench("-m", "seed=0,1", "receiver=low,high", f"results_dir={out}", "sweep_name=mini", *SHORT)
     assert proc.returncode == 0, proc.stderr[-2000:]
     summary = pd.read_parquet(out / "summary.parquet")
     assert len(summary) == 4 and (summary["status"] == "ok").all()
@@ -66,7 +61,7 @@ def test_killed_sweep_resumes_without_recomputing(tmp_path: Path) -> None:
     proc.wait()
     finished = {p: p.stat().st_mtime_ns for p in out.glob("jobs/*/*.summary.parquet")}
     assert 2 <= len(finished) < 6, "the kill should land mid-sweep"
-    rerun = _simbench("-m", "seed=0,1,2,3,4,5", f"results_dir={out}", *SHORT)
+    rerun = run_simbench("-m", "seed=0,1,2,3,4,5", f"results_dir={out}", *SHORT)
     assert rerun.returncode == 0, rerun.stderr[-2000:]
     summary = pd.read_parquet(out / "summary.parquet")
     assert sorted(summary["seed"]) == [0, 1, 2, 3, 4, 5]
@@ -80,7 +75,7 @@ def test_failing_job_leaves_a_status_row_and_the_report_builds(tmp_path: Path) -
     out = tmp_path / "failing"
     # a mask no satellite clears: the estimator raises inside its run, the sweep goes on;
     # ionosphere-free processing of single-frequency data is an unmet need: skipped, not failed
-    proc = _simbench(
+    proc = run_simbench(
         "-m", "estimator.ekf_ppp.elevation_mask_deg=10,89", "gnss_model=dissertation", f"results_dir={out}", *SHORT
     )
     assert proc.returncode == 1, proc.stderr[-2000:]  # a failed row: exit 1, after every job ran
@@ -95,7 +90,7 @@ def test_failing_job_leaves_a_status_row_and_the_report_builds(tmp_path: Path) -
 
 def test_report_rebuilds_from_job_files(tmp_path: Path) -> None:
     out = tmp_path / "rebuild"
-    assert _simbench(f"results_dir={out}", *SHORT).returncode == 0
+    assert run_simbench(f"results_dir={out}", *SHORT).returncode == 0
     (out / "summary.parquet").unlink()
     (out / "report" / "index.html").unlink()
     proc = subprocess.run(

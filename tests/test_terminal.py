@@ -7,13 +7,13 @@ from __future__ import annotations
 import dataclasses
 import importlib.util
 import re
-import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import run_simbench
 
 import estimators
 import simbench.cli.main as cli
@@ -33,24 +33,8 @@ BAR = re.compile(r"(?P<desc>[a-z ]+): +\d+%\|[^|]*\| (?P<n>\d+)/(?P<total>\d+) "
 @pytest.mark.slow
 def test_a_joblib_sweep_draws_one_bar_in_the_parent_that_ends_at_n_of_n(tmp_path: Path) -> None:
     out = tmp_path / "sweep"
-    proc = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "simbench",
-            "-m",
-            "seed=0,1",
-            "scenario.duration_s=10",
-            "estimator=[wls_spp]",
-            "hydra/launcher=joblib",
-            "hydra.launcher.n_jobs=2",
-            f"results_dir={out}",
-        ],
-        cwd=ROOT,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
+    sweep = ("-m", "seed=0,1", "scenario.duration_s=10", "estimator=[wls_spp]")
+    proc = run_simbench(*sweep, "hydra/launcher=joblib", "hydra.launcher.n_jobs=2", f"results_dir={out}")
     assert proc.returncode == 0, proc.stderr[-2000:]
     draws = [m for m in BAR.finditer(proc.stderr)]
     # one bar: the parent's over the jobs; before, each worker drew its own over its estimators (0/1 ... 1/1)

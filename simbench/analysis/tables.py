@@ -21,7 +21,7 @@ from simbench.analysis.claims import BOOTSTRAP_RESAMPLES, CONFIDENCE, CONVERGENC
 from simbench.analysis.metrics import block_bootstrap, reference_percentiles, rmse, row_rmse
 from simbench.analysis.published import DRIVE_MEDIANS_BY_SWEEP, DRIVE_MEDIANS_M, DRIVE_SCENARIOS, PUBLISHED_FAMILY
 from simbench.analysis.variants import NO_OVERRIDES, display_names, is_default
-from simbench.source import SIMULATED
+from simbench.source_registry import SIMULATED
 
 #: Columns that identify a variant of an estimator: its gnss_model preset, the structured overrides
 #: (relative to that preset, so a sweep over presets has a default row under each) and their label.

@@ -8,7 +8,7 @@ a real log's reference): the per-observation code residual ::
     residual_j = raw_j - median over the epoch's satellites of the same system
 
 with the corrections of the estimators' measurement model
-(:mod:`estimators.measurement`): the product satellite clock (TGD in it), the
+(:mod:`estimators.model.measurement`): the product satellite clock (TGD in it), the
 Sagnac range (:func:`simbench.gnss.geometry.sagnac_range`), the Saastamoinen
 hydrostatic delay with the Niell mapping (:func:`simbench.gnss.troposphere.troposphere_terms`),
 the broadcast Klobuchar delay unless the log is already corrected. Where the

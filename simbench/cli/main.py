@@ -98,7 +98,8 @@ def main() -> None:
     one_line_warnings()
     args = sys.argv[1:]
     if args and args[0] in SUBCOMMANDS:
-        sys.exit(importlib.import_module(f"simbench.cli.{SUBCOMMANDS[args[0]]}").main(args[1:]))
+        command = importlib.import_module(f"simbench.cli.{SUBCOMMANDS[args[0]]}")  # dynamic: a module of SUBCOMMANDS
+        sys.exit(command.main(args[1:]))
     if any(a in ("-h", "--help") for a in args):
         print(help_text())
         return
@@ -401,6 +402,13 @@ def job_overrides(args: list[str]) -> list[list[str]] | None:
     return jobs
 
 
+def family_package(module: str) -> str:
+    """The family package of a built-in estimator's module (``estimators.batch.bce`` -> ``batch``); a
+    plug-in's module as it is."""
+    parts = module.split(".")
+    return parts[1] if parts[0] == "estimators" and len(parts) > 2 else module
+
+
 def estimator_table() -> pandas.DataFrame:
     """The registered estimators (``python -m simbench --estimators``).
 
@@ -418,7 +426,7 @@ def estimator_table() -> pandas.DataFrame:
     rows = [
         {
             "name": name,
-            "family": cls.__module__.removeprefix("estimators."),
+            "family": family_package(cls.__module__),
             "source": estimators.source(name),
             "description": (inspect.getdoc(cls) or "").partition("\n")[0],
         }

@@ -6,15 +6,11 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-import pandas as pd
-from tqdm.auto import tqdm
-
 from simbench.cli.text import OneLineParser, plain_text
-from simbench.contract import write_bytes
 from simbench.errors import SimbenchError
 from simbench.runs.checks import check_seed
-from simbench.runs.files import check_output_dir, os_fault
-from simbench.runs.zero_baseline import TABLE_NAME, check_zero_baseline, zero_baseline
+from simbench.runs.files import check_output_dir
+from simbench.runs.zero_baseline import write_zero_baseline
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -31,21 +27,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     names = [a for a in args.scenarios if "=" not in a]
     overrides = dict(a.split("=", 1) for a in args.scenarios if "=" in a)
-    try:  # the seed and the output folder before the first scenario is generated
+    try:  # the arguments before the first scenario is generated
         check_seed(args.seed, "--seed", "--seed 0")
         if not names:
             raise SimbenchError("scenarios", "names no scenario preset", "e.g. zero-baseline morgantown1 morgantown2")
         out = check_output_dir("--out", args.out, "--out results/zero_baseline")
-        for name in names:  # every scenario's config before the first is generated
-            check_zero_baseline(name, args.seed, **overrides)
-        table = pd.concat(
-            [zero_baseline(s, args.seed, **overrides) for s in tqdm(names, desc="zero baseline")], ignore_index=True
-        )
-        path = out / TABLE_NAME
-        try:
-            write_bytes(path, table.to_csv(index=False).encode())
-        except OSError as exc:  # a full disk: one line, and no half-written table (written under another name)
-            raise os_fault(exc, path) from None
+        table, path = write_zero_baseline(names, out, args.seed, **overrides)
     except SimbenchError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2

@@ -14,7 +14,7 @@ Differences from GPS (BDS-SIS-ICD-B1I 3.0, section 5.2.4):
 Everything else (record selection by closest Toe, Kepler solution, harmonic
 corrections) is :class:`simbench.core.orbits.BroadcastEphemeris`; times stay
 continuous GPS seconds, so BeiDou and GPS states come out in one time scale.
-The RINEX reader is :func:`simbench.data.beidou.read_beidou_navigation`.
+The RINEX reader is :func:`simbench.data.broadcast.read_navigation` (``"C"``).
 """
 
 from __future__ import annotations
@@ -49,7 +49,7 @@ _GEO_TILT_RAD = -5.0 * DEG
 class BeidouEphemeris(BroadcastEphemeris):
     """BeiDou broadcast ephemerides (see the module docstring); ``tgd`` holds TGD1 (B1I).
 
-    Read from a file with :func:`simbench.data.beidou.read_beidou_navigation`.
+    Read from a file with :func:`simbench.data.broadcast.read_navigation` (``"C"``).
     ``records`` as for :class:`~simbench.core.orbits.BroadcastEphemeris`, with
     ``toe``/``toc`` in continuous GPS seconds.
     """

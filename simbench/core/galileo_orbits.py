@@ -18,7 +18,7 @@ Galileo OS SIS ICD (Issue 1.3, 2016; Issue 2.0, 2021), section 5.1:
 
 Everything else (closest-Toe record selection, Kepler solution, harmonic
 corrections, velocities) is :class:`simbench.core.orbits.BroadcastEphemeris`.
-The RINEX reader is :func:`simbench.data.galileo.read_galileo_navigation`.
+The RINEX reader is :func:`simbench.data.broadcast.read_navigation` (``"E"``).
 """
 
 from __future__ import annotations

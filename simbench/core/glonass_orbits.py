@@ -23,7 +23,7 @@ with the leap seconds (:func:`simbench.core.gpstime.utc_to_gps`). The
 satellite clock is ``dt_sv(t) = -TauN + GammaN (t - tb)`` (RINEX stores
 -TauN and +GammaN; relativistic effects are inside the broadcast clock). The
 GLONASS-GPS system time offset is left to a per-system receiver clock.
-The RINEX reader is :func:`simbench.data.glonass.read_glonass_navigation`.
+The RINEX reader is :func:`simbench.data.broadcast.read_navigation` (``"R"``).
 """
 
 from __future__ import annotations
@@ -32,9 +32,7 @@ import math
 
 import numpy as np
 
-from simbench.core.gpstime import format_gps_time
-from simbench.core.orbits import ClosestRecordSelector, SatelliteStates, state_time_grid
-from simbench.errors import SimbenchError
+from simbench.core.orbits import RecordEphemeris, SatelliteStates, state_time_grid
 
 __all__ = [
     "GlonassEphemeris",
@@ -112,7 +110,7 @@ def _rk4(
     return pos, vel
 
 
-class GlonassEphemeris:
+class GlonassEphemeris(RecordEphemeris):
     """GLONASS broadcast ephemerides (see the module docstring); same interface as the GPS one.
 
     Attributes
@@ -134,6 +132,7 @@ class GlonassEphemeris:
     """
 
     system_name = "GLONASS"
+    coverage_fix = "pass the GLONASS navigation data of the observation day"
 
     def __init__(
         self,
@@ -148,7 +147,7 @@ class GlonassEphemeris:
         Parameters
         ----------
         sats : np.ndarray of str, shape (m,)
-            Satellite ids; ``records['sat']`` indexes into it.
+            GLONASS satellite ids (``'R05'``), in the order ``records['sat']`` indexes.
         records : dict of str -> np.ndarray
             ``sat`` (int index, (R,)), ``tb`` (continuous GPS s, (R,)), ``pos`` [m],
             ``vel`` [m/s] and ``acc`` (lunisolar) [m/s^2] (each (R, 3), PZ-90 at tb),
@@ -172,35 +171,11 @@ class GlonassEphemeris:
         last = np.searchsorted(self._sat_idx, np.arange(m), side="right") - 1
         self.freq_number = r["freq"].astype(int)[last]
         self.tgd = np.zeros(m)
-        self._selector = ClosestRecordSelector(self._sat_idx, self._tb, m)
-        self.t_coverage = (float(self._tb.min() - self.max_age_s), float(self._tb.max() + self.max_age_s))
-
-    def select_records(self, t_gps: np.ndarray) -> np.ndarray:
-        """Index of the record used for each (epoch, satellite), -1 if none (as the GPS ephemeris' method).
-
-        Parameters
-        ----------
-        t_gps : np.ndarray, shape (n,), (n, 1) or (n, m)
-            Times [s]; 1-D (or one column) means the same time for all satellites.
-
-        Returns
-        -------
-        idx : np.ndarray of int, shape (n, m)
-            Index into the record arrays of the record with the nearest tb (ties: the earlier), or -1
-            if |t - tb| > ``max_age_s`` or the satellite has no record.
-        """
-        return self._selector.select(t_gps, self.max_age_s)
+        self._index_records(self._sat_idx, self._tb)
 
     def states(self, t_gps: np.ndarray, offset_s: np.ndarray | float | None = None) -> SatelliteStates:
-        """Satellite positions, velocities and clocks from the record with the nearest tb.
-
-        Parameters
-        ----------
-        t_gps : np.ndarray, shape (n,) or (n, m)
-            Evaluation times, continuous GPS seconds [s]; also selects the record.
-        offset_s : np.ndarray or float, optional
-            Small offsets added to ``t_gps`` with full precision [s];
-            broadcastable to (n, m). Record selection ignores it.
+        """Satellite positions, velocities and clocks from the record with the nearest tb, integrated to
+        ``t_gps + offset_s`` (parameters and errors as :meth:`simbench.core.orbits.BroadcastEphemeris.states`).
 
         Returns
         -------
@@ -208,11 +183,6 @@ class GlonassEphemeris:
             PZ-90 (taken as WGS-84) positions of time t [m], velocities [m/s],
             clock -TauN + GammaN (t - tb) [s] and its rate GammaN [s/s]; NaN where
             no record lies within ``max_age_s``.
-
-        Raises
-        ------
-        SimbenchError
-            If at some requested epoch no satellite has a valid record.
         """
         t, off = state_time_grid(t_gps, offset_s, self.sats.size)
         n, m = off.shape
@@ -220,13 +190,7 @@ class GlonassEphemeris:
         ok = idx >= 0
         bad = ~ok.any(axis=1)
         if bad.any():
-            raise SimbenchError(
-                "t_gps",
-                f"no valid GLONASS ephemeris at {int(bad.sum())} of {n} epochs (first "
-                f"{format_gps_time(float(t[np.argmax(bad), 0]))} GPS); {self.source or 'the ephemeris'} covers "
-                f"{format_gps_time(self.t_coverage[0])} .. {format_gps_time(self.t_coverage[1])} GPS",
-                "pass the GLONASS navigation data of the observation day",
-            )
+            self._raise_coverage(int(bad.sum()), n, first=float(t[np.argmax(bad), 0]))
         gi = idx[ok]
         dt = (np.broadcast_to(t, (n, m))[ok] - self._tb[gi]) + off[ok]
         p, v = _rk4(self._pos[gi], self._vel[gi], self._acc[gi], dt, self.max_step_s)

@@ -94,18 +94,8 @@ def gps_to_datetime64(t_gps: np.ndarray | float) -> np.ndarray:
 
 
 def format_gps_time(t_gps: float) -> str:
-    """A GPS time as ``'YYYY-MM-DD hh:mm:ss'`` (GPS time scale, whole seconds), for error messages.
-
-    Parameters
-    ----------
-    t_gps : float
-        Continuous GPS seconds [s].
-
-    Returns
-    -------
-    str
-        Calendar date and time, truncated to the second.
-    """
+    """``t_gps`` (continuous GPS seconds [s]) as ``'YYYY-MM-DD hh:mm:ss'`` in the GPS time scale, truncated to
+    the second, for error messages."""
     return str(gps_to_datetime64(t_gps).astype("datetime64[s]")).replace("T", " ")
 
 

@@ -348,7 +348,58 @@ class ClosestRecordSelector:
         return np.where(ok, idx, -1)
 
 
-class BroadcastEphemeris:
+class RecordEphemeris:
+    """What every broadcast ephemeris shares: each (epoch, satellite) takes the record whose reference
+    time (Toe; GLONASS tb) is closest, within ``max_age_s``, and an epoch no record covers is an error.
+
+    A subclass sets ``sats``, ``source``, ``max_age_s`` and calls :meth:`_index_records` with its
+    records' satellites and reference times (sorted by satellite, then time).
+    """
+
+    #: Name used in messages.
+    system_name: str = "GPS"
+    #: What the coverage error tells the user to do.
+    coverage_fix: str = "choose a start time inside that span or a navigation file for the simulated dates"
+    sats: np.ndarray
+    source: str
+    max_age_s: float
+    #: First and last GPS time at which some satellite is valid [s].
+    t_coverage: tuple[float, float]
+
+    def _index_records(self, record_sat: np.ndarray, record_t: np.ndarray) -> None:
+        """Build the record selector and the coverage span."""
+        self._selector = ClosestRecordSelector(record_sat, record_t, self.sats.size)
+        self.t_coverage = (float(record_t.min() - self.max_age_s), float(record_t.max() + self.max_age_s))
+
+    def select_records(self, t_gps: np.ndarray) -> np.ndarray:
+        """Index of the record used for each (epoch, satellite), -1 if none.
+
+        Parameters
+        ----------
+        t_gps : np.ndarray, shape (n,), (n, 1) or (n, m)
+            Times [s]; 1-D (or one column) means the same time for all satellites.
+
+        Returns
+        -------
+        idx : np.ndarray of int, shape (n, m)
+            Index into the internal record arrays of the healthy record with the closest
+            reference time (ties: the earlier), or -1 if it is more than ``max_age_s`` away
+            or the satellite has no record.
+        """
+        return self._selector.select(t_gps, self.max_age_s)
+
+    def _raise_coverage(self, n_bad: int, n: int, first: float) -> None:
+        """The one-line error for ``n_bad`` of ``n`` epochs without a valid record, the first at ``first`` [s]."""
+        raise SimbenchError(
+            "t_gps",
+            f"no valid {self.system_name} ephemeris at {n_bad} of {n} epochs "
+            f"(first {format_gps_time(first)} GPS); {self.source or 'the ephemeris'} covers "
+            f"{format_gps_time(self.t_coverage[0])} .. {format_gps_time(self.t_coverage[1])} GPS",
+            self.coverage_fix,
+        )
+
+
+class BroadcastEphemeris(RecordEphemeris):
     """GPS broadcast ephemerides evaluated with the IS-GPS-200 user algorithm.
 
     The Keplerian algorithm is shared by every system that broadcasts GPS-like
@@ -391,8 +442,6 @@ class BroadcastEphemeris:
     f_rel: float = F_REL
     #: Start of the system's week after the GPS week start (Omega0 refers to it) [s].
     week_origin_s: float = 0.0
-    #: Name used in messages.
-    system_name: str = "GPS"
 
     def __init__(
         self,
@@ -430,7 +479,7 @@ class BroadcastEphemeris:
         m = self.sats.size
         start = np.searchsorted(self._sat_idx, np.arange(m), side="left")
         stop = np.searchsorted(self._sat_idx, np.arange(m), side="right")
-        self._selector = ClosestRecordSelector(self._sat_idx, self._toe, m)
+        self._index_records(self._sat_idx, self._toe)
         # Time-independent per-record quantities, precomputed once. Trig of the
         # argument of perigee and of i0 lets _kepler use angle-addition formulas
         # instead of ~6 transcendental calls per satellite-epoch.
@@ -470,24 +519,6 @@ class BroadcastEphemeris:
         self.tgd = np.array(
             [np.nanmedian(r["tgd"][start[j] : stop[j]]) if stop[j] > start[j] else np.nan for j in range(m)]
         )
-        self.t_coverage = (float(self._toe.min() - self.max_age_s), float(self._toe.max() + self.max_age_s))
-
-    def select_records(self, t_gps: np.ndarray) -> np.ndarray:
-        """Index of the record used for each (epoch, satellite), -1 if none.
-
-        Parameters
-        ----------
-        t_gps : np.ndarray, shape (n,), (n, 1) or (n, m)
-            Times [s]; 1-D (or one column) means the same time for all satellites.
-
-        Returns
-        -------
-        idx : np.ndarray of int, shape (n, m)
-            Index into the internal record arrays of the healthy record with
-            the closest Toe (ties: the earlier), or -1 if |t - Toe| > ``max_age_s``
-            or the satellite has no record.
-        """
-        return self._selector.select(t_gps, self.max_age_s)
 
     def states(self, t_gps: np.ndarray, offset_s: np.ndarray | float | None = None) -> SatelliteStates:
         """Satellite positions, velocities and clocks by the IS-GPS-200 algorithm.
@@ -529,7 +560,8 @@ class BroadcastEphemeris:
             ok = idx >= 0
             bad_epoch = ~ok.any(axis=1)
             if bad_epoch.any():
-                self._raise_coverage(t[:, 0], first=float(tb[np.argmax(bad_epoch), 0]))
+                n_bad = int((~(self.select_records(t[:, 0]) >= 0).any(axis=1)).sum())
+                self._raise_coverage(n_bad, n, first=float(tb[np.argmax(bad_epoch), 0]))
             gi = np.where(ok, idx, 0)
             tk = (tb - self._toe[gi]) + off[a:b]
             tc = (tb - self._toc[gi]) + off[a:b]
@@ -542,16 +574,6 @@ class BroadcastEphemeris:
             clk[nan] = np.nan
             drift[nan] = np.nan
         return SatelliteStates(sats=self.sats, pos=pos, vel=vel, clock=clk, clock_drift=drift, valid=valid)
-
-    def _raise_coverage(self, t_epochs: np.ndarray, first: float) -> None:
-        n_bad = int((~(self.select_records(t_epochs) >= 0).any(axis=1)).sum())
-        raise SimbenchError(
-            "t_gps",
-            f"no valid {self.system_name} ephemeris at {n_bad} of {t_epochs.size} epochs "
-            f"(first {format_gps_time(first)} GPS); {self.source or 'the ephemeris'} covers "
-            f"{format_gps_time(self.t_coverage[0])} .. {format_gps_time(self.t_coverage[1])} GPS",
-            "choose a start time inside that span or a navigation file for the simulated dates",
-        )
 
     def _kepler(
         self,

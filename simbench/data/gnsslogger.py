@@ -88,6 +88,7 @@ from simbench.data.rinex import (
     GLO_F2_OVER_F1,
     SECOND_SIGNALS,
     SIGNALS,
+    LogInputs,
     RinexObs,
     first_signals,
     rinex_scenario,
@@ -757,17 +758,8 @@ def load_gnsslogger(
         not cover the log, a reference far from the log's own fixes).
     """
     read = read_gnsslogger(obs_path, systems)
-    scenario = rinex_scenario(
-        read.obs,
-        nav_path,
-        truth_path,
-        systems=systems,
-        nav_bds_path=nav_bds_path,
-        nav_glo_path=nav_glo_path,
-        nav_gal_path=nav_gal_path,
-        name=name,
-        truth_max_gap_s=truth_max_gap_s,
-    )
+    inputs = LogInputs(nav_path, truth_path, systems, nav_bds_path, nav_glo_path, nav_gal_path, name, truth_max_gap_s)
+    scenario = rinex_scenario(read.obs, inputs)
     meta = {k: v for k, v in scenario.meta.items() if k != "rinex_version"}
     meta |= {
         "source": "gnsslogger",

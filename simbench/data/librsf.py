@@ -59,7 +59,7 @@ from simbench.core.constants import DEG, SECONDS_PER_WEEK
 from simbench.core.frames import dcm_ned_to_ecef, ecef_from_geodetic, geodetic_from_ecef
 from simbench.core.gpstime import day_of_year
 from simbench.core.orbits import NominalConstellation
-from simbench.data.logs import epoch_grid_of, log_scenario, log_truth, observation_table, rough_fix
+from simbench.data.logs import EpochGrid, RoughFix, epoch_grid_of, log_scenario, log_truth, observation_table, rough_fix
 from simbench.data.reference import Reference, read_reference
 from simbench.errors import SimbenchError
 from simbench.gnss.geometry import elevation_azimuth, sagnac_range
@@ -391,33 +391,92 @@ def load_librsf(
         From the readers, or when the reference does not overlap the log.
     """
     log = read_librsf(path)
+    epochs = _librsf_epochs(log)
+    t0_sow = start_sow_s + log.t0
+    observations = _librsf_observations(log, epochs, day_of_year(gps_week, t0_sow))
+    t_abs0 = gps_week * SECONDS_PER_WEEK + t0_sow
+    if truth_path:
+        ref = _external_reference(os.fspath(truth_path), gps_week, gps_week * SECONDS_PER_WEEK + start_sow_s)
+    else:
+        ref = _point3_reference(log, t_abs0)
+    truth = log_truth(
+        epochs.grid,
+        t_abs0,
+        ref,
+        truth_max_gap_s,
+        observations["epoch"].to_numpy(),
+        epochs.rough,
+        field="scenario.truth" if truth_path else "scenario.obs",
+    )
+    nav = NavInfo(
+        gps_week=gps_week,
+        start_sow_s=t0_sow,
+        iono_alpha=(0.0,) * 4,
+        iono_beta=(0.0,) * 4,
+        dual_frequency=False,
+        iono_corrected=True,
+    )
+    meta = {
+        "name": name,
+        "seed": 0,
+        "source": "librsf",
+        "files": {"obs": str(Path(path)), "truth": str(truth_path or "")},
+        "systems": "".join(sorted({s[0] for s in observations["sat"].unique().tolist()})),
+        "epochs": epochs.grid.n,
+        "epochs_with_truth": len(truth),
+        "odometry_rows": len(log.odometry),
+        "rough_fix_rms_m": float(np.nanmedian(epochs.rough.fix.rms_m[epochs.rough.fix.trusted])),
+        "corrections": "satellite clock, ionosphere and troposphere removed in the file; the modelled "
+        "hydrostatic delay is added back for the shared model; no carrier phase",
+    }
+    return log_scenario(observations, truth, nav, meta, odometry=log.odometry)
+
+
+@dataclass(frozen=True)
+class _LibrsfEpochs:
+    """The epochs of a libRSF log's pseudorange rows and the reader's single-point fix on them."""
+
+    grid: EpochGrid
+    t_epoch: np.ndarray  #: file time of each epoch [s]
+    row_epoch: np.ndarray  #: epoch index of each row of ``ranges``
+    rough: RoughFix
+
+
+def _librsf_epochs(log: LibrsfLog) -> _LibrsfEpochs:
+    """Group the rows into epochs (times rounded to the file's resolution) and fix each epoch roughly."""
     rg = log.ranges
     t_key = np.round(rg["t"].to_numpy() / _EPOCH_RESOLUTION_S).astype(np.int64)
     uniq, row_epoch = np.unique(t_key, return_inverse=True)
     t_epoch = uniq * _EPOCH_RESOLUTION_S
     interval = float(np.median(np.diff(t_epoch))) if t_epoch.size > 1 else 1.0
-    grid = epoch_grid_of(t_epoch, interval)
-    sat_pos = rg[["sat_x", "sat_y", "sat_z"]].to_numpy(float)
-    rho = rg["rho"].to_numpy(float)
     # one receiver clock per system: GLONASS (and any other) pseudoranges carry an inter-system bias
     system_index = np.unique(rg["sat"].str[0].to_numpy(), return_inverse=True)[1]
-    rough = rough_fix(row_epoch, sat_pos, rho, n_epochs=t_epoch.size, system_index=system_index)
-    fix = rough.fix
+    rough = rough_fix(
+        row_epoch,
+        rg[["sat_x", "sat_y", "sat_z"]].to_numpy(float),
+        rg["rho"].to_numpy(float),
+        n_epochs=t_epoch.size,
+        system_index=system_index,
+    )
+    return _LibrsfEpochs(epoch_grid_of(t_epoch, interval), t_epoch, row_epoch, rough)
+
+
+def _librsf_observations(log: LibrsfLog, epochs: _LibrsfEpochs, doy: float) -> pd.DataFrame:
+    """The observation table of the pseudorange rows: code only, elevation from the file or the rough fix."""
+    rg = log.ranges
+    sat_pos = rg[["sat_x", "sat_y", "sat_z"]].to_numpy(float)
     el_file = rg["el"].to_numpy(float)
-    el_deg = np.where(np.isfinite(el_file), el_file, np.degrees(rough.el))
-
+    el_deg = np.where(np.isfinite(el_file), el_file, np.degrees(epochs.rough.el))
     # Re-insert the modelled hydrostatic delay that the shared model subtracts (module docstring).
-    t0_sow = start_sow_s + log.t0
-    doy = day_of_year(gps_week, t0_sow)
-    lat, _, h = geodetic_from_ecef(np.median(fix.pos, axis=0))
-    code = rho + troposphere_terms(el_deg * DEG, float(lat), float(h), doy)[0]
-
+    lat, _, h = geodetic_from_ecef(np.median(epochs.rough.fix.pos, axis=0))
+    code = rg["rho"].to_numpy(float) + troposphere_terms(el_deg * DEG, float(lat), float(h), doy)[0]
     n = len(rg)
     nan = np.full(n, np.nan)
-    observations = observation_table(
+    row_epoch = epochs.row_epoch
+    return observation_table(
         {
-            "epoch": grid.index[row_epoch],
-            "t": t_epoch[row_epoch],
+            "epoch": epochs.grid.index[row_epoch],
+            "t": epochs.t_epoch[row_epoch],
             "sat": rg["sat"].to_numpy(),
             "code_l1": code,
             "phase_l1": nan,
@@ -437,56 +496,21 @@ def load_librsf(
             "sat_clock": np.zeros(n),
             "sat_clock_drift": np.zeros(n),
             "el": el_deg,
-            "az": np.degrees(rough.az),
+            "az": np.degrees(epochs.rough.az),
         }
     )
 
-    t_abs0 = gps_week * SECONDS_PER_WEEK + t0_sow
-    if truth_path:
-        ref = _external_reference(os.fspath(truth_path), gps_week, gps_week * SECONDS_PER_WEEK + start_sow_s)
-    else:
-        pts = log.reference
-        if pts.empty:
-            raise SimbenchError(
-                f"scenario.obs '{log.path}'",
-                "has no point3 reference lines and no scenario.truth",
-                "pass a reference with scenario.truth=... (libRSF point3 or week,TOW,lat,lon,h)",
-            )
-        ref = Reference(
-            t_gps=t_abs0 + pts["t"].to_numpy(float), xyz=pts[["x", "y", "z"]].to_numpy(float), path=log.path
-        )
-    truth = log_truth(
-        grid,
-        t_abs0,
-        ref,
-        truth_max_gap_s,
-        observations["epoch"].to_numpy(),
-        rough,
-        field="scenario.truth" if truth_path else "scenario.obs",
-    )
 
-    nav = NavInfo(
-        gps_week=gps_week,
-        start_sow_s=t0_sow,
-        iono_alpha=(0.0,) * 4,
-        iono_beta=(0.0,) * 4,
-        dual_frequency=False,
-        iono_corrected=True,
-    )
-    meta = {
-        "name": name,
-        "seed": 0,
-        "source": "librsf",
-        "files": {"obs": str(Path(path)), "truth": str(truth_path or "")},
-        "systems": "".join(sorted({s[0] for s in observations["sat"].unique().tolist()})),
-        "epochs": grid.n,
-        "epochs_with_truth": len(truth),
-        "odometry_rows": len(log.odometry),
-        "rough_fix_rms_m": float(np.nanmedian(fix.rms_m[fix.trusted])),
-        "corrections": "satellite clock, ionosphere and troposphere removed in the file; the modelled "
-        "hydrostatic delay is added back for the shared model; no carrier phase",
-    }
-    return log_scenario(observations, truth, nav, meta, odometry=log.odometry)
+def _point3_reference(log: LibrsfLog, t_abs0: float) -> Reference:
+    """The reference of the log's own ``point3`` lines (``t_abs0``: GPS time of the log's first row [s])."""
+    pts = log.reference
+    if pts.empty:
+        raise SimbenchError(
+            f"scenario.obs '{log.path}'",
+            "has no point3 reference lines and no scenario.truth",
+            "pass a reference with scenario.truth=... (libRSF point3 or week,TOW,lat,lon,h)",
+        )
+    return Reference(t_gps=t_abs0 + pts["t"].to_numpy(float), xyz=pts[["x", "y", "z"]].to_numpy(float), path=log.path)
 
 
 def _external_reference(p: str, gps_week: int, t_file0_gps: float) -> Reference:
@@ -561,6 +585,7 @@ def write_synthetic_librsf(
     Returns
     -------
     Path
+        The synthetic log written (``path``).
 
     Raises
     ------

@@ -23,15 +23,15 @@ unchanged on real data:
 Klobuchar and Saastamoinen are not applied here: the observation table holds
 raw observables as the simulator's does, the header's Klobuchar coefficients
 go into :class:`~simbench.contract.NavInfo`, and the shared measurement model
-(:func:`estimators.measurement.prepare_ppp`) applies both.
+(:func:`estimators.model.measurement.prepare_ppp`) applies both.
 
 GPS (``G``, L1 C/A), GLONASS (``R``, L1 C/A FDMA: the wavelength of each
 satellite from the frequency channel of its navigation record; orbits by
 numerical integration, :mod:`simbench.core.glonass_orbits`), Galileo (``E``,
 E1; clock minus BGD(E1,E5b), :mod:`simbench.core.galileo_orbits`), BeiDou
 (``C``, B1I: ``C1I`` in RINEX 3.02, ``C2I`` in 3.01 and 3.03+, :func:`first_signals`;
-:mod:`simbench.data.beidou`) and QZSS (``J``, L1 C/A; GPS-like records,
-:mod:`simbench.data.qzss`) are supported. Each satellite's second frequency
+:mod:`simbench.core.beidou_orbits`) and QZSS (``J``, L1 C/A; GPS-like records) are supported
+(their navigation records: :mod:`simbench.data.broadcast`). Each satellite's second frequency
 (:data:`SECOND_SIGNALS`: GPS L2 else L5, Galileo E5a else E5b, BeiDou B3I else
 B2I, GLONASS G2, QZSS L2C else L5) goes into the ``*_l2`` columns with its
 ``f1_f2_ratio``; a satellite keeps one second signal for the whole log (the one
@@ -58,7 +58,6 @@ microseconds; this reader takes well under a second.
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -69,12 +68,8 @@ from simbench.contract import NavInfo, RinexFiles, Scenario
 from simbench.core.constants import C_LIGHT, F_B1I, F_L1, F_L2, SECONDS_PER_WEEK
 from simbench.core.glonass_orbits import GLO_F1_BASE_HZ, GlonassEphemeris, glonass_l1_frequency
 from simbench.core.gpstime import datetime64_to_gps
-from simbench.core.orbits import BroadcastEphemeris
-from simbench.data.beidou import load_beidou_navigation
-from simbench.data.galileo import load_galileo_navigation
-from simbench.data.glonass import read_glonass_navigation
+from simbench.data.broadcast import Ephemeris, load_navigation
 from simbench.data.logs import epoch_grid_of, log_scenario, log_truth, observation_table, rough_fix
-from simbench.data.qzss import read_qzss_navigation
 from simbench.data.reference import read_reference
 from simbench.errors import SimbenchError, warn
 from simbench.gnss.coverage import check_coverage
@@ -822,17 +817,6 @@ def _first_records(
     return epochs, rows
 
 
-Ephemeris = BroadcastEphemeris | GlonassEphemeris
-#: Navigation reader of GLONASS and QZSS, called with ``(paths, setting=...)``.
-_READERS: dict[str, Callable[..., Ephemeris]] = {"R": read_glonass_navigation, "J": read_qzss_navigation}
-#: Navigation reader of Galileo and BeiDou, called as :data:`_READERS`: their second signals need
-#: group delays the ephemeris does not keep, which these return beside it.
-_LOADERS: dict[str, Callable[..., tuple[Ephemeris, GroupDelays]]] = {
-    "E": load_galileo_navigation,
-    "C": load_beidou_navigation,
-}
-
-
 def _load_ephemeris(paths: tuple[str, ...], setting: str, system: str) -> tuple[Ephemeris, GroupDelays]:
     """Ephemeris of one system from ``paths`` (records merged), read for ``setting`` (the parameter that named
     them: the system's own, or ``scenario.nav`` standing in for it), and its group delays
@@ -848,10 +832,8 @@ def _load_ephemeris(paths: tuple[str, ...], setting: str, system: str) -> tuple[
     delays: GroupDelays = {}
     if system == "G":
         eph: Ephemeris = read_gps_navigation(paths, setting=setting)
-    elif system in _LOADERS:
-        eph, delays = _LOADERS[system](paths, setting=setting)
     else:
-        eph = _READERS[system](paths, setting=setting)
+        eph, delays = load_navigation(system, paths, setting=setting)
     return eph, {"tgd": eph.tgd, **delays}
 
 
@@ -1073,41 +1055,36 @@ def load_rinex(
     SimbenchWarning
         Observed satellites without a record near their epochs: their rows are left out.
     """
-    obs = read_rinex_obs(obs_path, systems)
-    return rinex_scenario(
-        obs,
-        nav_path,
-        truth_path,
-        systems=systems,
-        nav_bds_path=nav_bds_path,
-        nav_glo_path=nav_glo_path,
-        nav_gal_path=nav_gal_path,
-        name=name,
-        truth_max_gap_s=truth_max_gap_s,
-    )
+    inputs = LogInputs(nav_path, truth_path, systems, nav_bds_path, nav_glo_path, nav_gal_path, name, truth_max_gap_s)
+    return rinex_scenario(read_rinex_obs(obs_path, systems), inputs)
 
 
-def rinex_scenario(
-    obs: RinexObs,
-    nav_path: NavPaths,
-    truth_path: str | os.PathLike[str] | None = None,
-    *,
-    systems: str = "G",
-    nav_bds_path: NavPaths | None = None,
-    nav_glo_path: NavPaths | None = None,
-    nav_gal_path: NavPaths | None = None,
-    name: str = "",
-    truth_max_gap_s: float = 2.0,
-) -> Scenario:
+@dataclass(frozen=True)
+class LogInputs:
+    """What makes a log's observations a scenario besides them: :func:`load_rinex`'s parameters after
+    ``obs_path`` (the same meaning; the file parameters without their ``_path``)."""
+
+    nav: NavPaths
+    truth: str | os.PathLike[str] | None = None
+    systems: str = "G"
+    nav_bds: NavPaths | None = None
+    nav_glo: NavPaths | None = None
+    nav_gal: NavPaths | None = None
+    name: str = ""
+    truth_max_gap_s: float = 2.0
+
+
+def rinex_scenario(obs: RinexObs, inputs: LogInputs) -> Scenario:
     """The :class:`~simbench.contract.Scenario` of observations already read into a :class:`RinexObs`.
 
     Every step of :func:`load_rinex` after the observation file is read: ephemerides, satellite
     states at transmit time, the rough fix, the observation and truth tables. Another reader of
     raw observables (:mod:`simbench.data.gnsslogger`) fills a :class:`RinexObs` and comes here,
-    so one pipeline serves every format. The parameters after ``obs`` are :func:`load_rinex`'s;
-    ``obs.path`` stands for the observation file (the default name is its stem).
+    so one pipeline serves every format. ``obs.path`` stands for the observation file (the default
+    name is its stem).
     """
-    paths, settings = _navigation_plan(nav_path, nav_bds_path, nav_glo_path, nav_gal_path)
+    systems = inputs.systems
+    paths, settings = _navigation_plan(inputs.nav, inputs.nav_bds, inputs.nav_glo, inputs.nav_gal)
     used = [s for s in dict.fromkeys(systems) if s in obs.signals]
     loaded = {s: _load_ephemeris(paths[s], settings[s], s) for s in used}
     ephs = {s: eph for s, (eph, _) in loaded.items()}
@@ -1158,13 +1135,13 @@ def rinex_scenario(
 
     t0_gps = float(obs.epoch_t_int[0]) + obs.epoch_t_frac[0]
     week_hint = int(obs.epoch_t_int[0] // SECONDS_PER_WEEK)
-    ref = read_reference(truth_path, week_hint=week_hint) if truth_path else None
-    truth = log_truth(grid, t0_gps, ref, truth_max_gap_s, observations["epoch"].to_numpy(), rough)
+    ref = read_reference(inputs.truth, week_hint=week_hint) if inputs.truth else None
+    truth = log_truth(grid, t0_gps, ref, inputs.truth_max_gap_s, observations["epoch"].to_numpy(), rough)
     nav = _nav_info(obs, ephs, t0_gps, bool(second.has_l2.any()))
     second_used = {s: sorted(set(second.signal[(letters == s) & second.has_l2].tolist())) for s in used}
     used_text = "".join(used)
     meta = {
-        "name": name or Path(obs.path).stem,
+        "name": inputs.name or Path(obs.path).stem,
         "seed": 0,
         "source": "rinex",
         "files": {
@@ -1173,7 +1150,7 @@ def rinex_scenario(
             "nav_bds": ", ".join(paths["C"]),
             "nav_glo": ", ".join(paths["R"]),
             "nav_gal": ", ".join(paths["E"]),
-            "truth": str(truth_path or ""),
+            "truth": str(inputs.truth or ""),
         },
         "rinex_version": obs.version,
         "systems": used_text,

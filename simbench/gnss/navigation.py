@@ -6,8 +6,7 @@ the flat per-record arrays the ephemeris evaluator takes. The orbit and clock
 computation itself (IS-GPS-200) lives in :mod:`simbench.core.orbits`.
 
 :func:`read_rinex3_records` is the one reader of RINEX 3 navigation records
-for the other systems (BeiDou, Galileo, GLONASS; :mod:`simbench.data.beidou`,
-:mod:`simbench.data.galileo`, :mod:`simbench.data.glonass`), from a
+for the other systems (BeiDou, Galileo, GLONASS, QZSS; :mod:`simbench.data.broadcast`), from a
 single-system or a mixed (``M``) file: georinex 1.16 returns all-NaN records
 for files whose spare fields are blank (as in ``hksc1180.19b``).
 

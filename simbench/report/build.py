@@ -80,7 +80,7 @@ from simbench.runs.store import aggregate, cached_scenarios, diagnostics, intact
 from simbench.runs.studies import read_study_times, time_budget
 from simbench.runs.zero_baseline import COLUMNS as ZERO_BASELINE_COLUMNS
 from simbench.runs.zero_baseline import TABLE_NAME as ZERO_BASELINE_TABLE
-from simbench.source import SIMULATED
+from simbench.source_registry import SIMULATED
 
 #: The comparison baseline when present (the a priori L2 estimator), else the first estimator.
 BASELINES = ("l2", "isam2_ppp", "ekf_ppp")
@@ -306,6 +306,35 @@ def build_report(
     page.contents()
     if len(stats):
         _leaderboard_section(page, out, summary, stats, oracles)
+    _claims_section(page, claims)
+    if summary.empty:
+        return page.write(out, started)
+    _jobs_not_ok_section(page, summary)
+    _drives_section(page, summary)
+    _zero_baseline_section(page, run_dir)
+    # what follows each group's figures is written while the workers draw them
+    tables = [page.part() for _ in groups]
+    for part, inputs in zip(tables, groups):
+        _group_tables(part, inputs.name, inputs.group, inputs.in_group, summary, inputs.group_stats)
+    tail = page.part()
+    _study_times_section(tail, run_dir, summary)
+    with use_style(style):
+        _validation_section(tail, run_dir, out, list(scenarios.values()))
+        _diagnostics_section(tail, diag, out)
+    for inputs, items, part in zip(groups, drawn(), tables):
+        page.h2(inputs.name)
+        for item in items:
+            if isinstance(item, FigureFile):
+                page.figure(item)
+            else:
+                page.p(*item)
+        page.extend(part)
+    page.extend(tail)
+    return page.write(out, started)
+
+
+def _claims_section(page: _Page, claims: pd.DataFrame) -> None:
+    """The published claims measured in the run, one column per world where there are several."""
     measured = claims["holds"] != NOT_MEASURED
     if measured.any():
         page.h2("Published claims")
@@ -326,8 +355,10 @@ def build_report(
         page.table(claims[measured], classes=lambda r: r["holds"].split()[0])
         if not measured.all():
             page.p(_not_measured_line(claims), cls="note")
-    if summary.empty:
-        return page.write(out, started)
+
+
+def _jobs_not_ok_section(page: _Page, summary: pd.DataFrame) -> None:
+    """The jobs that did not end ``ok``, with their messages."""
     failed = summary[summary["status"] != "ok"]
     if len(failed):
         page.h2("Jobs not ok (left out of the figures and statistics)")
@@ -336,6 +367,10 @@ def build_report(
                 columns={"name": "estimator"}
             )
         )
+
+
+def _drives_section(page: _Page, summary: pd.DataFrame) -> None:
+    """Our medians on the Morgantown drives beside the dissertation's, where the run has them."""
     drives = drive_comparison(summary)
     if len(drives):
         page.h2("Morgantown drives: our medians beside the dissertation's")
@@ -349,6 +384,10 @@ def build_report(
             cls="note",
         )
         page.table(drives)
+
+
+def _zero_baseline_section(page: _Page, run_dir: Path) -> None:
+    """The run folder's zero-baseline table (``simbench zero-baseline``), where there is one."""
     zero = _zero_baseline(run_dir)
     if zero is not None:
         page.h2("Zero-baseline test: each preset's single-point solution against the geodetic receiver's")
@@ -359,25 +398,6 @@ def build_report(
             cls="note",
         )
         page.table(zero)
-    # what follows each group's figures is written while the workers draw them
-    tables = [page.part() for _ in groups]
-    for part, inputs in zip(tables, groups):
-        _group_tables(part, inputs.name, inputs.group, inputs.in_group, summary, inputs.group_stats)
-    tail = page.part()
-    _study_times_section(tail, run_dir, summary)
-    with use_style(style):
-        _validation_section(tail, run_dir, out, list(scenarios.values()))
-        _diagnostics_section(tail, diag, out)
-    for inputs, items, part in zip(groups, drawn(), tables):
-        page.h2(inputs.name)
-        for item in items:
-            if isinstance(item, FigureFile):
-                page.figure(item)
-            else:
-                page.p(*item)
-        page.extend(part)
-    page.extend(tail)
-    return page.write(out, started)
 
 
 def _zero_baseline(run_dir: Path) -> pd.DataFrame | None:

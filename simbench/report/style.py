@@ -33,19 +33,16 @@ from simbench.runs.checks import check_report_style
 
 #: Families in the order the report lists them.
 FAMILIES = ("batch", "incremental", "filter", "GNSS/INS", "SPP baselines", "oracle", "other")
-#: Family of each built-in estimator module; a plug-in or a scored solution is ``other``. The oracle
-#: reads the true error labels: an accuracy floor, a family of its own, not a baseline.
-FAMILY_OF_MODULE: dict[str, str] = {
-    "estimators.batch_robust": "batch",
-    "estimators.bce": "batch",
+#: Family of the built-in estimators by package (``estimators/<family>/``), the longest matching
+#: prefix of the class's module winning; a plug-in or a scored solution is ``other``. The oracle reads
+#: the true error labels: an accuracy floor, a family of its own, not a batch estimator.
+FAMILY_OF_PACKAGE: dict[str, str] = {
+    "estimators.batch": "batch",
+    "estimators.batch.oracle": "oracle",
     "estimators.incremental": "incremental",
-    "estimators.ice": "incremental",
-    "estimators.ekf_ppp": "filter",
-    "estimators.gnss_ins_ekf": "GNSS/INS",
-    "estimators.crt_lss": "GNSS/INS",
-    "estimators.oracle": "oracle",
-    "estimators.rtklib_spp": "SPP baselines",
-    "estimators.spp_baselines": "SPP baselines",
+    "estimators.filters": "filter",
+    "estimators.gnss_ins": "GNSS/INS",
+    "estimators.baselines": "SPP baselines",
 }
 #: Okabe & Ito (2008) without black: safe for the common colour-vision deficiencies.
 OKABE_ITO = {
@@ -183,8 +180,8 @@ def use_style(name: str = "screen") -> Iterator[Preset]:
 
 
 def families(estimators: Iterable[str]) -> dict[str, str]:
-    """The family (one of :data:`FAMILIES`) of each estimator name: that of its module
-    (:data:`FAMILY_OF_MODULE`), ``other`` for a plug-in or a scored solution. The registry is read
+    """The family (one of :data:`FAMILIES`) of each estimator name: that of its package
+    (:data:`FAMILY_OF_PACKAGE`), ``other`` for a plug-in or a scored solution. The registry is read
     once per call: it imports every estimator module.
 
     Parameters
@@ -198,9 +195,17 @@ def families(estimators: Iterable[str]) -> dict[str, str]:
         Name to family.
     """
     known = registered()
-    return {
-        name: FAMILY_OF_MODULE.get(known[name].__module__, "other") if name in known else "other" for name in estimators
-    }
+    return {name: family_of_module(known[name].__module__) if name in known else "other" for name in estimators}
+
+
+def family_of_module(module: str) -> str:
+    """The family of a built-in estimator's module (:data:`FAMILY_OF_PACKAGE`); ``other`` elsewhere."""
+    parts = module.split(".")
+    for end in range(len(parts), 0, -1):
+        family = FAMILY_OF_PACKAGE.get(".".join(parts[:end]))
+        if family is not None:
+            return family
+    return "other"
 
 
 def estimator_color(name: str) -> str:

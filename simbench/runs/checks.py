@@ -26,7 +26,7 @@ from simbench.runs.compose import Schemas, estimator_node
 from simbench.runs.files import check_output_dir
 from simbench.runs.scenarios import check_scenario, scenario_settings
 from simbench.runs.schema_record import NotRecorded, Record, known_valid, real_class, remember_valid, source_check
-from simbench.source import SIMULATED, SourceConfig
+from simbench.source_registry import SIMULATED, SourceConfig
 from simbench.typed import to_typed
 
 #: A file format of the report's figures: the page shows the PNG; PDF and SVG are for a paper.

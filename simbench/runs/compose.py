@@ -20,8 +20,8 @@ from omegaconf.errors import OmegaConfBaseException
 
 import estimators
 from estimators.base import validate_config
-from estimators.ppp_config import GnssModelConfig
-from simbench import source as sources
+from estimators.model.ppp_config import GnssModelConfig
+from simbench import source_registry as sources
 from simbench.errors import SimbenchError
 from simbench.paths import data_path
 from simbench.runs.groups import CONF_DIR, available, check_group_choices, config_groups, record_built_in_estimators
@@ -49,7 +49,8 @@ def real_schemas() -> Schemas:
     Raises
     ------
     SimbenchError
-        For a broken plug-in, naming its package (:func:`estimators.discover`, :func:`simbench.source.discover`).
+        For a broken plug-in, naming its package (:func:`estimators.discover`,
+        :func:`simbench.source_registry.discover`).
     """
     return Schemas(
         estimators={name: cls.Config for name, cls in estimators.registered().items()},
@@ -78,7 +79,8 @@ def register_schemas() -> None:
     Raises
     ------
     SimbenchError
-        For a broken plug-in, naming its package (:func:`estimators.discover`, :func:`simbench.source.discover`).
+        For a broken plug-in, naming its package (:func:`estimators.discover`,
+        :func:`simbench.source_registry.discover`).
     """
     schemas = real_schemas()
     store_schemas(schemas)
@@ -121,7 +123,7 @@ def store_schemas(schemas: Schemas) -> None:
     :func:`plugin_config_node`, a built-in estimator without ``conf/estimator/<name>.yaml``
     its ``Config`` defaults (its module is all it takes), and ``estimator/all`` lists every
     registered estimator, built-in and plug-in, so the default run and the sweeps include
-    them without an edit to ``conf/``. Each scenario source (:mod:`simbench.source`)
+    them without an edit to ``conf/``. Each scenario source (:mod:`simbench.source_registry`)
     gets its typed node ``scenario/<name>_schema`` from its ``Config`` (the simulator's presets
     use ``scenario/schema``, ``rinex.yaml`` uses ``rinex_schema``), and a source without a
     ``conf/scenario/<name>.yaml`` a preset of its ``Config`` defaults, so ``scenario=<name>`` runs it.

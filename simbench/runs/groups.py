@@ -36,7 +36,8 @@ def estimators_folder() -> Path | None:
 
 
 def _estimators_stamp(folder: Path) -> list[list[object]]:
-    return [[p.name, p.stat().st_size, p.stat().st_mtime_ns] for p in sorted(folder.glob("*.py"))]
+    files = sorted(folder.rglob("*.py"))
+    return [[p.relative_to(folder).as_posix(), p.stat().st_size, p.stat().st_mtime_ns] for p in files]
 
 
 def recorded_built_in_estimators() -> list[str] | None:

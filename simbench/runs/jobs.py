@@ -19,7 +19,7 @@ from threadpoolctl import threadpool_limits
 from tqdm.auto import tqdm
 
 import estimators
-from simbench import source as sources
+from simbench import source_registry as sources
 from simbench.errors import SimbenchError, one_line
 from simbench.runs.plan import JobPlan, plan_job
 from simbench.runs.provenance import code_identity, provenance
@@ -34,7 +34,7 @@ from simbench.runs.store import (
     result_stem,
     write_result,
 )
-from simbench.source import SIMULATED
+from simbench.source_registry import SIMULATED
 
 
 class Progress(Protocol):

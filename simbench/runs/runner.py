@@ -24,7 +24,7 @@ from estimators.base import COVARIANCE_COLUMNS, COVARIANCE_INDEX
 from simbench.analysis.metrics import enu_errors, local_enu, nees, reference_stats, summary_stats
 from simbench.contract import Need, Scenario, available_needs, unmet_needs_reason
 from simbench.errors import one_line
-from simbench.source import SIMULATED
+from simbench.source_registry import SIMULATED
 from simbench.typed import to_typed
 
 #: A 3-D error beyond this marks a run as diverged (no receiver is that wrong while working) [m].
@@ -35,7 +35,7 @@ SUMMARY_COLUMNS: dict[str, str] = {
     "sweep": "str, sweep name ('' for a single run)",
     "scenario": "str, scenario name",
     "source": "str, where the data come from: simulated, rinex, gnsslogger or librsf (a real log), or a plug-in "
-    "source's name (scenario.source; simbench.source)",
+    "source's name (scenario.source; simbench.source_registry)",
     "receiver": "str, receiver preset (describes the data only when source is simulated)",
     "seed": "int, scenario seed",
     "scenario_key": "str, hash of the resolved scenario config (same key = byte-identical data)",
@@ -244,7 +244,7 @@ def score_solution(scenario: Scenario, solution: pd.DataFrame, total_s: float) -
 
 
 def scenario_source(scenario: Scenario) -> str:
-    """Where ``scenario``'s data come from: the name of its source (:mod:`simbench.source`).
+    """Where ``scenario``'s data come from: the name of its source (:mod:`simbench.source_registry`).
 
     The readers of real logs record it in ``meta['source']``; the generator does not.
     """

@@ -1,6 +1,6 @@
 """Where a scenario comes from: the one function the CLI and sweeps call.
 
-``scenario.source`` names a registered source (:mod:`simbench.source`): the
+``scenario.source`` names a registered source (:mod:`simbench.source_registry`): the
 simulator, a RINEX or libRSF log, or a plug-in's. :func:`build_scenario` looks it
 up by name, so the CLI and the sweep cache need not know any of them.
 """
@@ -15,14 +15,14 @@ from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
 
-from simbench import source as sources
+from simbench import source_registry as sources
 from simbench.contract import Scenario, config_key
 from simbench.errors import SimbenchError
 from simbench.paths import file_digest
 from simbench.runs.compose import compose_config, overrides_from_kwargs
 from simbench.runs.provenance import code_identity
 from simbench.sim.config import ImuConfig, ReceiverConfig, ScenarioConfig, SimConfig, sim_config_of
-from simbench.source import SIMULATED, DataConfig, Source, SourceConfig
+from simbench.source_registry import SIMULATED, DataConfig, Source, SourceConfig
 from simbench.typed import to_typed
 
 #: The keys of a composed ``conf/config.yaml`` that describe the data (the rest picks estimators and output).
@@ -124,7 +124,7 @@ def build_scenario(cfg: DataConfig) -> Scenario:
     """Generate (or load) the scenario a typed config describes.
 
     ``cfg`` is a :class:`ScenarioSettings` or, for the simulator, a :class:`SimConfig`;
-    ``scenario.source`` picks the source (:func:`simbench.source.get`).
+    ``scenario.source`` picks the source (:func:`simbench.source_registry.get`).
     """
     return check_scenario(cfg).load(cfg)
 
@@ -151,6 +151,7 @@ def simulate(
     Returns
     -------
     Scenario
+        The observations, IMU, truth and the labels of every simulated error.
 
     Raises
     ------

@@ -277,7 +277,7 @@ def write_record(
     ----------
     estimator_configs : mapping of name to ``Config`` dataclass
     plugin_nodes : mapping of plug-in name to its ``estimator/<name>`` node
-    sources : mapping of name to :class:`simbench.source.Source` subclass
+    sources : mapping of name to :class:`simbench.source_registry.Source` subclass
     """
     stamp = code_stamp()
     old = _read()

@@ -38,7 +38,7 @@ from simbench.core.constants import SECONDS_PER_WEEK
 from simbench.data.export.solution import rtklib_pos_text, tum_text
 from simbench.runs.provenance import code_identity
 from simbench.runs.store import run_folders
-from simbench.source import SIMULATED
+from simbench.source_registry import SIMULATED
 
 __all__ = ["SOLUTIONS_DIR", "TRUTH_NAME", "write_solutions"]
 

@@ -11,7 +11,7 @@ the signals differs. Each pair (preset, geodetic) is solved epoch by epoch on
 the satellites both receivers track, as the published test's double
 differences are, with the project's one single-point solver
 (:func:`simbench.gnss.spp.solve_epochs`) on the shared measurement model
-(:func:`estimators.measurement.prepare_ppp`, code only): a satellite only one
+(:func:`estimators.model.measurement.prepare_ppp`, code only): a satellite only one
 receiver keeps would change the geometry, not measure the receiver.
 
 ``python -m simbench zero-baseline morgantown1 morgantown2 morgantown3 --out DIR``
@@ -20,17 +20,21 @@ writes ``DIR/zero_baseline.csv``; the report of a run folder shows it.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
+from tqdm.auto import tqdm
 
-from estimators.measurement import prepare_ppp
-from estimators.ppp_config import IonosphereMode, MeasurementMode, StochasticModelConfig
+from estimators.model.measurement import prepare_ppp
+from estimators.model.ppp_config import IonosphereMode, MeasurementMode, StochasticModelConfig
 from simbench.analysis.metrics import enu_errors
 from simbench.analysis.published import DRIVE_SCENARIOS, ZERO_BASELINE_MEAN_3D_M, Receiver
-from simbench.contract import Scenario
+from simbench.contract import Scenario, write_bytes
+from simbench.runs.files import os_fault
 from simbench.runs.scenarios import simulate, simulation_config
 
 #: File name of the table in a run folder.
@@ -150,3 +154,32 @@ def zero_baseline(scenario: str, seed: int = 0, **overrides: Any) -> pd.DataFram
             }
         )
     return pd.DataFrame(rows, columns=COLUMNS)
+
+
+def write_zero_baseline(names: Sequence[str], out: Path, seed: int = 0, **overrides: Any) -> tuple[pd.DataFrame, Path]:
+    """The zero-baseline table of the scenario presets ``names``, written to ``out``/:data:`TABLE_NAME`.
+
+    Every scenario's config is checked (:func:`check_zero_baseline`) before the first is
+    generated; the table is written under another name and renamed, so a failed write leaves none.
+
+    Returns
+    -------
+    (pandas.DataFrame, Path)
+        The table (:data:`COLUMNS`, one row per scenario and receiver preset) and the file written.
+
+    Raises
+    ------
+    SimbenchError
+        A scenario config refused, or the file could not be written (one line naming it).
+    """
+    for name in names:
+        check_zero_baseline(name, seed, **overrides)
+    table = pd.concat(
+        [zero_baseline(s, seed, **overrides) for s in tqdm(names, desc="zero baseline")], ignore_index=True
+    )
+    path = out / TABLE_NAME
+    try:
+        write_bytes(path, table.to_csv(index=False).encode())
+    except OSError as exc:  # a full disk: one line, and no half-written table (written under another name)
+        raise os_fault(exc, path) from None
+    return table, path

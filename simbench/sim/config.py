@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from simbench.bounds import check_bounds
 from simbench.errors import SimbenchError, require_at_least, require_elevation_mask, require_positive
 from simbench.paths import require_file
-from simbench.source import SIMULATED, DataConfig, SourceConfig, scenario_config
+from simbench.source_registry import SIMULATED, DataConfig, SourceConfig, scenario_config
 from simbench.typed import Choice, check_choices
 
 #: Coherent integration a GPS C/A receiver can use [s]: one code period up to one navigation data bit.
@@ -313,10 +313,10 @@ class OdometryConfig:
 
 @dataclass
 class ScenarioConfig(SourceConfig):
-    """The simulator's scenario (source ``simulated``); real logs have their own (:mod:`simbench.data.sources`)."""
+    """The simulator's scenario (source ``simulated``); real logs have their own (:mod:`simbench.data.log_sources`)."""
 
     name: str = "urban"
-    source: str = SIMULATED  #: the simulator (:mod:`simbench.sim.source`)
+    source: str = SIMULATED  #: the simulator (:mod:`simbench.sim.simulator_source`)
     duration_s: float = 600.0
     rate_hz: float = 1.0  #: GNSS epoch rate
     gps_week: int = 2032
@@ -489,7 +489,7 @@ def sim_config_of(cfg: DataConfig) -> SimConfig:
     Raises
     ------
     SimbenchError
-        When ``cfg.scenario`` is not a :class:`ScenarioConfig` (:func:`simbench.source.scenario_config`).
+        When ``cfg.scenario`` is not a :class:`ScenarioConfig` (:func:`simbench.source_registry.scenario_config`).
     """
     if isinstance(cfg, SimConfig):
         return cfg

@@ -63,7 +63,7 @@ def generate(cfg: SimConfig) -> Scenario:
     cfg : SimConfig
         Scenario, receiver and IMU configuration and the seed, checked by
         :func:`~simbench.sim.config.validate_sim` (once per job, where the source checks its
-        config: :meth:`simbench.sim.source.Simulator.check`); the generator trusts it.
+        config: :meth:`simbench.sim.simulator_source.Simulator.check`); the generator trusts it.
 
     Returns
     -------
@@ -111,8 +111,7 @@ def _sky(cfg: SimConfig) -> SimState:
             f"IMU rate {cfg.imu.rate_hz} Hz is not a multiple of {sc.rate_hz} Hz",
             "choose rates such that imu.rate_hz / scenario.rate_hz is an integer",
         )
-    idx = np.arange(0, len(traj.t), int(round(step)))
-    idx = idx[traj.valid[idx]]
+    idx = traj.valid_every(step)
     pos = traj.pos[idx]
     lat, lon, h = pymap3d.ecef2geodetic(pos[:, 0], pos[:, 1], pos[:, 2], deg=False)
     constellation, alpha, beta = _constellation(cfg)

@@ -90,8 +90,7 @@ def simulate_odometry(traj: Trajectory, cfg: OdometryConfig, rng: np.random.Gene
             f"{cfg.rate_hz:g} Hz does not divide the {traj_rate:g} Hz trajectory (IMU) rate",
             "choose an odometry rate such that imu.rate_hz / scenario.odometry.rate_hz is an integer",
         )
-    idx = np.arange(0, len(traj.t), int(round(step)))
-    idx = idx[traj.valid[idx]]
+    idx = traj.valid_every(step)
 
     # body x axis in ECEF = first column of C_b^e
     x_axis = traj.c_b_e[idx, :, 0]

@@ -158,20 +158,7 @@ def dll_jitter_m(
 ) -> FloatArray:
     """Thermal-noise code tracking jitter in metres on GPS L1 C/A.
 
-    :func:`dll_jitter_chips` times the C/A chip length (293.05 m).
-
-    Parameters
-    ----------
-    cn0_dbhz : array_like
-        Carrier-to-noise density [dB-Hz].
-    dll_bw_hz : float
-        DLL noise bandwidth [Hz].
-    spacing_chips : float
-        Early-late spacing [chip].
-    front_end_bw_hz : float
-        Double-sided front-end bandwidth [Hz].
-    integration_s : float
-        Predetection integration time [s].
+    :func:`dll_jitter_chips` (its parameters and errors) times the C/A chip length (293.05 m).
 
     Returns
     -------
@@ -212,16 +199,8 @@ def pll_jitter_rad(cn0_dbhz: ArrayLike, pll_bw_hz: float, integration_s: float) 
 
 
 def pll_jitter_m(cn0_dbhz: ArrayLike, pll_bw_hz: float, integration_s: float) -> FloatArray:
-    """Thermal-noise carrier phase jitter on L1 in metres (eq. 5.13).
-
-    Parameters
-    ----------
-    cn0_dbhz : array_like
-        Carrier-to-noise density [dB-Hz].
-    pll_bw_hz : float
-        PLL noise bandwidth [Hz].
-    integration_s : float
-        Predetection integration time [s].
+    """Thermal-noise carrier phase jitter on L1 in metres (eq. 5.13): :func:`pll_jitter_rad` (its
+    parameters and errors) times ``lambda_L1 / (2 pi)``.
 
     Returns
     -------

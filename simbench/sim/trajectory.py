@@ -145,6 +145,12 @@ class Trajectory:
         if self.c_b_e is None:
             object.__setattr__(self, "c_b_e", dcm_body_to_ecef(self.pos, self.att))
 
+    def valid_every(self, step: float) -> np.ndarray:
+        """Indices of every ``step``-th sample (rounded to a whole number), the invalid ones left out:
+        a sensor sampled at this trajectory's rate / ``step``."""
+        idx = np.arange(0, len(self.t), int(round(step)))
+        return idx[self.valid[idx]]
+
 
 # =========================================================================== frames
 

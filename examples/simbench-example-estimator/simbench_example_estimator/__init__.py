@@ -8,7 +8,7 @@ and part of the default run and the sweeps. Its parameters are :class:`CauchySpp
 this file may override their defaults.
 
 The built-in per-epoch baselines are ``wls_spp`` and ``huber_spp``
-(``estimators/spp_baselines.py``); this example shows how a package adds a further
+(``estimators/baselines/spp.py``); this example shows how a package adds a further
 loss on the same shared measurement model: it subclasses ``wls_spp``, so it keeps its
 row preparation (ionosphere mode, sigma model, per-system variance components,
 elevation mask) and its diagnostics, and replaces only the per-epoch solve.
@@ -20,8 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators.measurement import PppObservations
-from estimators.spp_baselines import WlsSpp, WlsSppConfig
+from estimators.baselines.spp import WlsSpp, WlsSppConfig
+from estimators.model.measurement import PppObservations
 from simbench.errors import require_at_least, require_positive
 from simbench.gnss.spp import SppSolution
 

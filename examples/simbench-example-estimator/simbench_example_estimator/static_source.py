@@ -22,7 +22,7 @@ from simbench.data.logs import epoch_grid_of, log_scenario, log_truth, observati
 from simbench.data.reference import Reference
 from simbench.gnss.geometry import elevation_azimuth, sagnac_range
 from simbench.gnss.troposphere import troposphere_terms
-from simbench.source import DataConfig, Source, SourceConfig, scenario_config
+from simbench.source_registry import DataConfig, Source, SourceConfig, scenario_config
 
 
 @dataclass

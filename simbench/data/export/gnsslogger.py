@@ -208,6 +208,7 @@ def write_gnsslogger(path: str | os.PathLike[str], data: ReceiverData, clock: Ph
     Returns
     -------
     Path
+        The GnssLogger log written (``path``).
 
     Raises
     ------

@@ -104,6 +104,7 @@ def write_librsf(path: str | os.PathLike[str], data: ReceiverData) -> Path:
     Returns
     -------
     Path
+        The libRSF file written (``path``).
 
     Raises
     ------

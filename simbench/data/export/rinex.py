@@ -224,6 +224,7 @@ def write_rinex_obs(
     Returns
     -------
     Path
+        The observation file written (``path``).
 
     Raises
     ------
@@ -439,6 +440,7 @@ def write_broadcast_navigation(path: str | os.PathLike[str], nav: NavInfo, sourc
     Returns
     -------
     Path
+        The navigation file written (``path``).
 
     Raises
     ------
