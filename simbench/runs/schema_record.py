@@ -329,6 +329,9 @@ def known_valid(record: Record, name: str, node: Any) -> bool:
 
 def remember_valid(checked: Iterable[tuple[str, Any]]) -> None:
     """Add estimator nodes that passed their checks (name, resolved node) to a current record."""
+    checked = list(checked)
+    if not checked:
+        return
     record = _read()
     if record is None or record.get("stamp") != json.loads(json.dumps(code_stamp())):
         return  # none, or of other code: what this process checked says nothing about it
