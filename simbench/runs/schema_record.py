@@ -210,7 +210,7 @@ def _rebuilt(text: str) -> type:
 
 def real_class(description: Mapping[str, Any]) -> type:
     """The class a description was made from, imported (its module, then the dotted name within)."""
-    found: Any = importlib.import_module(description["module"])  # a recorded name, not a literal: by design
+    found: Any = importlib.import_module(description["module"])  # dynamic: a registered class, recorded
     for part in description["qualname"].split("."):
         found = getattr(found, part)
     return typing.cast(type, found)
