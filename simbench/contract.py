@@ -498,6 +498,12 @@ def decode_metadata(raw: Mapping[bytes, bytes] | None) -> dict[str, Any]:
     return out
 
 
+def config_key(config: Any) -> str:
+    """Stable 16-hex-digit hash of a JSON-serialisable config (key order does not matter)."""
+    text = json.dumps(config, sort_keys=True, default=json_default, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
 def json_default(obj: Any) -> Any:
     if isinstance(obj, (np.integer,)):
         return int(obj)

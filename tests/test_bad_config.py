@@ -226,7 +226,7 @@ def test_job_overrides_cover_every_swept_value() -> None:
 def test_a_sweep_files_params_are_checked_too(monkeypatch) -> None:
     checked: list[float] = []
     # check_jobs imports it when it runs (simbench.cli.main imports no config check, for --help's start-up)
-    monkeypatch.setattr("simbench.runs.checks.check_run", lambda cfg: checked.append(cfg.prior_scale))
+    monkeypatch.setattr("simbench.runs.checks.check_run", lambda cfg, schemas=None: checked.append(cfg.prior_scale))
     check_jobs(["+sweep=ch5_sensitivity", *TINY])
     assert sorted(checked) == [0.1, 0.3, 1, 3, 10, 100]
 

@@ -24,8 +24,8 @@ import yaml
 from omegaconf import OmegaConf
 
 import estimators
+import simbench.sim.config
 import simbench.sim.generator
-import simbench.sim.simulator_source
 from estimators.model.ppp_config import GnssModelConfig
 from simbench.analysis.tables import seed_statistics
 from simbench.analysis.variants import overrides_of
@@ -132,7 +132,7 @@ def test_a_job_checks_its_scenario_config_once(tmp_path: Path, monkeypatch: pyte
         calls.append(cfg)
         return validate_sim(cfg)
 
-    monkeypatch.setattr(simbench.sim.simulator_source, "validate_sim", counting)
+    monkeypatch.setattr(simbench.sim.config, "validate_sim", counting)  # the simulator's check calls it there
     cfg = compose_config(
         ["scenario=open_sky", "scenario.duration_s=20", "estimator=[l2]", f"results_dir={tmp_path}", "progress=false"]
     )

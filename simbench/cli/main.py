@@ -40,6 +40,8 @@ from simbench.runs.run_dirs import unique_run_dir
 if TYPE_CHECKING:
     import pandas
 
+    from simbench.runs.compose import Schemas
+
 # ``--help`` and a misspelt name answer from the names above in well under a second; what runs a job,
 # composes a config or draws a table (estimators, pandas, Hydra's config store: seconds) is imported
 # where it is needed (``# lazy:``).
@@ -106,35 +108,15 @@ def main() -> None:
         check_subcommand(args, SUBCOMMANDS)
         # group options are checked for sweeps and flags too: Hydra would only say "Could not load"
         suggest_names(a for a in args if not a.startswith("-"))
-        from tabulate import tabulate  # lazy: --help and a misspelt name need none of these
-
-        from simbench.cli.progress import Planned  # lazy
-        from simbench.runs.compose import compose_config, register_schemas  # lazy
-
-        register_schemas()  # a broken plug-in estimator stops here, in one line naming its package
         if "--estimators" in args:
+            from tabulate import tabulate  # lazy: --help and a misspelt name need none of these
+
+            from simbench.runs.compose import register_schemas  # lazy
+
+            register_schemas()  # a broken plug-in estimator stops here, in one line naming its package
             print(tabulate(estimator_table(), headers="keys", tablefmt="plain", showindex=False))
             return
-        shaping = config_overrides(args)
-        cfg = compose_config(shaping, with_hydra=True) if shaping is not None else None
-        if cfg is not None and "studies" in cfg:  # a sweep of sweeps (thesis): studies x worlds
-            from simbench.cli.studies import run_studies  # lazy: the report's imports (matplotlib)
-            from simbench.runs.checks import check_report_formats  # lazy
-            from simbench.runs.studies import StudiesConfig  # lazy
-
-            formats = OmegaConf.select(cfg, "report.formats", default=None)
-            check_report_formats(formats)  # before the first study, not after the last
-            formats = list(formats or ["png"])
-            sys.exit(run_studies(StudiesConfig.from_config(cfg), Path(cfg.results_dir), args, formats))
-        multirun = any(a in RUN_FLAGS for a in args) or (
-            cfg is not None and OmegaConf.select(cfg, "hydra.mode") == RunMode.MULTIRUN
-        )
-        if cfg is not None and not multirun:
-            check_no_sweep(args)
-        first = check_jobs(args, (shaping, cfg) if shaping is not None and cfg is not None else None)
-        cfg = cfg if cfg is not None else first  # -m: composed for the checks only
-        if cfg is not None and multirun:
-            Planned.jobs = planned_jobs(args, cfg)
+        first = check_command_line(args)
         if first is not None and "${now:" in str(unresolved(first, "results_dir")):
             # the default folder is named by the second it starts in: two runs of one second get one each
             reserved = unique_run_dir(Path(first.results_dir))
@@ -147,6 +129,75 @@ def main() -> None:
     finally:
         if reserved is not None and reserved.is_dir() and not any(reserved.iterdir()):
             reserved.rmdir()  # nothing ran (Hydra refused the command line): no empty folder left behind
+
+
+def check_command_line(args: list[str]) -> DictConfig | None:
+    """Compose and check the command line of a run or sweep before Hydra runs it; return the first job's config.
+
+    First with the schemas recorded at the last registration (:func:`simbench.runs.schema_record.read_record`),
+    which import no estimator and no simulation, so a refused value takes about a second; when the record is
+    stale or cannot tell (a source whose check it lacks), with the real classes. Then the real classes are
+    registered for Hydra's own composition of the run. A sweep of studies (``+sweep=thesis``) runs here.
+
+    Raises
+    ------
+    SimbenchError
+        For the first problem, in one line (:func:`simbench.runs.checks.check_run`, a broken plug-in).
+    """
+    from simbench.runs.compose import recorded_schemas, register_schemas  # lazy: every estimator's Config
+    from simbench.runs.schema_record import NotRecorded, read_record  # lazy
+
+    record = read_record()
+    first: DictConfig | None = None
+    try:
+        if record is None:
+            raise NotRecorded("no current record")
+        first = check_configs(args, recorded_schemas(record))
+    except NotRecorded:
+        register_schemas()  # a broken plug-in estimator stops here, in one line naming its package
+        first = check_configs(args, None)
+    register_schemas()  # the classes the run composes with (Hydra, in _app)
+    return first
+
+
+def check_configs(args: list[str], schemas: Schemas | None) -> DictConfig | None:
+    """:func:`check_command_line` with one set of schemas (None: the real classes): compose the config,
+    run a sweep of studies, check every job (:func:`check_jobs`) and count a sweep's jobs for the bar.
+
+    Raises
+    ------
+    SimbenchError
+        For the first problem, in one line.
+    NotRecorded
+        With recorded schemas, when the record cannot tell, or for a sweep of studies.
+    """
+    from simbench.cli.progress import Planned  # lazy
+    from simbench.runs.compose import compose_config  # lazy
+    from simbench.runs.schema_record import NotRecorded  # lazy
+
+    shaping = config_overrides(args)
+    cfg = compose_config(shaping, with_hydra=True, schemas=schemas) if shaping is not None else None
+    if cfg is not None and "studies" in cfg:  # a sweep of sweeps (thesis): studies x worlds
+        if schemas is not None:
+            raise NotRecorded("a sweep of studies")  # its studies compose with the real classes
+        from simbench.cli.studies import run_studies  # lazy: the report's imports (matplotlib)
+        from simbench.runs.checks import check_report_formats  # lazy
+        from simbench.runs.studies import StudiesConfig  # lazy
+
+        formats = OmegaConf.select(cfg, "report.formats", default=None)
+        check_report_formats(formats)  # before the first study, not after the last
+        formats = list(formats or ["png"])
+        sys.exit(run_studies(StudiesConfig.from_config(cfg), Path(cfg.results_dir), args, formats))
+    multirun = any(a in RUN_FLAGS for a in args) or (
+        cfg is not None and OmegaConf.select(cfg, "hydra.mode") == RunMode.MULTIRUN
+    )
+    if cfg is not None and not multirun:
+        check_no_sweep(args)
+    first = check_jobs(args, (shaping, cfg) if shaping is not None and cfg is not None else None, schemas)
+    cfg = cfg if cfg is not None else first  # -m: composed for the checks only
+    if cfg is not None and multirun:
+        Planned.jobs = planned_jobs(args, cfg)
+    return first
 
 
 def help_text() -> str:
@@ -236,7 +287,9 @@ def config_overrides(args: list[str]) -> list[str] | None:
     return [a for a, o in zip(args, parsed) if not o.is_sweep_override() and not o.key_or_group.startswith("hydra.")]
 
 
-def check_jobs(args: list[str], composed: tuple[list[str], DictConfig] | None = None) -> DictConfig | None:
+def check_jobs(
+    args: list[str], composed: tuple[list[str], DictConfig] | None = None, schemas: Schemas | None = None
+) -> DictConfig | None:
     """Compose and check (:func:`simbench.runs.checks.check_run`) every job config of a run or sweep.
 
     The override lists are :func:`job_overrides`'s, with the sweeper params of a sweep file
@@ -250,6 +303,8 @@ def check_jobs(args: list[str], composed: tuple[list[str], DictConfig] | None = 
     composed : (list of str, DictConfig), optional
         Overrides and the config the caller composed from them ``with_hydra``: reused when they
         are the first job's.
+    schemas : Schemas, optional
+        The schemas to compose and check with (:func:`simbench.runs.compose.recorded_schemas`); None: the real ones.
 
     Returns
     -------
@@ -267,17 +322,20 @@ def check_jobs(args: list[str], composed: tuple[list[str], DictConfig] | None = 
     jobs = job_overrides(args)
     if not jobs:
         return None
-    first = composed[1] if composed is not None and composed[0] == jobs[0] else compose_config(jobs[0], with_hydra=True)
+    if composed is not None and composed[0] == jobs[0]:
+        first = composed[1]
+    else:
+        first = compose_config(jobs[0], with_hydra=True, schemas=schemas)
     given = {item.partition("=")[0].lstrip("+~") for item in jobs[0]}
     params = OmegaConf.select(first, "hydra.sweeper.params", default=None) or {}
     from_file = [f"{key}={value}" for key, value in params.items() if key not in given]
     if from_file:
         jobs = job_overrides([*args, *from_file]) or jobs
     else:
-        check_run(first)
+        check_run(first, schemas)
         jobs = jobs[1:]
     for overrides in jobs:
-        check_run(compose_config(overrides))
+        check_run(compose_config(overrides, schemas=schemas), schemas)
     return first
 
 

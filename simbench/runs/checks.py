@@ -13,16 +13,20 @@ they are cheap.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from typing import Any, Literal, cast
+from collections.abc import Mapping, Sequence
+from typing import Any, Literal
 
 from omegaconf import DictConfig, OmegaConf
 
 import estimators
 from estimators.base import validate_config
+from simbench.bounds import FINITE_ONLY, check_bounds
 from simbench.errors import SimbenchError
+from simbench.runs.compose import Schemas, estimator_node
 from simbench.runs.files import check_output_dir
 from simbench.runs.scenarios import check_scenario, scenario_settings
+from simbench.runs.schema_record import NotRecorded, Record, known_valid, real_class, remember_valid, source_check
+from simbench.source_registry import SIMULATED, SourceConfig
 from simbench.typed import to_typed
 
 #: A file format of the report's figures: the page shows the PNG; PDF and SVG are for a paper.
@@ -34,13 +38,17 @@ REPORT_FORMATS: tuple[ReportFormat, ...] = ("png", "pdf", "svg")
 REPORT_STYLES = ("screen", "single", "double")
 
 
-def check_run(cfg: DictConfig) -> None:
+def check_run(cfg: DictConfig, schemas: Schemas | None = None) -> None:
     """Raise a one-line :class:`SimbenchError` for the first problem of a composed run config.
 
     Parameters
     ----------
     cfg : DictConfig
         A composed ``conf/config.yaml`` (:func:`simbench.runs.compose.compose_config`).
+    schemas : Schemas, optional
+        The recorded schemas ``cfg`` was composed with (:func:`simbench.runs.compose.recorded_schemas`):
+        the same checks, in the same order, importing only what they need (:func:`check_recorded`).
+        None: the real classes.
 
     Raises
     ------
@@ -62,12 +70,59 @@ def check_run(cfg: DictConfig) -> None:
         raise SimbenchError(
             "estimator", "no estimator selected", "pick one or more, e.g. estimator=[l2], or estimator=all"
         )
+    if schemas is not None and schemas.record is not None:
+        check_recorded(cfg, selected, schemas.sources, schemas.estimators, schemas.record)
+        return
     check_scenario(scenario_settings(cfg))
-    for name in selected:
-        where = f"estimator.{name}"
-        # resolved here: the node's gnss_model fields are interpolations into the root config
-        node = cast(dict[str, Any], OmegaConf.to_container(cfg.estimator[name], resolve=True) or {})
-        validate_config(to_typed(node, estimators.get(name).Config, where), where)
+    passed: list[tuple[str, dict[str, Any]]] = []
+    try:
+        for name in selected:
+            where, node = f"estimator.{name}", estimator_node(cfg, name)
+            validate_config(to_typed(node, estimators.get(name).Config, where), where)
+            passed.append((name, node))
+    finally:  # for the next command line's door (check_recorded)
+        remember_valid(passed)
+
+
+def check_recorded(
+    cfg: DictConfig,
+    selected: Sequence[str],
+    source_configs: Mapping[str, type],
+    estimator_configs: Mapping[str, type],
+    record: Record,
+) -> None:
+    """:func:`check_run`'s data and estimator checks with recorded schemas, in its order and words.
+
+    The scenario: typed by its source's real ``Config`` and checked by the recorded check
+    (:func:`simbench.runs.schema_record.source_check`). Each estimator: a node that passed its checks
+    under this code before is not checked again (:func:`known_valid`); any other is typed by the
+    rebuilt ``Config`` and checked for non-finite numbers (what :func:`validate_config` checks first,
+    without code), then checked by its real class, imported then.
+
+    Raises
+    ------
+    SimbenchError
+        As :func:`check_run`.
+    NotRecorded
+        When the source's ``Config`` or check is not recorded as light (then :func:`check_run` asks the real classes).
+    """
+    source = str(cfg.scenario.get("source", SIMULATED))
+    config, check = source_configs.get(source), source_check(record, source)
+    if config is None or check is None or not issubclass(config, SourceConfig):
+        raise NotRecorded(f"source '{source}'")
+    check(scenario_settings(cfg, config))
+    passed: list[tuple[str, dict[str, Any]]] = []
+    try:
+        for name in selected:
+            where, node = f"estimator.{name}", estimator_node(cfg, name)
+            if known_valid(record, name, node):
+                continue
+            check_bounds(to_typed(node, estimator_configs[name], where), where, FINITE_ONLY)
+            real = real_class(record.estimators[name]["config"])
+            validate_config(to_typed(node, real, where), where)
+            passed.append((name, node))
+    finally:  # those before a refused one passed too
+        remember_valid(passed)
 
 
 #: Seeds are stored as int64 in the result tables (and numpy's generators take any non-negative integer).

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import functools
 import inspect
@@ -18,19 +19,100 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 import estimators
+from estimators.base import validate_config
 from estimators.model.ppp_config import GnssModelConfig
 from simbench import source_registry as sources
 from simbench.errors import SimbenchError
 from simbench.paths import data_path
 from simbench.runs.groups import CONF_DIR, available, check_group_choices, config_groups, record_built_in_estimators
 from simbench.runs.provenance import module_file
+from simbench.runs.schema_record import NotRecorded, Record, class_or_rebuilt, rebuild, remember_valid, write_record
 from simbench.sim.config import ImuConfig, ReceiverConfig, ScenarioConfig
 from simbench.typed import to_typed
 
 
+@dataclasses.dataclass(eq=False)  # one set of schemas is stored once (store_schemas), by identity
+class Schemas:
+    """The ``Config`` classes a composition types its nodes with: the real ones (:func:`real_schemas`), or
+    those rebuilt from the record of the last registration (:func:`recorded_schemas`), which the command
+    line's door composes with before any estimator or source is imported."""
+
+    estimators: dict[str, type]  #: estimator name -> its ``Config`` dataclass, built-in and plug-in
+    plugin_nodes: dict[str, dict[str, Any]]  #: plug-in estimator name -> its ``estimator/<name>`` node
+    sources: dict[str, type]  #: source name -> its ``Config`` dataclass
+    record: Record | None = None  #: the record the classes were rebuilt from; None: the real classes
+
+
+def real_schemas() -> Schemas:
+    """The registered estimators' and sources' real ``Config`` classes (importing every one of them).
+
+    Raises
+    ------
+    SimbenchError
+        For a broken plug-in, naming its package (:func:`estimators.discover`,
+        :func:`simbench.source_registry.discover`).
+    """
+    return Schemas(
+        estimators={name: cls.Config for name, cls in estimators.registered().items()},
+        plugin_nodes={name: plugin_config_node(plugin) for name, plugin in estimators.plugins().items()},
+        sources={name: source.Config for name, source in sources.registered().items()},
+    )
+
+
+def recorded_schemas(record: Record) -> Schemas:
+    """The schemas of ``record`` (:func:`simbench.runs.schema_record.read_record`): each ``Config`` rebuilt,
+    but for those whose module is imported already (the simulator's, :func:`class_or_rebuilt`)."""
+    return Schemas(
+        estimators={name: rebuild(entry["config"]) for name, entry in record.estimators.items()},
+        plugin_nodes={name: entry["node"] for name, entry in record.estimators.items() if entry["node"] is not None},
+        sources={name: class_or_rebuilt(entry["config"]) for name, entry in record.sources.items()},
+        record=record,
+    )
+
+
 @functools.cache
 def register_schemas() -> None:
-    """Put the typed schemas and the plug-in estimators into Hydra's ConfigStore (once per process).
+    """Put the real typed schemas and the plug-in estimators into Hydra's ConfigStore (once per process,
+    :func:`store_schemas` of :func:`real_schemas`), and record them for the next command line
+    (:func:`simbench.runs.schema_record.write_record`).
+
+    Raises
+    ------
+    SimbenchError
+        For a broken plug-in, naming its package (:func:`estimators.discover`,
+        :func:`simbench.source_registry.discover`).
+    """
+    schemas = real_schemas()
+    store_schemas(schemas)
+    record_estimator_names()
+    if write_record(schemas.estimators, schemas.plugin_nodes, sources.registered()):
+        remember_default_nodes()
+
+
+def remember_default_nodes() -> None:
+    """Record the default run's estimator nodes that pass their checks (:func:`simbench.runs.schema_record.
+    remember_valid`), so the next command line's door checks none of them again (once per code change)."""
+    cfg = hydra_compose([])
+    passed = []
+    for name in cfg.estimator:
+        where, node = f"estimator.{name}", estimator_node(cfg, str(name))
+        try:
+            validate_config(to_typed(node, estimators.get(str(name)).Config, where), where)
+        except SimbenchError:
+            continue
+        passed.append((str(name), node))
+    remember_valid(passed)
+
+
+def estimator_node(cfg: DictConfig, name: str) -> dict[str, Any]:
+    """Estimator ``name``'s node of a composed config as plain values, resolved: its gnss_model fields are
+    interpolations into the root config."""
+    return cast(dict[str, Any], OmegaConf.to_container(cfg.estimator[name], resolve=True) or {})
+
+
+@functools.cache
+def store_schemas(schemas: Schemas) -> None:
+    """Put typed schemas into Hydra's ConfigStore (once per set of schemas).
 
     Each preset file in ``conf/<group>/`` starts from its schema (``defaults:
     [schema, _self_]``), and each ``conf/estimator/<name>.yaml`` from its
@@ -38,18 +120,13 @@ def register_schemas() -> None:
     every field exists in the composed config, can be overridden without ``+``
     and is type-checked by Hydra; the estimator files hold only what differs
     from the dataclass defaults. A plug-in estimator gets the same node from
-    :func:`plugin_config_node`, and ``estimator/all`` lists every registered
-    estimator, built-in and plug-in, so the default run and the sweeps include
-    the plug-ins without an edit to ``conf/``. Each scenario source (:mod:`simbench.source_registry`)
+    :func:`plugin_config_node`, a built-in estimator without ``conf/estimator/<name>.yaml``
+    its ``Config`` defaults (its module is all it takes), and ``estimator/all`` lists every
+    registered estimator, built-in and plug-in, so the default run and the sweeps include
+    them without an edit to ``conf/``. Each scenario source (:mod:`simbench.source_registry`)
     gets its typed node ``scenario/<name>_schema`` from its ``Config`` (the simulator's presets
     use ``scenario/schema``, ``rinex.yaml`` uses ``rinex_schema``), and a source without a
     ``conf/scenario/<name>.yaml`` a preset of its ``Config`` defaults, so ``scenario=<name>`` runs it.
-
-    Raises
-    ------
-    SimbenchError
-        For a broken plug-in, naming its package (:func:`estimators.discover`,
-        :func:`simbench.source_registry.discover`).
     """
     cs = ConfigStore.instance()
     for group, node in (
@@ -59,21 +136,20 @@ def register_schemas() -> None:
         ("gnss_model", GnssModelConfig),
     ):
         cs.store(group=group, name="schema", node=node)
-    for name, source in sources.registered().items():
-        cs.store(group="scenario", name=f"{name}_schema", node=source.Config)
+    for name, config in schemas.sources.items():
+        cs.store(group="scenario", name=f"{name}_schema", node=config)
         if not (CONF_DIR / "scenario" / f"{name}.yaml").is_file():  # a plug-in's preset: its Config defaults
             cs.store(group="scenario", name=name, node={"defaults": [f"{name}_schema", "_self_"]})
-    for name, cls in estimators.registered().items():
-        cs.store(group="estimator", name=f"{name}_schema", node={name: estimator_schema(name, cls.Config)})
-    for name, plugin in estimators.plugins().items():
-        cs.store(group="estimator", name=name, node=plugin_config_node(plugin))
-    for name in estimators.registered():
+    for name, config in schemas.estimators.items():
+        cs.store(group="estimator", name=f"{name}_schema", node={name: estimator_schema(name, config)})
+    for name, plugin_node in schemas.plugin_nodes.items():
+        cs.store(group="estimator", name=name, node=plugin_node)
+    for name in schemas.estimators:
         # a built-in module without conf/estimator/<name>.yaml runs on its Config defaults, as a plug-in
         # does (before, 'Could not load estimator/<name>' broke the default run for everyone)
-        if name not in estimators.plugins() and not (CONF_DIR / "estimator" / f"{name}.yaml").is_file():
+        if name not in schemas.plugin_nodes and not (CONF_DIR / "estimator" / f"{name}.yaml").is_file():
             cs.store(group="estimator", name=name, node={"defaults": [f"{name}_schema", "_self_"], name: {}})
-    cs.store(group="estimator", name=estimators.ALL, node={"defaults": list(estimators.registered())})
-    record_estimator_names()
+    cs.store(group="estimator", name=estimators.ALL, node={"defaults": list(schemas.estimators)})
 
 
 def record_estimator_names() -> None:
@@ -201,15 +277,20 @@ def estimator_yaml(name: str) -> Path | None:
 OmegaConf.register_new_resolver("simbench_data", data_path, replace=True)
 
 
-def compose_config(overrides: list[str] | None = None, *, with_hydra: bool = False) -> DictConfig:
+def compose_config(
+    overrides: list[str] | None = None, *, with_hydra: bool = False, schemas: Schemas | None = None
+) -> DictConfig:
     """Compose ``conf/config.yaml`` with Hydra command-line style overrides.
 
-    ``with_hydra`` keeps Hydra's own node (``hydra.sweeper.params`` of a sweep file, unresolved).
+    ``with_hydra`` keeps Hydra's own node (``hydra.sweeper.params`` of a sweep file, unresolved);
+    ``schemas`` types the nodes with other classes than the real ones (:func:`recorded_schemas`).
 
     Raises
     ------
     SimbenchError
         For an unknown group option, source (``scenario.source``) or a malformed override, in one line.
+    NotRecorded
+        With recorded ``schemas``, for a source the record lacks (the real classes tell what is wrong).
     """
     if not CONF_DIR.is_dir():
         raise SimbenchError(
@@ -218,8 +299,28 @@ def compose_config(overrides: list[str] | None = None, *, with_hydra: bool = Fal
             "install simbench from its repository with 'pip install -e .'",
         )
     overrides = list(overrides or [])
-    register_schemas()
-    check_group_choices(overrides, estimators.registered())
+    if schemas is None:
+        register_schemas()
+    else:
+        store_schemas(schemas)
+    check_group_choices(overrides, estimators.registered() if schemas is None else schemas.estimators)
+    cfg = hydra_compose(overrides, with_hydra=with_hydra)
+    if schemas is None:
+        sources.get(str(cfg.scenario.source))  # an unknown source fails here, in one line
+    elif str(cfg.scenario.source) not in schemas.sources:
+        raise NotRecorded(f"source '{cfg.scenario.source}'")
+    check_added_root_keys(overrides, cfg)
+    return cfg
+
+
+def hydra_compose(overrides: list[str], *, with_hydra: bool = False) -> DictConfig:
+    """Hydra's composition of ``conf/config.yaml`` with ``overrides``, with the schemas stored so far.
+
+    Raises
+    ------
+    SimbenchError
+        For a bad value of a known key or a malformed override, in one line.
+    """
     if GlobalHydra.instance().is_initialized():
         GlobalHydra.instance().clear()
     try:
@@ -236,8 +337,6 @@ def compose_config(overrides: list[str] | None = None, *, with_hydra: bool = Fal
         raise SimbenchError(
             "overrides", ": ".join(lines), "write overrides as key=value with keys and types from conf/"
         ) from None
-    sources.get(str(cfg.scenario.source))  # an unknown source fails here, in one line
-    check_added_root_keys(overrides, cfg)
     return cfg
 
 

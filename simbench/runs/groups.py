@@ -29,7 +29,8 @@ CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
 BUILT_IN_NAMES = "simbench-estimator-names.json"
 
 
-def _estimators_folder() -> Path | None:
+def estimators_folder() -> Path | None:
+    """The folder of the ``estimators`` package, found without importing it (None when it is not installed)."""
     spec = importlib.util.find_spec("estimators")  # located, not imported
     return Path(spec.origin).parent if spec is not None and spec.origin else None
 
@@ -42,7 +43,7 @@ def _estimators_stamp(folder: Path) -> list[list[object]]:
 def recorded_built_in_estimators() -> list[str] | None:
     """The built-in estimators' names as :mod:`simbench.runs.compose` last registered them; None when the
     package's files changed since (or it never did): then only importing every estimator tells."""
-    folder = _estimators_folder()
+    folder = estimators_folder()
     if folder is None:
         return None
     try:
@@ -55,7 +56,7 @@ def recorded_built_in_estimators() -> list[str] | None:
 
 def record_built_in_estimators(names: Iterable[str]) -> None:
     """Keep the built-in estimators' names for :func:`available` (nothing when the folder is read-only)."""
-    folder = _estimators_folder()
+    folder = estimators_folder()
     if folder is None:
         return
     record = {"stamp": _estimators_stamp(folder), "names": sorted(names)}

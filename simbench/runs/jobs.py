@@ -10,7 +10,6 @@ single run stops with the one-line error instead.
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 from typing import Any, Protocol, cast
 
@@ -21,12 +20,11 @@ from tqdm.auto import tqdm
 
 import estimators
 from simbench import source_registry as sources
-from simbench.analysis.variants import overrides_json, overrides_of, variant_label
 from simbench.errors import SimbenchError, one_line
-from simbench.runs.compose import preset_estimator_config
+from simbench.runs.plan import JobPlan, plan_job
 from simbench.runs.provenance import code_identity, provenance
 from simbench.runs.runner import EPOCH_COLUMNS, SUMMARY_COLUMNS, run_estimators
-from simbench.runs.scenarios import check_scenario, input_digests, scenario_key, scenario_settings, source_code
+from simbench.runs.scenarios import check_scenario, input_digests, scenario_key, source_code
 from simbench.runs.store import (
     adopt_cache,
     adopt_result,
@@ -37,25 +35,6 @@ from simbench.runs.store import (
     write_result,
 )
 from simbench.source_registry import SIMULATED
-from simbench.typed import to_typed
-
-
-@dataclasses.dataclass
-class RunOptions:
-    """Top-level keys of ``conf/config.yaml`` besides the config groups."""
-
-    results_dir: str = "results/run"
-    progress: bool = True
-    sweep_name: str = ""  #: name of the sweep this job belongs to ('' for a single run)
-    #: BLAS/OpenMP threads of the job's process; None: 1, or under the command line the
-    #: launcher's CPUs per job (``hydra.launcher.cpus_per_task`` of submitit) when set. Our matrices
-    #: are small, so extra threads only spin: two jobs with OpenBLAS's default two threads each
-    #: on 2 cores ran BCE-AD 13x slower (151 s against 11 s) than with one thread each.
-    blas_threads: int | None = None
-    #: results_dirs of other runs whose finished results (same scenario, estimator, config and code)
-    #: and cached scenarios this run copies instead of computing them: the studies of one world
-    #: (``+sweep=thesis``, :func:`simbench.runs.studies.plan`) share their rows this way
-    shared_results: list[str] = dataclasses.field(default_factory=list)
 
 
 class Progress(Protocol):
@@ -83,43 +62,38 @@ def run_job(cfg: DictConfig, *, fail_fast: bool = True, bar: Progress | None = N
         step under way (building the scenario, an estimator); None: with ``progress`` set, a
         tqdm bar over this job's estimators.
     """
-    opts = to_typed(
-        {k: cfg[k] for k in (f.name for f in dataclasses.fields(RunOptions)) if k in cfg}, RunOptions, "config"
-    )
-    if opts.blas_threads is not None and opts.blas_threads < 1:
-        raise SimbenchError("blas_threads", f"is {opts.blas_threads}", "set blas_threads to 1 or more (or null)")
+    plan = plan_job(cfg)  # the config typed once; the job reads only the plan
+    opts = plan.options
     if bar is not None:
         with threadpool_limits(limits=opts.blas_threads or 1):
-            return _run_job(cfg, opts, fail_fast=fail_fast, bar=bar)
+            return _run_job(cfg, plan, fail_fast=fail_fast, bar=bar)
     with (
-        tqdm(total=len(cfg.estimator), desc="estimators", unit="est", disable=not opts.progress, leave=False) as own,
+        tqdm(total=len(plan.estimators), desc="estimators", unit="est", disable=not opts.progress, leave=False) as own,
         threadpool_limits(limits=opts.blas_threads or 1),
     ):
-        return _run_job(cfg, opts, fail_fast=fail_fast, bar=own)
+        return _run_job(cfg, plan, fail_fast=fail_fast, bar=own)
 
 
-def _run_job(cfg: DictConfig, opts: RunOptions, *, fail_fast: bool, bar: Progress) -> pd.DataFrame:
-    sim = scenario_settings(cfg)
+def _run_job(cfg: DictConfig, plan: JobPlan, *, fail_fast: bool, bar: Progress) -> pd.DataFrame:
+    sim, opts = plan.settings, plan.options
     root = Path(opts.results_dir)
     key = scenario_key(sim)
-    estimator_cfgs = cast(dict[str, Any], OmegaConf.to_container(cfg.estimator, resolve=True, enum_to_str=True) or {})
     # an estimator's result is keyed by its code too, so an edited estimator is recomputed
-    codes = {name: code_identity(estimators.get(name).__module__) for name in estimator_cfgs}
-    stems = {name: result_stem(root, key, name, c, codes[name]) for name, c in estimator_cfgs.items()}
-    pending = {name: c for name, c in estimator_cfgs.items() if not is_finished(stems[name])}
+    codes = {name: code_identity(estimators.get(name).__module__) for name in plan.estimators}
+    stems = {name: result_stem(root, key, name, e.node, codes[name]) for name, e in plan.estimators.items()}
+    pending = {name: e for name, e in plan.estimators.items() if not is_finished(stems[name])}
     # the overrides of a row are relative to its gnss_model preset (as shipped), so the preset joins the row
-    gnss_model = str(cfg.gnss_model.name)
-    tags = {"sweep": opts.sweep_name, "scenario_key": key, "gnss_model": gnss_model}
+    tags = {"sweep": opts.sweep_name, "scenario_key": key, "gnss_model": plan.gnss_model}
     shared = [Path(p) for p in opts.shared_results if Path(p).resolve() != root.resolve()]
     for name in list(pending):
         if any(
-            adopt_result(stems[name], result_stem(other, key, name, pending[name], codes[name]), tags)
+            adopt_result(stems[name], result_stem(other, key, name, pending[name].node, codes[name]), tags)
             for other in shared
         ):
             del pending[name]
     if shared:
         adopt_cache(root, key, shared)
-    bar.update(len(estimator_cfgs) - len(pending))  # found in the store: done
+    bar.update(len(plan.estimators) - len(pending))  # found in the store: done
     meta = provenance(cast(dict[str, Any], OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)))
     meta["simbench.inputs"] = input_digests(sim)  # the content of each file read (also in the scenario key)
     # a damaged cached scenario is rebuilt even when every result is finished: later jobs and the report read it
@@ -141,9 +115,8 @@ def _run_job(cfg: DictConfig, opts: RunOptions, *, fail_fast: bool, bar: Progres
                 ) from exc
             # in a sweep it fails this job's estimators, not the sweep
             scenario, failure = None, one_line(exc)
-        for name, est_cfg in pending.items():
+        for name, planned in pending.items():
             bar.set_postfix_str(f"{label} seed {sim.seed}: {name}")
-            overrides = estimator_overrides(name, est_cfg, gnss_model)
             if scenario is None:
                 summary = pd.DataFrame(
                     [
@@ -160,9 +133,11 @@ def _run_job(cfg: DictConfig, opts: RunOptions, *, fail_fast: bool, bar: Progres
                 ).reindex(columns=list(SUMMARY_COLUMNS))
                 epochs, diag = pd.DataFrame(columns=list(EPOCH_COLUMNS)), {}
             else:
-                result = run_estimators(scenario, {name: est_cfg}, receiver=receiver, progress=False)
+                # the typed config; the node when it does not type-check (the runner's failed row says why)
+                config = planned.config if planned.config is not None else planned.node
+                result = run_estimators(scenario, {name: config}, receiver=receiver, progress=False)
                 summary, epochs, diag = result.summary, result.epochs, result.diagnostics.get(name, {})
-            columns = {**tags, "variant": variant_label(overrides), "overrides": overrides_json(overrides)}
+            columns = {**tags, "variant": planned.variant, "overrides": planned.overrides_text}
             summary = summary.assign(**columns)
             epochs = epochs.assign(**columns)
             code = {"estimator": codes[name], "source": source_code(sim.scenario.source)}
@@ -180,22 +155,3 @@ def _run_job(cfg: DictConfig, opts: RunOptions, *, fail_fast: bool, bar: Progres
         if stem.with_suffix(".summary.parquet").is_file()
     ]
     return pd.concat(rows, ignore_index=True) if rows else pd.DataFrame(columns=list(SUMMARY_COLUMNS))
-
-
-def estimator_overrides(name: str, est_cfg: dict[str, Any], gnss_model: str) -> dict[str, Any]:
-    """The settings of one estimator's composed config that differ from its ``Config`` dataclass
-    defaults under ``gnss_model`` preset ``gnss_model`` (:func:`preset_estimator_config`).
-
-    A config that does not type-check has none: the runner records it as a
-    failed row with the one-line reason, and a failed row is in no statistic.
-
-    Raises
-    ------
-    SimbenchError
-        When ``conf/gnss_model/`` has no preset ``gnss_model``.
-    """
-    try:
-        typed: object = to_typed(est_cfg or {}, estimators.get(name).Config, f"estimator.{name}")
-    except SimbenchError:
-        return {}
-    return overrides_of(typed, preset_estimator_config(name, gnss_model))

@@ -126,7 +126,7 @@ def run_estimators(
     Parameters
     ----------
     scenario : Scenario
-    estimator_configs : mapping of estimator name to its config node (dict or DictConfig)
+    estimator_configs : mapping of estimator name to its typed ``Config`` or its config node (dict, DictConfig, None)
     receiver : str
         Receiver preset name, recorded in the tables.
     progress : bool
@@ -159,7 +159,10 @@ def run_estimators(
             "n_obs": len(scenario.observations),
         }
         try:
-            est = cls(to_typed(estimator_configs[name] or {}, cls.Config, f"estimator.{name}"))
+            given = estimator_configs[name]
+            # a typed config (a job's plan) as it is; a node (dict, DictConfig, None) typed here
+            typed = given if isinstance(given, cls.Config) else to_typed(given or {}, cls.Config, f"estimator.{name}")
+            est = cls(typed)
             needs = est.needs()
             unmet = "; ".join(filter(None, (unmet_needs_reason(needs, offered), cls.unavailable_reason())))
             if unmet:

@@ -18,14 +18,12 @@ import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
 from simbench import source_registry as sources
-from simbench.contract import Scenario
+from simbench.contract import Scenario, config_key
 from simbench.errors import SimbenchError
 from simbench.paths import file_digest
 from simbench.runs.compose import compose_config, overrides_from_kwargs
 from simbench.runs.provenance import code_identity
-from simbench.runs.store import config_key
-from simbench.sim.config import ImuConfig, ReceiverConfig, ScenarioConfig, SimConfig
-from simbench.sim.simulator_source import sim_config_of
+from simbench.sim.config import ImuConfig, ReceiverConfig, ScenarioConfig, SimConfig, sim_config_of
 from simbench.source_registry import SIMULATED, DataConfig, Source, SourceConfig
 from simbench.typed import to_typed
 
@@ -44,8 +42,11 @@ class ScenarioSettings:
     seed: int = 0
 
 
-def scenario_settings(cfg: Mapping[str, Any]) -> ScenarioSettings:
+def scenario_settings(cfg: Mapping[str, Any], config: type[SourceConfig] | None = None) -> ScenarioSettings:
     """The typed :class:`ScenarioSettings` of a composed ``conf/config.yaml``.
+
+    ``config``: the ``Config`` of the source ``scenario.source`` names, when the caller has it
+    (the command line's door, :mod:`simbench.runs.schema_record`); None: the registered source's.
 
     Raises
     ------
@@ -54,7 +55,7 @@ def scenario_settings(cfg: Mapping[str, Any]) -> ScenarioSettings:
     """
     node = cfg["scenario"]
     name = str(node.get("source", SIMULATED))
-    config = sources.get(name).Config
+    config = config if config is not None else sources.get(name).Config
     preset = OmegaConf.get_type(node) if isinstance(node, DictConfig) else None
     if isinstance(preset, type) and dataclasses.is_dataclass(preset) and not issubclass(config, preset):
         raise SimbenchError(

@@ -29,7 +29,6 @@ concurrent writers never collide.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import re
@@ -48,6 +47,7 @@ from simbench.contract import (
     MANIFEST_KEY,
     METADATA_SHA256,
     Scenario,
+    config_key,
     decode_metadata,
     file_sha256,
     json_default,
@@ -65,12 +65,6 @@ from simbench.runs.studies import study_dirs
 JOB_FILES = (".epochs.parquet", ".diagnostics.json")
 #: What a report does with a damaged job file.
 LEFT_OUT = "left out of the aggregate; rerun the run to recompute it"
-
-
-def config_key(config: Any) -> str:
-    """Stable 16-hex-digit hash of a JSON-serialisable config (key order does not matter)."""
-    text = json.dumps(config, sort_keys=True, default=json_default, separators=(",", ":"))
-    return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 def result_stem(run_dir: Path, scenario_key: str, estimator: str, estimator_config: Any, code: str = "") -> Path:

@@ -157,7 +157,7 @@ def plan(cfg: StudiesConfig, root: Path, args: Sequence[str]) -> list[StudyRun]:
             if study not in cfg.world_studies.get(world, [study]):
                 continue
             out = study_dir(root, study, world)
-            # identical rows of the world's studies are computed once (simbench.runs.jobs.RunOptions)
+            # identical rows of the world's studies are computed once (simbench.runs.plan.RunOptions)
             siblings = [
                 str(study_dir(root, other, world))
                 for other in cfg.studies

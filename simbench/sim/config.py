@@ -17,8 +17,7 @@ from dataclasses import dataclass, field
 from simbench.bounds import check_bounds
 from simbench.errors import SimbenchError, require_at_least, require_elevation_mask, require_positive
 from simbench.paths import require_file
-from simbench.sim.tracking import antenna_gain_dbi
-from simbench.source_registry import SIMULATED, SourceConfig
+from simbench.source_registry import SIMULATED, DataConfig, SourceConfig, scenario_config
 from simbench.typed import Choice, check_choices
 
 #: Coherent integration a GPS C/A receiver can use [s]: one code period up to one navigation data bit.
@@ -33,6 +32,15 @@ BYTES_PER_SATELLITE_EPOCH = 400
 BYTES_PER_IMU_SAMPLE = 600
 #: Fallback budget where the physical memory cannot be read (no ``os.sysconf``) [bytes].
 DEFAULT_MEMORY_BUDGET = 8 * 2**30
+
+#: Antenna pattern nodes of :func:`simbench.sim.tracking.antenna_gain_dbi`: off-boresight angle [deg] and
+#: gain [dBi]. The first five are the upright-antenna values at 90, 75, 60, 25, 0 deg elevation. Behind the
+#: ground plane the gain falls linearly to -25 dBi straight back (front-to-back ratio 37 dB, typical of a
+#: patch on a ground plane): a satellite there reaches only -158.5 - 25 + 201 = 17.5 dB-Hz, below any
+#: tracking threshold, so a tilted or inverted antenna masks it, while rays just under the horizon stay
+#: marginally trackable. Here as numbers, not arrays: the config checks need no numpy.
+ANTENNA_GAIN_ANGLE_DEG = (0.0, 25.0, 60.0, 75.0, 90.0, 180.0)
+ANTENNA_GAIN_DBI = (12.0, 9.0, 3.0, -1.0, -6.0, -25.0)
 
 #: Upper bounds of the IMU sigmas (:meth:`ImuConfig.validate`), each far beyond the worst grade of
 #: Groves Table 4.1 (consumer MEMS: accel bias ~0.1-1 m/s^2, gyro bias ~100-10,000 deg/h, ARW a few
@@ -491,6 +499,28 @@ class SimConfig:
     seed: int = 0
 
 
+def sim_config_of(cfg: DataConfig) -> SimConfig:
+    """``cfg`` as the :class:`SimConfig` the generator takes.
+
+    Raises
+    ------
+    SimbenchError
+        When ``cfg.scenario`` is not a :class:`ScenarioConfig` (:func:`simbench.source_registry.scenario_config`).
+    """
+    if isinstance(cfg, SimConfig):
+        return cfg
+    return SimConfig(scenario=scenario_config(cfg, ScenarioConfig), receiver=cfg.receiver, imu=cfg.imu, seed=cfg.seed)
+
+
+def check_simulation(cfg: DataConfig) -> None:
+    """The simulator's check of a data config (``Simulator.check``): :func:`validate_sim` of its :class:`SimConfig`.
+
+    Here, beside the schema, not with the generator: the command line refuses a bad value without
+    importing the simulation (:mod:`simbench.runs.schema_record`).
+    """
+    validate_sim(sim_config_of(cfg))
+
+
 #: The fewest GNSS epochs a simulated scenario can have (one epoch failed deep in the atmosphere model).
 MIN_EPOCHS = 2
 
@@ -558,13 +588,13 @@ def check_reachable_cn0(cfg: SimConfig) -> None:
     """Raise a one-line :class:`SimbenchError` when no satellite could ever be acquired.
 
     The strongest mean C/N0 the scenario gives (a satellite at boresight:
-    :func:`~simbench.sim.tracking.cn0_mean_dbhz`) plus three sigmas of its noise
+    :func:`~simbench.sim.tracking.cn0_mean_dbhz`, :data:`ANTENNA_GAIN_DBI`) plus three sigmas of its noise
     and fading must reach the receiver's acquisition threshold (which is at least
     its lock threshold, :meth:`ReceiverConfig.validate`); otherwise every epoch is
     empty and the estimators would blame their elevation mask.
     """
     cn0 = cfg.scenario.errors.cn0
-    peak = float(antenna_gain_dbi(0.0)) + cn0.received_power_dbw + cn0.constant_db
+    peak = ANTENNA_GAIN_DBI[0] + cn0.received_power_dbw + cn0.constant_db  # the gain at boresight
     reach = peak + 3.0 * math.hypot(cn0.noise_db, cn0.fade_sigma_db)
     threshold = cfg.receiver.acquisition_threshold_dbhz
     if not threshold <= reach:

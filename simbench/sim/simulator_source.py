@@ -3,10 +3,18 @@
 from __future__ import annotations
 
 from simbench.contract import Scenario
-from simbench.sim.config import ConstellationKind, ScenarioConfig, SimConfig, TrajectoryKind, validate_sim
+from simbench.sim.config import (
+    ConstellationKind,
+    ScenarioConfig,
+    TrajectoryKind,
+    check_simulation,
+    sim_config_of,
+)
 from simbench.sim.generator import generate
 from simbench.sim.trajectory_file import REPLAY_PATH_FIELD
-from simbench.source_registry import SIMULATED, DataConfig, Source, scenario_config
+from simbench.source_registry import SIMULATED, DataConfig, Source
+
+__all__ = ["Simulator", "sim_config_of"]
 
 
 class Simulator(Source):
@@ -14,9 +22,8 @@ class Simulator(Source):
 
     name = SIMULATED
     Config = ScenarioConfig
-
-    def check(self, cfg: DataConfig) -> None:
-        validate_sim(sim_config_of(cfg))
+    #: a function of the schema's module, so the command line checks without importing the generator
+    check = staticmethod(check_simulation)
 
     def input_files(self, cfg: DataConfig) -> dict[str, tuple[str, ...]]:
         s = sim_config_of(cfg).scenario
@@ -27,16 +34,3 @@ class Simulator(Source):
 
     def load(self, cfg: DataConfig) -> Scenario:
         return generate(sim_config_of(cfg))
-
-
-def sim_config_of(cfg: DataConfig) -> SimConfig:
-    """``cfg`` as the :class:`SimConfig` the generator takes.
-
-    Raises
-    ------
-    SimbenchError
-        When ``cfg.scenario`` is not a :class:`ScenarioConfig` (:func:`simbench.source_registry.scenario_config`).
-    """
-    if isinstance(cfg, SimConfig):
-        return cfg
-    return SimConfig(scenario=scenario_config(cfg, ScenarioConfig), receiver=cfg.receiver, imu=cfg.imu, seed=cfg.seed)

@@ -23,6 +23,7 @@ from scipy.special import sici
 from simbench.core.constants import CHIP_LENGTH_CA, CHIP_RATE_CA, DEG, LAMBDA_L1
 from simbench.core.frames import dot_last_axis
 from simbench.errors import SimbenchError
+from simbench.sim.config import ANTENNA_GAIN_ANGLE_DEG, ANTENNA_GAIN_DBI
 
 __all__ = [
     "dll_jitter_chips",
@@ -209,15 +210,9 @@ def pll_jitter_m(cn0_dbhz: ArrayLike, pll_bw_hz: float, integration_s: float) ->
     return (LAMBDA_L1 / (2.0 * math.pi)) * pll_jitter_rad(cn0_dbhz, pll_bw_hz, integration_s)
 
 
-#: Antenna pattern nodes: off-boresight angle [rad] and gain [dBi]. The first
-#: five are the upright-antenna values at 90, 75, 60, 25, 0 deg elevation.
-#: Behind the ground plane the gain falls linearly to -25 dBi straight back
-#: (front-to-back ratio 37 dB, typical of a patch on a ground plane): a
-#: satellite there reaches only -158.5 - 25 + 201 = 17.5 dB-Hz, below any
-#: tracking threshold, so a tilted or inverted antenna masks it, while rays
-#: just under the horizon stay marginally trackable.
-_GAIN_ANGLE_RAD = np.array([0.0, 25.0, 60.0, 75.0, 90.0, 180.0]) * DEG
-_GAIN_DBI = np.array([12.0, 9.0, 3.0, -1.0, -6.0, -25.0])
+#: Antenna pattern nodes (:data:`simbench.sim.config.ANTENNA_GAIN_DBI`) in radians and dBi.
+_GAIN_ANGLE_RAD = np.array(ANTENNA_GAIN_ANGLE_DEG) * DEG
+_GAIN_DBI = np.array(ANTENNA_GAIN_DBI)
 
 
 def antenna_gain_dbi(off_boresight_rad: ArrayLike) -> FloatArray:
