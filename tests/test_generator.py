@@ -8,7 +8,7 @@ import pytest
 
 import simbench
 from simbench.contract import IMU_COLUMNS, LABEL_COLUMNS, OBSERVATION_COLUMNS, TRUTH_COLUMNS, ReceiverData, Scenario
-from simbench.core.constants import LAMBDA_L1
+from simbench.core.constants import CHIP_LENGTH_CA, LAMBDA_L1
 from simbench.errors import SimbenchError
 from simbench.sim import tracking
 from simbench.sim.canyon import canyon_rays
@@ -65,7 +65,7 @@ def test_code_and_phase_noise_follow_dll_pll_formulas(long_open_sky: Scenario) -
     sc = long_open_sky
     lab, obs = sc.labels, sc.observations
     rx = sc.meta["config"]["receiver"]
-    expected = tracking.dll_jitter_m(
+    expected = CHIP_LENGTH_CA * tracking.dll_jitter_chips(
         obs["cn0_l1"].to_numpy(),
         rx["dll_bw_hz"],
         rx["correlator_spacing_chips"],

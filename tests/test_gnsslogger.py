@@ -19,7 +19,7 @@ from simbench.core.constants import C_LIGHT, F_L1, SECONDS_PER_DAY, SECONDS_PER_
 from simbench.data.export import export_scenario
 from simbench.data.export.gnsslogger import RAW_FIELDS, gps_nanoseconds
 from simbench.data.gnsslogger import load_gnsslogger, read_gnsslogger
-from simbench.data.rinex import load_rinex
+from simbench.data.rinex import LogInputs, load_rinex
 from simbench.errors import SimbenchWarning
 from simbench.runs.compose import compose_config
 from simbench.runs.runner import run_estimators
@@ -50,7 +50,7 @@ def exported(tmp_path_factory: pytest.TempPathFactory) -> tuple[Scenario, list[P
 def back(exported: tuple[Scenario, list[Path]]) -> Scenario:
     with warnings.catch_warnings():
         warnings.simplefilter("error", SimbenchWarning)  # a clean export refuses nothing
-        return load_gnsslogger(*exported[1])
+        return load_gnsslogger(exported[1][0], LogInputs(*exported[1][1:]))
 
 
 def _raw(path: Path) -> tuple[list[str], pd.DataFrame]:
@@ -142,7 +142,7 @@ def test_a_real_multi_system_log_round_trips(shared_data: Path, tmp_path: Path) 
     files = export_scenario(ng, "gnsslogger", tmp_path / "out", "ng")
     with warnings.catch_warnings():
         warnings.simplefilter("error", SimbenchWarning)
-        back = load_gnsslogger(*files, systems="GECJ")
+        back = load_gnsslogger(files[0], LogInputs(*files[1:], systems="GECJ"))
     a, b = ng.observations, back.observations
     assert len(a) == len(b) > 1000 and (a["sat"] == b["sat"]).all() and (a["epoch"] == b["epoch"]).all()
     assert set(a["sat"].str[0]) == set("GECJ") and back.meta["signals"] == {"G": "1C", "E": "1C", "C": "2I", "J": "1C"}
@@ -244,7 +244,7 @@ def test_a_log_across_the_gps_week_rollover(tmp_path: Path) -> None:
         "scenario.errors.orbit_clock.enabled=false",
     )
     files = export_scenario(sc, "gnsslogger", tmp_path, "week")
-    back = load_gnsslogger(*files)
+    back = load_gnsslogger(files[0], LogInputs(*files[1:]))
     a = sc.observations.sort_values(["epoch", "sat"])
     a = a[np.isfinite(a["code_l1"].to_numpy())].reset_index(drop=True)
     k = _clock_term(sc, _raw(files[0])[1])[a["epoch"].to_numpy()]

@@ -14,7 +14,6 @@ from simbench.sim.tracking import (
     cn0_mean_dbhz,
     code_phase_step_chips,
     dll_jitter_chips,
-    dll_jitter_m,
     pll_jitter_m,
     pll_jitter_rad,
     sample_grid_code_error_chips,
@@ -40,14 +39,14 @@ def test_dll_preset_reference_values():
     spectral = 0.25 + 4.0 / (math.pi - 1.0) * 0.25**2
     sigma_low = math.sqrt(2.0 / (2.0 * c) * spectral * (1.0 + 2.0 / (T_1MS * c * 1.5)))
     assert sigma_low * CHIP_LENGTH_CA == pytest.approx(1.0188, abs=1e-4)
-    assert dll_jitter_m(45.0, **LOW) == pytest.approx(1.0188, abs=1e-4)
+    assert CHIP_LENGTH_CA * dll_jitter_chips(45.0, **LOW) == pytest.approx(1.0188, abs=1e-4)
     assert dll_jitter_chips(45.0, **LOW) == pytest.approx(sigma_low, rel=1e-12)
 
     # High preset: B_fe T_c = 9.4428, R_c/B_fe = 0.1059 < 0.2 < 0.3327: middle regime too.
     bt = 9.66e6 / CHIP_RATE_CA
     spectral = 1.0 / bt + bt / (math.pi - 1.0) * (0.2 - 1.0 / bt) ** 2
     sigma_high = math.sqrt(1.0 / (2.0 * c) * spectral * (1.0 + 2.0 / (T_1MS * c * 1.8)))
-    assert dll_jitter_m(45.0, **HIGH) == pytest.approx(0.4514, abs=1e-4)
+    assert CHIP_LENGTH_CA * dll_jitter_chips(45.0, **HIGH) == pytest.approx(0.4514, abs=1e-4)
     assert dll_jitter_chips(45.0, **HIGH) == pytest.approx(sigma_high, rel=1e-12)
 
 
@@ -90,22 +89,21 @@ def test_dll_continuity_at_regime_boundaries(front_end_bw_hz):
 
 def test_dll_monotone_and_presets_ordered():
     for preset in (LOW, HIGH):
-        sigma = dll_jitter_m(CN0_GRID, **preset)
+        sigma = dll_jitter_chips(CN0_GRID, **preset)
         assert sigma.shape == CN0_GRID.shape
         assert np.all(np.diff(sigma) < 0.0)
-    assert np.all(dll_jitter_m(CN0_GRID, **LOW) > dll_jitter_m(CN0_GRID, **HIGH))
+    assert np.all(dll_jitter_chips(CN0_GRID, **LOW) > dll_jitter_chips(CN0_GRID, **HIGH))
     # Smaller spacing within the same front end helps; larger bandwidth hurts.
-    assert dll_jitter_m(40.0, 2.0, 0.3, 9.66e6, T_1MS) < dll_jitter_m(40.0, 2.0, 0.6, 9.66e6, T_1MS)
-    assert dll_jitter_m(40.0, 4.0, 0.5, 9.66e6, T_1MS) == pytest.approx(
-        math.sqrt(2.0) * dll_jitter_m(40.0, 2.0, 0.5, 9.66e6, T_1MS), rel=1e-12
+    assert dll_jitter_chips(40.0, 2.0, 0.3, 9.66e6, T_1MS) < dll_jitter_chips(40.0, 2.0, 0.6, 9.66e6, T_1MS)
+    assert dll_jitter_chips(40.0, 4.0, 0.5, 9.66e6, T_1MS) == pytest.approx(
+        math.sqrt(2.0) * dll_jitter_chips(40.0, 2.0, 0.5, 9.66e6, T_1MS), rel=1e-12
     )
 
 
-def test_dll_broadcasts_and_converts_to_metres():
+def test_dll_broadcasts_and_chip_length():
     cn0 = np.linspace(30.0, 50.0, 12).reshape(3, 4)
     chips = dll_jitter_chips(cn0, **LOW)
     assert chips.shape == (3, 4)
-    np.testing.assert_allclose(dll_jitter_m(cn0, **LOW), CHIP_LENGTH_CA * chips, rtol=1e-15)
     assert CHIP_LENGTH_CA == pytest.approx(293.052, abs=1e-3)
 
 

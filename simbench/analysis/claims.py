@@ -83,6 +83,10 @@ class Outcome:
         return INCONCLUSIVE if self.inconclusive else HOLDS if self.holds else DOES_NOT_HOLD
 
 
+#: (summary, epochs, diagnostics by estimator) -> outcome, or None when not measured
+Evaluate = Callable[[pd.DataFrame, pd.DataFrame, dict], Outcome | None]
+
+
 @dataclass(frozen=True)
 class Claim:
     claim_id: str
@@ -92,8 +96,7 @@ class Claim:
     published: str
     #: the verdict's rule on ``measured``, beside the published number
     rule: str
-    #: (summary, epochs, diagnostics by estimator) -> outcome, or None when not measured
-    evaluate: Callable[[pd.DataFrame, pd.DataFrame, dict], Outcome | None]
+    evaluate: Evaluate
     #: the sweep (conf/sweep/<name>.yaml) whose rows measure it
     sweep: str
 
@@ -165,6 +168,12 @@ def _below(table: pd.DataFrame | None, a: str, others: list[str]) -> Outcome | N
     )
 
 
+def _lowest_median(sweep: str, best: str, others: list[str], receiver: str | None = None) -> Evaluate:
+    """Claim 'best has a lower median horizontal error than each of others' on ``sweep``'s rows (of one
+    ``receiver`` quality, or all): :func:`_below` on the :func:`per_seed` table."""
+    return lambda s, e, d: _below(per_seed(s, sweep, [best, *others], "horizontal_median", receiver), best, others)
+
+
 def straddles(ci_low: float, ci_high: float, threshold: float) -> bool:
     """True when a finite CI holds ``threshold`` strictly inside: the seeds decide neither way."""
     return bool(np.isfinite(ci_low) and np.isfinite(ci_high) and ci_low < threshold < ci_high)
@@ -182,6 +191,12 @@ def _spread_within(table: pd.DataFrame | None, tolerance: float) -> Outcome | No
         n_seeds=len(table),
         note=f"relative spread of mean per-seed medians; holds if <= {tolerance:.0%}",
     )
+
+
+def _comparable_medians(sweep: str, names: list[str], receiver: str, tolerance: float) -> Evaluate:
+    """Claim 'names' median horizontal errors lie within ``tolerance`` of each other' on ``sweep``'s rows
+    of one ``receiver`` quality: :func:`_spread_within` on the :func:`per_seed` table."""
+    return lambda s, e, d: _spread_within(per_seed(s, sweep, names, "horizontal_median", receiver), tolerance)
 
 
 # --------------------------------------------------------------------------- the claims
@@ -308,9 +323,7 @@ CLAIMS: list[Claim] = [
         "median horizontal error, BCE / best of L2, DCS, MM",
         "6.70/9.13 = 0.73, 3.58/4.11 = 0.87, 7.31/8.02 = 0.91 (collects 1-3)",
         "< 1, 95 % CI < 1",
-        lambda s, e, d: _below(
-            per_seed(s, "ch5_bce", ["bce", "l2", "dcs", "mm"], "horizontal_median", "low"), "bce", ["l2", "dcs", "mm"]
-        ),
+        _lowest_median("ch5_bce", "bce", ["l2", "dcs", "mm"], "low"),
         sweep="ch5_bce",
     ),
     Claim(
@@ -320,9 +333,7 @@ CLAIMS: list[Claim] = [
         "relative spread of median horizontal error",
         "0.75/0.67 - 1 = 0.12, 0.81/0.42 - 1 = 0.93, 1.44/1.20 - 1 = 0.20 (collects 1-3)",
         "<= 0.15",
-        lambda s, e, d: _spread_within(
-            per_seed(s, "ch5_bce", ["bce", "l2", "dcs", "mm"], "horizontal_median", "high"), 0.15
-        ),
+        _comparable_medians("ch5_bce", ["bce", "l2", "dcs", "mm"], "high", 0.15),
         sweep="ch5_bce",
     ),
     Claim(
@@ -352,7 +363,7 @@ CLAIMS: list[Claim] = [
         "median horizontal error, BCE-AD / BCE",
         "2.14/6.70 = 0.32, 3.58/3.58 = 1.00, 3.25/7.31 = 0.44 (collects 1-3)",
         "< 1, 95 % CI < 1",
-        lambda s, e, d: _below(per_seed(s, "ch6_bce_ad", ["bce_ad", "bce"], "horizontal_median"), "bce_ad", ["bce"]),
+        _lowest_median("ch6_bce_ad", "bce_ad", ["bce"]),
         sweep="ch6_bce_ad",
     ),
     Claim(
@@ -362,11 +373,7 @@ CLAIMS: list[Claim] = [
         "median horizontal error, ICE / best of iSAM2 L2, DCS, MM",
         "0.56/0.64 = 0.88, 0.93/1.94 = 0.48, 1.48/2.82 = 0.52 (collects 1-3)",
         "< 1, 95 % CI < 1",
-        lambda s, e, d: _below(
-            per_seed(s, "ch7_ice", ["ice", "isam2_ppp", "isam2_dcs", "isam2_mm"], "horizontal_median", "low"),
-            "ice",
-            ["isam2_ppp", "isam2_dcs", "isam2_mm"],
-        ),
+        _lowest_median("ch7_ice", "ice", ["isam2_ppp", "isam2_dcs", "isam2_mm"], "low"),
         sweep="ch7_ice",
     ),
     Claim(
@@ -376,9 +383,7 @@ CLAIMS: list[Claim] = [
         "relative spread of median horizontal error",
         "0.37/0.35 - 1 = 0.06, 0.84/0.81 - 1 = 0.04, 1.00/0.89 - 1 = 0.12 (collects 1-3)",
         "<= 0.15",
-        lambda s, e, d: _spread_within(
-            per_seed(s, "ch7_ice", ["ice", "isam2_ppp", "isam2_dcs", "isam2_mm"], "horizontal_median", "high"), 0.15
-        ),
+        _comparable_medians("ch7_ice", ["ice", "isam2_ppp", "isam2_dcs", "isam2_mm"], "high", 0.15),
         sweep="ch7_ice",
     ),
     Claim(

@@ -24,7 +24,7 @@ import math
 import numpy as np
 
 from simbench.core.constants import C_LIGHT, DEG
-from simbench.core.orbits import FIT_HALF_WINDOW_S, BroadcastEphemeris
+from simbench.core.orbits import BroadcastEphemeris
 
 __all__ = [
     "BeidouEphemeris",
@@ -60,35 +60,15 @@ class BeidouEphemeris(BroadcastEphemeris):
     week_origin_s = GPS_MINUS_BDT_S
     system_name = "BeiDou"
 
-    def __init__(
-        self,
-        sats: np.ndarray,
-        records: dict[str, np.ndarray],
-        iono_alpha: np.ndarray | None = None,
-        iono_beta: np.ndarray | None = None,
-        source: str = "",
-        max_age_s: float = FIT_HALF_WINDOW_S,
-    ) -> None:
-        super().__init__(sats, records, iono_alpha, iono_beta, source, max_age_s)
+    def _node_rate(self, omegadot: np.ndarray) -> np.ndarray:
+        """GEO elements are in a frame that does not rotate with the Earth: no -Omega_e in their node rate."""
         prn = np.array([int(s[1:3]) for s in self.sats.tolist()])
         self._geo_record = np.isin(prn, list(GEO_PRNS))[self._sat_idx]
-        # GEO elements are in a frame that does not rotate with the Earth: no -Omega_e in the node rate.
-        p = self._p
-        p["lamdot"] = np.where(self._geo_record, p["lamdot"] + BDS_OMEGA_EARTH, p["lamdot"])
-        self._param_table = np.stack(list(p.values()), axis=0)
+        lamdot = super()._node_rate(omegadot)
+        return np.where(self._geo_record, lamdot + BDS_OMEGA_EARTH, lamdot)
 
-    def _kepler(
-        self,
-        gi: np.ndarray,
-        tk: np.ndarray,
-        tc: np.ndarray,
-        pos: np.ndarray,
-        vel: np.ndarray,
-        clk: np.ndarray,
-        drift: np.ndarray,
-    ) -> None:
-        """Parent algorithm, then the GEO rotation from the inertial-like frame into BDCS."""
-        super()._kepler(gi, tk, tc, pos, vel, clk, drift)
+    def _to_earth_fixed(self, gi: np.ndarray, tk: np.ndarray, pos: np.ndarray, vel: np.ndarray) -> None:
+        """The GEO rotation from the inertial-like frame into BDCS."""
         geo = self._geo_record[gi]
         if not geo.any():
             return

@@ -123,12 +123,8 @@ class GlonassEphemeris(RecordEphemeris):
         Zeros: the broadcast GLONASS clock already refers to L1 C/A for an L1 user.
     iono_alpha, iono_beta : None
         GLONASS broadcasts no ionosphere model.
-    t_coverage : tuple of float
-        First and last GPS time at which some satellite is valid [s].
-    source : str
-        File name the ephemerides came from.
-    max_age_s : float
-        Largest |t - tb| at which a record is used [s].
+
+    and those of :class:`~simbench.core.orbits.RecordEphemeris` (``t_coverage``, ``source``, ``max_age_s``).
     """
 
     system_name = "GLONASS"

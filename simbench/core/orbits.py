@@ -360,8 +360,11 @@ class RecordEphemeris:
     system_name: str = "GPS"
     #: What the coverage error tells the user to do.
     coverage_fix: str = "choose a start time inside that span or a navigation file for the simulated dates"
+    #: Satellite ids with at least one healthy record (``'G05'``), shape (m,).
     sats: np.ndarray
+    #: File name the ephemerides came from.
     source: str
+    #: Largest distance of an epoch from a record's reference time (Toe, tb) at which it is used [s].
     max_age_s: float
     #: First and last GPS time at which some satellite is valid [s].
     t_coverage: tuple[float, float]
@@ -421,17 +424,13 @@ class BroadcastEphemeris(RecordEphemeris):
         [s, s/semicircle, ...]; None when the header has none.
     tgd : np.ndarray, shape (m,)
         Group delay differential per satellite (median over its healthy records) [s].
-    t_coverage : tuple of float
-        First and last GPS time at which some satellite is valid [s].
-    source : str
-        File name the ephemerides came from.
-    max_age_s : float
-        Largest |t - Toe| at which a record is used [s].
     record_sat : np.ndarray of int, shape (R,)
         Satellite (index into ``sats``) of each stored record; the record
         order is what :meth:`select_records` indexes.
     record_toe : np.ndarray, shape (R,)
         Toe of each stored record, continuous GPS seconds [s].
+
+    and those of :class:`RecordEphemeris` (``t_coverage``, ``source``, ``max_age_s``).
     """
 
     #: Gravitational parameter of the system's Keplerian algorithm [m^3/s^2].
@@ -507,7 +506,7 @@ class BroadcastEphemeris(RecordEphemeris):
             "idot": r["idot"],
             # Node longitude at Toe in ECEF(Toe): Omega0 is referred to the system's week start.
             "lam0": r["omega0"] - self.omega_e * np.mod(self._toe - self.week_origin_s, 604_800.0),
-            "lamdot": r["omegadot"] - self.omega_e,
+            "lamdot": self._node_rate(r["omegadot"]),
             "frel": self.f_rel * e * r["sqrta"],
         }
         self._param_table = np.stack(list(self._p.values()), axis=0)
@@ -566,6 +565,7 @@ class BroadcastEphemeris(RecordEphemeris):
             tk = (tb - self._toe[gi]) + off[a:b]
             tc = (tb - self._toc[gi]) + off[a:b]
             self._kepler(gi, tk, tc, pos[a:b], vel[a:b], clk[a:b], drift[a:b])
+            self._to_earth_fixed(gi, tk, pos[a:b], vel[a:b])
             valid[a:b] = ok
         if not valid.all():
             nan = ~valid
@@ -574,6 +574,14 @@ class BroadcastEphemeris(RecordEphemeris):
             clk[nan] = np.nan
             drift[nan] = np.nan
         return SatelliteStates(sats=self.sats, pos=pos, vel=vel, clock=clk, clock_drift=drift, valid=valid)
+
+    def _node_rate(self, omegadot: np.ndarray) -> np.ndarray:
+        """Rate of the node longitude in the frame the elements are solved in, per record [rad/s]:
+        ``OmegaDot - Omega_e`` in the Earth-fixed frame (a system with records in another frame overrides it)."""
+        return omegadot - self.omega_e
+
+    def _to_earth_fixed(self, gi: np.ndarray, tk: np.ndarray, pos: np.ndarray, vel: np.ndarray) -> None:
+        """Rotate the states of records ``gi`` solved outside the Earth-fixed frame into it, in place (none here)."""
 
     def _kepler(
         self,

@@ -95,7 +95,7 @@ from simbench.data.rinex import (
     second_frequency,
 )
 from simbench.errors import SimbenchError, warn
-from simbench.gnss.navigation import SYSTEM_NAMES, NavPaths
+from simbench.gnss.navigation import SYSTEM_NAMES
 
 __all__ = [
     "REQUIRED_FIELDS",
@@ -722,27 +722,17 @@ def _system_note(system: str, rows: pd.DataFrame, one: pd.DataFrame) -> str:
     return ""
 
 
-def load_gnsslogger(
-    obs_path: str | os.PathLike[str],
-    nav_path: NavPaths,
-    truth_path: str | os.PathLike[str] | None = None,
-    *,
-    systems: str = "G",
-    nav_bds_path: NavPaths | None = None,
-    nav_glo_path: NavPaths | None = None,
-    nav_gal_path: NavPaths | None = None,
-    name: str = "",
-    truth_max_gap_s: float = 2.0,
-) -> Scenario:
+def load_gnsslogger(obs_path: str | os.PathLike[str], inputs: LogInputs) -> Scenario:
     """Ingest an Android GnssLogger file, RINEX navigation files and a reference trajectory or point.
 
     Parameters
     ----------
     obs_path : str or PathLike
         GnssLogger text file (:func:`read_gnsslogger`).
-    nav_path, truth_path, systems, nav_bds_path, nav_glo_path, nav_gal_path, name, truth_max_gap_s
-        As :func:`simbench.data.rinex.load_rinex`: the phone's log carries no ephemerides, so the
-        broadcast orbits come from RINEX navigation files of the day, as for a RINEX log.
+    inputs : LogInputs
+        Navigation files, reference, systems and name as for :func:`simbench.data.rinex.load_rinex`: the
+        phone's log carries no ephemerides, so the broadcast orbits come from RINEX navigation files of the
+        day, as for a RINEX log.
 
     Returns
     -------
@@ -757,8 +747,7 @@ def load_gnsslogger(
         The errors of :func:`read_gnsslogger` and of the RINEX pipeline (navigation files that do
         not cover the log, a reference far from the log's own fixes).
     """
-    read = read_gnsslogger(obs_path, systems)
-    inputs = LogInputs(nav_path, truth_path, systems, nav_bds_path, nav_glo_path, nav_gal_path, name, truth_max_gap_s)
+    read = read_gnsslogger(obs_path, inputs.systems)
     scenario = rinex_scenario(read.obs, inputs)
     meta = {k: v for k, v in scenario.meta.items() if k != "rinex_version"}
     meta |= {

@@ -19,7 +19,7 @@ from simbench.contract import Scenario
 from simbench.data.gnsslogger import load_gnsslogger
 from simbench.data.librsf import load_librsf
 from simbench.data.reference import is_point
-from simbench.data.rinex import NAV_SETTINGS, load_rinex
+from simbench.data.rinex import NAV_SETTINGS, LogInputs, load_rinex_log
 from simbench.errors import SimbenchError
 from simbench.gnss.navigation import SYSTEM_NAMES, nav_header_system, nav_paths
 from simbench.paths import require_file
@@ -86,7 +86,7 @@ class RinexSource(Source):
     name = "rinex"
     Config = RinexConfig
     #: reads the observation file and builds the scenario; a raw format of its own overrides it (same arguments)
-    loader = staticmethod(load_rinex)
+    loader = staticmethod(load_rinex_log)
 
     def check(self, cfg: DataConfig) -> None:
         s = scenario_config(cfg, RinexConfig)
@@ -111,17 +111,10 @@ class RinexSource(Source):
 
     def load(self, cfg: DataConfig) -> Scenario:
         s = scenario_config(cfg, RinexConfig)
-        return self.loader(
-            s.obs,
-            s.nav,
-            s.truth,
-            systems=s.systems,
-            nav_bds_path=s.nav_bds,
-            nav_glo_path=s.nav_glo,
-            nav_gal_path=s.nav_gal,
-            name=self.label(cfg),
-            truth_max_gap_s=s.truth_max_gap_s,
+        inputs = LogInputs(
+            s.nav, s.truth, s.systems, s.nav_bds, s.nav_glo, s.nav_gal, self.label(cfg), s.truth_max_gap_s
         )
+        return self.loader(s.obs, inputs)
 
 
 class GnssLoggerSource(RinexSource):

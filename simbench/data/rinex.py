@@ -86,6 +86,8 @@ __all__ = [
     "RinexObs",
     "read_rinex_obs",
     "load_rinex",
+    "load_rinex_log",
+    "LogInputs",
     "rinex_scenario",
     "first_signals",
     "second_frequency",
@@ -1056,7 +1058,13 @@ def load_rinex(
         Observed satellites without a record near their epochs: their rows are left out.
     """
     inputs = LogInputs(nav_path, truth_path, systems, nav_bds_path, nav_glo_path, nav_gal_path, name, truth_max_gap_s)
-    return rinex_scenario(read_rinex_obs(obs_path, systems), inputs)
+    return load_rinex_log(obs_path, inputs)
+
+
+def load_rinex_log(obs_path: str | os.PathLike[str], inputs: LogInputs) -> Scenario:
+    """:func:`load_rinex` with its parameters after ``obs_path`` in one :class:`LogInputs` (the form a log
+    source calls, shared with :func:`simbench.data.gnsslogger.load_gnsslogger`)."""
+    return rinex_scenario(read_rinex_obs(obs_path, inputs.systems), inputs)
 
 
 @dataclass(frozen=True)

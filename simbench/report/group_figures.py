@@ -36,6 +36,7 @@ from simbench.report.leaderboard import ranked
 from simbench.report.style import use_style
 from simbench.report.time_views import (
     ALTITUDE_SPAN_M,
+    SeedEpochs,
     altitude_figure,
     consistency_figure,
     enu_error_figure,
@@ -296,23 +297,12 @@ def time_views(
         where = f"{name}, seed {seed}" + (f" ({which})" if which else "")
         suffix = tag if k == 0 else f"{tag}_best"
         track = reference if "east" in reference else None
+        view = SeedEpochs(one, order, page.formats)
         if {"east", "north"} <= set(one.columns) and one["east"].notna().any():
-            page.figure(
-                trajectory_figure(
-                    one, track, out / f"trajectory_{suffix}.png", f"Trajectory: {where}", order=order, **page.fmt
-                )
-            )
+            page.figure(trajectory_figure(view, track, out / f"trajectory_{suffix}.png", f"Trajectory: {where}"))
         if track is not None and "up" in one and np.ptp(track["up"].to_numpy(float)) > ALTITUDE_SPAN_M:
-            page.figure(
-                altitude_figure(
-                    one, track, out / f"altitude_{suffix}.png", f"Altitude: {where}", order=order, **page.fmt
-                )
-            )
-        page.figure(
-            enu_error_figure(
-                one, reference, out / f"enu_time_{suffix}.png", f"Error against time: {where}", order=order, **page.fmt
-            )
-        )
+            page.figure(altitude_figure(view, track, out / f"altitude_{suffix}.png", f"Altitude: {where}"))
+        page.figure(enu_error_figure(view, reference, out / f"enu_time_{suffix}.png", f"Error against time: {where}"))
         if k == 0:
             _signal_and_consistency(page, out, tag, where, one, reference, cache)
 

@@ -9,7 +9,7 @@ straight segment across. Curves are styled as in :mod:`simbench.report.figures`.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import matplotlib.pyplot as plt
@@ -46,25 +46,36 @@ def nees_band(dof: int = NEES_DOF, probability: float = NEES_BAND) -> tuple[floa
     return float(stats.chi2.ppf(tail, dof)), float(stats.chi2.ppf(1.0 - tail, dof))
 
 
+@dataclass(frozen=True)
+class SeedEpochs:
+    """One seed's estimates as the time views draw them."""
+
+    #: ``epochs.parquet`` rows of one seed: ``estimator`` (curve name), ``epoch`` and the drawn columns
+    epochs: pd.DataFrame
+    #: legend and panel order (the leaderboard's); names not in it follow, sorted
+    order: Sequence[str] = ()
+    #: files to write: PNG at the figure's path, other formats beside it
+    formats: Sequence[Format] = ("png",)
+
+    @property
+    def names(self) -> list[str]:
+        """The estimators present, in :attr:`order` and then sorted."""
+        present = set(self.epochs["estimator"].unique())
+        return [n for n in self.order if n in present] + sorted(present - set(self.order))
+
+
 def _on_reference(rows: pd.DataFrame, reference: pd.DataFrame, columns: Sequence[str]) -> pd.DataFrame:
     """``columns`` of one estimator's rows at every reference epoch: NaN where it did not solve (a gap)."""
     return reference[["epoch", "t"]].merge(rows[["epoch", *columns]], on="epoch", how="left")
 
 
-def trajectory_figure(
-    epochs: pd.DataFrame,
-    reference: pd.DataFrame | None,
-    path: str | Path,
-    title: str,
-    formats: Sequence[Format] = ("png",),
-    order: Sequence[str] = (),
-) -> FigureFile:
+def trajectory_figure(seed: SeedEpochs, reference: pd.DataFrame | None, path: str | Path, title: str) -> FigureFile:
     """Reference and estimated trajectories in local east/north, one small panel per estimator, each
     estimate's line coloured by its horizontal error on one log scale; an unsolved epoch breaks the line.
 
     Parameters
     ----------
-    epochs : pandas.DataFrame
+    seed : SeedEpochs
         One seed's ``epochs.parquet`` rows: ``estimator`` (curve name), ``epoch``, ``east``, ``north``,
         ``horizontal`` [m].
     reference : pandas.DataFrame or None
@@ -75,12 +86,8 @@ def trajectory_figure(
         PNG to write (other formats beside it).
     title : str
         Caption for the report (not drawn).
-    formats : sequence of str
-    order : sequence of str
-        Panel order (the leaderboard's); names not in it follow, sorted.
     """
-    present = set(epochs["estimator"].unique())
-    names = [n for n in order if n in present] + sorted(present - set(order))
+    epochs, names = seed.epochs, seed.names
     fig, axes = grid_axes(len(names), 1.9, 1.9, ncols=TRAJECTORY_COLUMNS, sharex=True, sharey=True)
     errors = epochs["horizontal"].to_numpy(float)
     positive = errors[np.isfinite(errors) & (errors > 0)]
@@ -111,7 +118,7 @@ def trajectory_figure(
         path,
         f"{title} (black: reference; local east/north at the first reference point; each estimate coloured "
         "by its horizontal error; gaps: epochs not solved)",
-        formats,
+        seed.formats,
     )
 
 
@@ -135,26 +142,18 @@ def error_segments(rows: pd.DataFrame, reference: pd.DataFrame | None, norm: Log
     return lines
 
 
-def altitude_figure(
-    epochs: pd.DataFrame,
-    reference: pd.DataFrame,
-    path: str | Path,
-    title: str,
-    formats: Sequence[Format] = ("png",),
-    order: Sequence[str] = (),
-) -> FigureFile:
-    """Altitude (local up) against time: the reference and every estimate (legend in ``order``, the
+def altitude_figure(seed: SeedEpochs, reference: pd.DataFrame, path: str | Path, title: str) -> FigureFile:
+    """Altitude (local up) against time: the reference and every estimate (legend in ``seed.order``, the
     leaderboard's), unsolved epochs as gaps.
 
     Parameters
     ----------
-    epochs : pandas.DataFrame
+    seed : SeedEpochs
         One seed's rows: ``estimator``, ``epoch``, ``up`` [m].
     reference : pandas.DataFrame
         The reference epochs: ``epoch``, ``t`` [s] and ``up`` [m] in the same local frame.
     """
-    present = set(epochs["estimator"].unique())
-    names = [n for n in order if n in present] + sorted(present - set(order))
+    epochs, names = seed.epochs, seed.names
     styles = estimator_styles(names)
     fig, ax = plt.subplots(figsize=figsize(7.0, 3.0), dpi=PNG_DPI)
     ax.plot(reference["t"], reference["up"], color=REFERENCE_COLOR, lw=1.4, label="reference")
@@ -165,21 +164,14 @@ def altitude_figure(
     ax.set_ylabel("up (local, from the first reference point) [m]")
     ax.grid(True, alpha=0.3)
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False, ncols=1 if len(names) <= 20 else 2)
-    return save_figure(fig, path, f"{title} (black: reference; gaps: epochs not solved)", formats)
+    return save_figure(fig, path, f"{title} (black: reference; gaps: epochs not solved)", seed.formats)
 
 
 #: A reference whose local up spans more than this gets an altitude view [m]: a flight, not a drive.
 ALTITUDE_SPAN_M = 30.0
 
 
-def enu_error_figure(
-    epochs: pd.DataFrame,
-    reference: pd.DataFrame,
-    path: str | Path,
-    title: str,
-    formats: Sequence[Format] = ("png",),
-    order: Sequence[str] = (),
-) -> FigureFile:
+def enu_error_figure(seed: SeedEpochs, reference: pd.DataFrame, path: str | Path, title: str) -> FigureFile:
     """East, north and up error against time: three stacked panels, one line per estimator, the legend
     in ``order`` (the leaderboard's); unsolved epochs are gaps. Each panel's scale holds the
     :data:`ENU_CLIP_PERCENTILE` % of every estimator's errors nearest zero, so one estimator's spikes
@@ -187,13 +179,12 @@ def enu_error_figure(
 
     Parameters
     ----------
-    epochs : pandas.DataFrame
+    seed : SeedEpochs
         One seed's rows: ``estimator``, ``epoch``, ``e``, ``n``, ``u`` [m].
     reference : pandas.DataFrame
         The scenario's reference epochs: ``epoch`` and ``t`` (GPS time since the first epoch [s]).
     """
-    present = set(epochs["estimator"].unique())
-    names = [n for n in order if n in present] + sorted(present - set(order))
+    epochs, names = seed.epochs, seed.names
     styles = estimator_styles(names)
     fig, axes = plt.subplots(3, 1, figsize=figsize(7.5, 5.4), dpi=PNG_DPI, sharex=True)
     beyond = 0
@@ -221,7 +212,7 @@ def enu_error_figure(
         ncols=1 + len(names) // 21,
     )
     clipped = f"; {beyond} epoch errors beyond the scale, cut off" if beyond else ""
-    return save_figure(fig, path, f"{title} (gaps: epochs not solved{clipped})", formats)
+    return save_figure(fig, path, f"{title} (gaps: epochs not solved{clipped})", seed.formats)
 
 
 #: The E/N/U error panels' scale holds this percentile of all estimators' absolute errors [%].

@@ -24,7 +24,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from simbench.core.constants import IONO_L2_SCALE, LAMBDA_L1
+from simbench.core.constants import CHIP_LENGTH_CA, IONO_L2_SCALE, LAMBDA_L1
 from simbench.core.orbits import Constellation
 from simbench.sim import tracking
 from simbench.sim.config import ErrorsConfig, ReceiverConfig, SimConfig
@@ -168,6 +168,13 @@ class SimState:
         """Double-sided front-end bandwidth [Hz]."""
         return self.cfg.receiver.front_end_bw_mhz * 1e6
 
+    def code_jitter_m(self, cn0_dbhz: np.ndarray) -> np.ndarray:
+        """The receiver's thermal-noise code jitter at ``cn0_dbhz`` [dB-Hz] (1-sigma, [m]):
+        :func:`~simbench.sim.tracking.dll_jitter_chips` with its loop settings, times the C/A chip length."""
+        rx = self.cfg.receiver
+        bw, t = rx.dll_bw_hz, rx.integration_s
+        return CHIP_LENGTH_CA * tracking.dll_jitter_chips(cn0_dbhz, bw, self.spacing_chips, self.front_end_bw_hz, t)
+
     @property
     def cn0_l2_dbhz(self) -> np.ndarray:
         """L2 C/N0 [dB-Hz]."""
@@ -287,3 +294,13 @@ class ErrorSource(Protocol):
     def apply(self, state: SimState, rng: np.random.Generator) -> Contribution:
         """Its contribution, drawing random numbers from ``rng`` (its own stream) only."""
         ...
+
+
+class AlwaysOn:
+    """Base of an error source that runs in every scenario (:class:`ErrorSource`): a subclass sets ``name``
+    and ``apply``, and ``labels`` when it fills label columns."""
+
+    labels: Mapping[str, type] = {}
+
+    def enabled(self, state: SimState) -> bool:
+        return True

@@ -148,7 +148,7 @@ def _lock(state: SimState) -> Lock:
     a weak signal keeps its code and Doppler (the DLL and FLL hold longer) but loses its carrier.
     """
     rx, cn0, spacing = state.receiver, state.cn0_dbhz, state.spacing_chips
-    sig_code = tracking.dll_jitter_m(cn0, rx.dll_bw_hz, spacing, state.front_end_bw_hz, rx.integration_s)
+    sig_code = state.code_jitter_m(cn0)
     pll_rad = tracking.pll_jitter_rad(cn0, rx.pll_bw_hz, rx.integration_s)
     in_lock = state.in_view & (cn0 >= rx.lock_threshold_dbhz) & (3.0 * sig_code <= 0.5 * spacing * CHIP_LENGTH_CA)
     tracked = tracking.channel_lock_states(

@@ -20,14 +20,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.special import sici
 
-from simbench.core.constants import CHIP_LENGTH_CA, CHIP_RATE_CA, DEG, LAMBDA_L1
+from simbench.core.constants import CHIP_RATE_CA, DEG, LAMBDA_L1
 from simbench.core.frames import dot_last_axis
 from simbench.errors import SimbenchError
 from simbench.sim.config import ANTENNA_GAIN_ANGLE_DEG, ANTENNA_GAIN_DBI
 
 __all__ = [
     "dll_jitter_chips",
-    "dll_jitter_m",
     "pll_jitter_rad",
     "pll_jitter_m",
     "antenna_gain_dbi",
@@ -147,25 +146,6 @@ def dll_jitter_chips(
     c = _cn0_ratio_hz(cn0_dbhz)
     inv_c = 1.0 / c
     return np.sqrt((0.5 * bw * spectral) * inv_c * (1.0 + (squaring / t) * inv_c))
-
-
-def dll_jitter_m(
-    cn0_dbhz: ArrayLike,
-    dll_bw_hz: float,
-    spacing_chips: float,
-    front_end_bw_hz: float,
-    integration_s: float,
-) -> FloatArray:
-    """Thermal-noise code tracking jitter in metres on GPS L1 C/A.
-
-    :func:`dll_jitter_chips` (its parameters and errors) times the C/A chip length (293.05 m).
-
-    Returns
-    -------
-    numpy.ndarray
-        1-sigma pseudorange jitter [m].
-    """
-    return CHIP_LENGTH_CA * dll_jitter_chips(cn0_dbhz, dll_bw_hz, spacing_chips, front_end_bw_hz, integration_s)
 
 
 def pll_jitter_rad(cn0_dbhz: ArrayLike, pll_bw_hz: float, integration_s: float) -> FloatArray:

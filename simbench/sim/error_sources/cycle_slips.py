@@ -7,11 +7,11 @@ from collections.abc import Mapping
 import numpy as np
 
 from simbench.core.constants import LAMBDA_L1, LAMBDA_L2
-from simbench.sim.error_source import Contribution, SimState
+from simbench.sim.error_source import AlwaysOn, Contribution, SimState
 from simbench.sim.slips import phase_arcs
 
 
-class CycleSlips:
+class CycleSlips(AlwaysOn):
     """``lambda N`` on each phase [m], from :func:`simbench.sim.slips.phase_arcs` on the carrier lock.
 
     Runs with slips off too: every arc has its ambiguity, and a phase without carrier lock is NaN. Observation columns
@@ -20,9 +20,6 @@ class CycleSlips:
 
     name = "cycle_slips"
     labels: Mapping[str, type] = {"ambiguity_l1": np.int64, "ambiguity_l2": np.int64, "slip": bool}
-
-    def enabled(self, state: SimState) -> bool:
-        return True
 
     def apply(self, state: SimState, rng: np.random.Generator) -> Contribution:
         lock = state.lock

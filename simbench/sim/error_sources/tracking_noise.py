@@ -63,9 +63,7 @@ class TrackingNoiseL2:
 
     def apply(self, state: SimState, rng: np.random.Generator) -> Contribution:
         rx, cn0 = state.receiver, state.cn0_l2_dbhz
-        sig_code = tracking.dll_jitter_m(
-            cn0, rx.dll_bw_hz, state.spacing_chips, state.front_end_bw_hz, rx.integration_s
-        )
+        sig_code = state.code_jitter_m(cn0)
         sig_phase = tracking.pll_jitter_m(cn0, rx.pll_bw_hz, rx.integration_s)
         return Contribution(
             code_l2_m=sig_code * state.draw(rng.standard_normal), phase_l2_m=sig_phase * state.draw(rng.standard_normal)
