@@ -42,7 +42,9 @@ CASES: list[tuple[str, list[str], float | None, int]] = [
     ("refused value: scenario.duration_s=-5", ["-m", "simbench", "scenario.duration_s=-5"], 2.0, 2),
     ("refused key: receiver.x=1", ["-m", "simbench", "receiver.x=1"], 2.0, 2),
     ("refused value: estimator.dcs.kernel_width=nan", ["-m", "simbench", "estimator.dcs.kernel_width=nan"], 2.0, 2),
-    ("refused value: estimator.dcs.kernel_width=-1", ["-m", "simbench", "estimator.dcs.kernel_width=-1"], None, 2),
+    ("refused value: estimator.dcs.kernel_width=-1", ["-m", "simbench", "estimator.dcs.kernel_width=-1"], 2.0, 2),
+    ("refused value: estimator.bce.truncation=0", ["-m", "simbench", "estimator.bce.truncation=0"], 2.0, 2),
+    ("refused value: estimator.mm.outlier_weight=2", ["-m", "simbench", "estimator.mm.outlier_weight=2"], 2.0, 2),
     (
         "valid run: open_sky 10 s, wls_spp, report",
         [
