@@ -18,7 +18,8 @@ import argparse
 import time
 
 import simbench
-from estimators.batch.bce import Bce, BceAd, BceConfig
+from estimators.batch.bce import Bce, BceAd
+from estimators.batch.configs import BceConfig
 from estimators.batch.robust import L2Batch
 from simbench.analysis.metrics import enu_errors
 

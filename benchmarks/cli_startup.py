@@ -8,9 +8,10 @@ entry points' before any estimator loads. A bad value (``scenario.duration_s=-5`
 ``estimator.dcs.kernel_width=nan``) needs the composed, typed config: it is composed with the
 schemas recorded at the last registration (:mod:`simbench.runs.schema_record`), so no estimator
 or simulation is imported, except the class of an estimator node the record has not seen pass
-(``estimator.dcs.kernel_width=-1``: ``dcs``'s module). The first command line after a code edit
-imports everything once (the record is rewritten); best of 3 shows the warm record. A valid run
-(10 s open sky, one per-epoch estimator, its report) is timed whole, start-up included (no target).
+(``estimator.dcs.kernel_width=-1``: ``DcsConfig``'s light module, :mod:`estimators.batch.configs`,
+no solver). The first command line after a code edit imports everything once (the record is
+rewritten); best of 3 shows the warm record. A valid run (10 s open sky, one per-epoch estimator,
+its report) is timed whole, start-up included (no target).
 
     python benchmarks/cli_startup.py [--repeat 3] [--repo DIR] [--before DIR]
 
@@ -42,7 +43,10 @@ CASES: list[tuple[str, list[str], float | None, int]] = [
     ("refused value: scenario.duration_s=-5", ["-m", "simbench", "scenario.duration_s=-5"], 2.0, 2),
     ("refused key: receiver.x=1", ["-m", "simbench", "receiver.x=1"], 2.0, 2),
     ("refused value: estimator.dcs.kernel_width=nan", ["-m", "simbench", "estimator.dcs.kernel_width=nan"], 2.0, 2),
-    ("refused value: estimator.dcs.kernel_width=-1", ["-m", "simbench", "estimator.dcs.kernel_width=-1"], None, 2),
+    ("refused value: estimator.dcs.kernel_width=-1", ["-m", "simbench", "estimator.dcs.kernel_width=-1"], 2.0, 2),
+    ("refused value: estimator.bce.truncation=0", ["-m", "simbench", "estimator.bce.truncation=0"], 2.0, 2),
+    ("refused value: estimator.mm.outlier_weight=2", ["-m", "simbench", "estimator.mm.outlier_weight=2"], 2.0, 2),
+    ("refused value: estimator.crt_lss.window=0", ["-m", "simbench", "estimator.crt_lss.window=0"], 2.0, 2),
     (
         "valid run: open_sky 10 s, wls_spp, report",
         [

@@ -23,7 +23,8 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np
 
 import simbench
-from estimators.gnss_ins.crt_lss import CrtLss, CrtLssConfig
+from estimators.gnss_ins.config import CrtLssConfig
+from estimators.gnss_ins.crt_lss import CrtLss
 from estimators.gnss_ins.ekf import EkfIns, IekfIns
 
 TARGET_S = 0.100

@@ -25,7 +25,8 @@ import pandas as pd
 
 import simbench
 from estimators.base import Solution
-from estimators.batch.robust import DcsBatch, DcsConfig, L2Batch, L2Config
+from estimators.batch.configs import DcsConfig, L2Config
+from estimators.batch.robust import DcsBatch, L2Batch
 from simbench.analysis.metrics import enu_errors
 
 

@@ -11,16 +11,18 @@ from conftest import dissertation
 
 import simbench
 from estimators.batch import whitened_rows
-from estimators.batch.bce import FEATURES, Bce, BceAd, BceAdConfig, BceConfig
+from estimators.batch.bce import Bce, BceAd
+from estimators.batch.configs import FEATURES, BceAdConfig, BceConfig, DcsConfig
 from estimators.batch.gauss_newton import GaussNewton
 from estimators.batch.oracle import Oracle
-from estimators.batch.robust import DcsBatch, DcsConfig, L2Batch, MmBatch
+from estimators.batch.robust import DcsBatch, L2Batch, MmBatch
 from estimators.batch.whitened_rows import DcsKernel, WhitenedRows
-from estimators.filters.ekf_ppp import EkfPpp, EkfPppConfig
+from estimators.filters.configs import EkfPppConfig
+from estimators.filters.ekf_ppp import EkfPpp
 from estimators.model.clustering import fit_dpgmm, mcfs_scores, select_features
 from estimators.model.measurement import prepare_ppp
-from estimators.model.ppp_config import IonosphereMode, VarianceComponents, WetDelayMode
-from estimators.model.ppp_graph import PppGraph, PppGraphConfig, solve
+from estimators.model.ppp_config import IonosphereMode, PppGraphConfig, VarianceComponents, WetDelayMode
+from estimators.model.ppp_graph import PppGraph, solve
 from estimators.model.robust_models import max_mixture_outliers
 from simbench.analysis.metrics import enu_errors
 from simbench.contract import Scenario

@@ -13,7 +13,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from estimators.incremental.ice import AdaptiveNoiseModel, IceConfig
+from estimators.incremental.configs import IceConfig
+from estimators.incremental.ice import AdaptiveNoiseModel
 from simbench.analysis.claims import CLAIMS, CONVERGENCE_S, adaptation_outcome, claims_by_world, claims_table
 from simbench.analysis.variants import overrides_json, variant_label
 from simbench.runs.runner import SUMMARY_COLUMNS

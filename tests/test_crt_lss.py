@@ -10,7 +10,8 @@ import pytest
 from scipy.optimize import minimize_scalar
 
 import simbench
-from estimators.gnss_ins.crt_lss import CrtLss, CrtLssConfig
+from estimators.gnss_ins.config import CrtLssConfig
+from estimators.gnss_ins.crt_lss import CrtLss
 from estimators.gnss_ins.data import prepare_gnss_ins
 from estimators.gnss_ins.driver import run_gnss_ins
 from estimators.gnss_ins.window_solver import (

@@ -12,7 +12,8 @@ import pytest
 from conftest import dissertation
 
 import simbench
-from estimators.filters.ekf_ppp import EkfPpp, EkfPppConfig, EkfTrack
+from estimators.filters.configs import EkfPppConfig
+from estimators.filters.ekf_ppp import EkfPpp, EkfTrack
 from estimators.model.measurement import prepare_ppp
 from simbench.errors import SimbenchError
 from simbench.gnss.geometry import enu_basis

@@ -14,7 +14,8 @@ from conftest import dissertation
 import estimators
 import simbench
 from estimators.base import COVARIANCE_INDEX
-from estimators.filters.ekf_ppp import EkfPpp, EkfPppConfig
+from estimators.filters.configs import EkfPppConfig
+from estimators.filters.ekf_ppp import EkfPpp
 from simbench.analysis.metrics import nees
 from simbench.core.constants import IF_A1, IF_A2, LAMBDA_L1, LAMBDA_L2
 from simbench.errors import SimbenchError

@@ -8,8 +8,9 @@ import pytest
 
 import estimators
 import simbench
+from estimators.incremental.configs import IncrementalConfig
 from estimators.incremental.fixed_lag import LagSchedule, restart_stale_arcs
-from estimators.incremental.isam2 import IncrementalConfig, IncrementalGraphEstimator
+from estimators.incremental.isam2 import IncrementalGraphEstimator
 from estimators.model.measurement import prepare_ppp
 from simbench.contract import ReceiverData
 

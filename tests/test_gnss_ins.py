@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 import simbench
-from estimators.gnss_ins.crt_lss import CrtLssConfig
+from estimators.gnss_ins.config import CrtLssConfig, EkfInsConfig, IekfInsConfig
 from estimators.gnss_ins.data import prepare_gnss_ins
 from estimators.gnss_ins.driver import run_gnss_ins
-from estimators.gnss_ins.ekf import EkfIns, EkfInsConfig, IekfIns, IekfInsConfig
+from estimators.gnss_ins.ekf import EkfIns, IekfIns
 from estimators.gnss_ins.mechanisation import level_roll_pitch
 from estimators.gnss_ins.window_solver import WindowSolver
 from simbench.analysis.metrics import enu_errors

@@ -20,7 +20,8 @@ import pytest
 
 import estimators
 import simbench
-from estimators.incremental.ice import AdaptiveNoiseModel, IceConfig
+from estimators.incremental.configs import IceConfig
+from estimators.incremental.ice import AdaptiveNoiseModel
 from estimators.model.mixture_tests import MixtureModel
 from simbench.analysis.metrics import enu_errors
 from simbench.data.export import export_scenario

@@ -6,9 +6,11 @@ import numpy as np
 import pytest
 
 import simbench
-from estimators.batch.robust import L2Batch, L2Config
-from estimators.incremental.ice import AdaptiveNoiseModel, Ice, IceConfig
-from estimators.incremental.isam2 import IncrementalConfig, Isam2Mm, Isam2Ppp
+from estimators.batch.configs import L2Config
+from estimators.batch.robust import L2Batch
+from estimators.incremental.configs import IceConfig, IncrementalConfig
+from estimators.incremental.ice import AdaptiveNoiseModel, Ice
+from estimators.incremental.isam2 import Isam2Mm, Isam2Ppp
 
 
 @pytest.fixture(scope="module")

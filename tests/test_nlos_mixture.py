@@ -9,10 +9,12 @@ import pandas as pd
 import pytest
 
 import simbench
-from estimators.batch.robust import MmEm, MmEmConfig
+from estimators.batch.configs import MmEmConfig
+from estimators.batch.robust import MmEm
 from estimators.model.clustering import conditioned_labels
-from estimators.model.nlos_mixture import Assignment, NlosMixture, predictors
+from estimators.model.nlos_mixture import NlosMixture, predictors
 from estimators.model.ppp_config import MeasurementMode
+from estimators.model.robust_models import Assignment
 from simbench.contract import Scenario
 from simbench.errors import SimbenchError
 

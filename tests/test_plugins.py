@@ -177,7 +177,8 @@ NEW_MODULE = '''
 from dataclasses import dataclass
 
 from estimators import register
-from estimators.baselines.spp import WlsSpp, WlsSppConfig
+from estimators.baselines.spp import WlsSpp
+from estimators.baselines.configs import WlsSppConfig
 
 
 @dataclass

@@ -10,7 +10,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from estimators.baselines.rtklib_spp import EXECUTABLE, RtklibSpp, RtklibSppConfig, rnx2rtkp_options, run_rnx2rtkp
+from estimators.baselines.configs import RtklibSppConfig
+from estimators.baselines.rtklib_spp import EXECUTABLE, RtklibSpp, rnx2rtkp_options, run_rnx2rtkp
 from simbench.contract import (
     IMU_COLUMNS,
     MISSING_NEED_REASONS,

@@ -91,8 +91,8 @@ try:
     main()
 except SystemExit as exc:
     print(exc.code)
-heavy = ("gtsam", "sklearn", "scipy.stats", "simbench.sim.generator", "estimators.batch.robust",
-         "estimators.model.measurement")
+heavy = ("gtsam", "sklearn", "scipy", "simbench.sim.generator", "estimators.batch.robust", "estimators.batch.bce",
+         "estimators.gnss_ins.driver", "estimators.model.measurement")
 print(",".join(sorted(m for m in heavy if m in sys.modules)))
 """
 
@@ -115,7 +115,17 @@ def test_a_refused_value_imports_no_estimator_and_no_simulation() -> None:
     code, imported, err = _refuse("estimator.dcs.kernel_width=nan")
     assert code == "2" and err.startswith("error: estimator.dcs.kernel_width: must be finite, got nan")
     assert imported == ""
-    # a range only the estimator's code knows: its class is imported, and says it in the same words
+    # a range only the estimator's code knows: its ``Config`` is imported from the family's light config
+    # module (no solver), and says it in the same words
     code, imported, err = _refuse("estimator.dcs.kernel_width=-1")
     assert code == "2" and err.startswith("error: estimator.dcs.kernel_width: must be positive, got -1.0")
-    assert "estimators.batch.robust" in imported
+    assert imported == ""
+    code, imported, err = _refuse("estimator.bce.truncation=0")
+    assert code == "2" and err == (
+        "error: estimator.bce.truncation: must be at least 1, got 0 -- the defaults are in BceConfig "
+        "(estimators/batch/bce.py)"
+    )
+    assert imported == ""
+    code, imported, err = _refuse("estimator.crt_lss.window=0")
+    assert code == "2" and err.startswith("error: estimator.crt_lss.window: must be at least 1, got 0")
+    assert imported == ""

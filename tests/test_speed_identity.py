@@ -28,7 +28,8 @@ import pytest
 
 import estimators
 import simbench
-from estimators.gnss_ins.crt_lss import CrtLss, CrtLssConfig
+from estimators.gnss_ins.config import CrtLssConfig
+from estimators.gnss_ins.crt_lss import CrtLss
 
 #: label -> (scenario preset, receiver preset, seed, overrides); short, so that the test is fast.
 CASES: dict[str, tuple[str, str, int, dict[str, Any]]] = {

@@ -180,7 +180,8 @@ def test_only_the_runs_own_jobs_and_its_studies_are_aggregated(intact: Path, tmp
 PLUGIN = '''
 from dataclasses import dataclass
 
-from estimators.batch.robust import L2Batch, L2Config
+from estimators.batch.robust import L2Batch
+from estimators.batch.configs import L2Config
 
 OFFSET_M = {offset}
 

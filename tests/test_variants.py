@@ -6,8 +6,8 @@ import json
 
 import pandas as pd
 
-from estimators.filters.ekf_ppp import EkfPppConfig
-from estimators.gnss_ins.crt_lss import CrtLssConfig
+from estimators.filters.configs import EkfPppConfig
+from estimators.gnss_ins.config import CrtLssConfig
 from simbench.analysis.variants import (
     NO_OVERRIDES,
     config_defaults,

@@ -40,7 +40,6 @@ import subprocess
 import tempfile
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -49,24 +48,16 @@ import pandas as pd
 
 from estimators import register
 from estimators.base import Estimator, solution_frame
+from estimators.baselines.configs import IonosphereModel, RtklibSppConfig, TroposphereModel
 from estimators.model.measurement import ionosphere_free
 from estimators.model.ppp_config import IonosphereMode
 from simbench.contract import Need, ReceiverData
 from simbench.data.export import write_receiver_rinex
 from simbench.data.rtklib_pos import parse_rtklib_pos
 from simbench.data.solution_times import match_receiver_epochs
-from simbench.errors import SimbenchError, require_elevation_mask, require_positive
-from simbench.typed import Choice, check_choices
+from simbench.errors import SimbenchError
 
-__all__ = [
-    "EXECUTABLE",
-    "IonosphereModel",
-    "RtklibSpp",
-    "RtklibSppConfig",
-    "TroposphereModel",
-    "rnx2rtkp_options",
-    "run_rnx2rtkp",
-]
+__all__ = ["EXECUTABLE", "RtklibSpp", "rnx2rtkp_options", "run_rnx2rtkp"]
 
 #: The RTKLIB post-processing program.
 EXECUTABLE = "rnx2rtkp"
@@ -74,53 +65,8 @@ EXECUTABLE = "rnx2rtkp"
 NAVSYS_BITS: dict[str, int] = {"G": 1, "S": 2, "R": 4, "E": 8, "J": 16, "C": 32, "I": 64}
 
 
-class IonosphereModel(Choice):
-    """Ionospheric correction RTKLIB applies (member names are the YAML words).
-
-    The first three are :class:`~estimators.model.ppp_config.IonosphereMode`'s words, so the
-    ``gnss_model`` preset's choice reaches RTKLIB as it reaches the other estimators.
-    """
-
-    auto = "auto"  #: ``free`` where every satellite above the mask has a second frequency, else ``broadcast``
-    broadcast = "broadcast"  #: broadcast Klobuchar model (RTKLIB ``brdc``)
-    free = "free"  #: dual-frequency ionosphere-free code (RTKLIB ``dual-freq``, ``pos1-frequency = l1+l2``)
-    none = "none"  #: no correction (``off``)
-
-
-class TroposphereModel(Choice):
-    """Tropospheric correction RTKLIB applies (member names are the YAML words)."""
-
-    saastamoinen = "saastamoinen"  #: Saastamoinen with standard atmosphere (RTKLIB ``saas``)
-    none = "none"  #: no correction (``off``)
-
-
 _IONO_WORD = {IonosphereModel.broadcast: "brdc", IonosphereModel.free: "dual-freq", IonosphereModel.none: "off"}
 _TROPO_WORD = {TroposphereModel.saastamoinen: "saas", TroposphereModel.none: "off"}
-
-
-@dataclass
-class RtklibSppConfig:
-    """RTKLIB single-point settings (see the module docstring for the options file they become)."""
-
-    elevation_mask_deg: float = 10.0  #: satellites below are not used [deg] (RTKLIB's default is 15)
-    ionosphere: IonosphereModel = IonosphereModel.auto  #: auto | broadcast | free | none
-    troposphere: TroposphereModel = TroposphereModel.saastamoinen  #: saastamoinen | none
-    raim_fde: bool = False  #: RTKLIB's RAIM fault detection and exclusion (``pos1-posopt5``)
-    timeout_s: float = 300.0  #: rnx2rtkp is stopped after this wall time [s]
-
-    def validate(self, where: str) -> None:
-        """Raise a one-line :class:`SimbenchError` for the first out-of-range field.
-
-        Parameters
-        ----------
-        where : str
-            Config node name, e.g. ``estimator.rtklib_spp``.
-        """
-        check_choices(self, where)
-        require_elevation_mask(
-            f"{where}.elevation_mask_deg", self.elevation_mask_deg, "give an elevation mask in degrees, e.g. 10"
-        )
-        require_positive(f"{where}.timeout_s", self.timeout_s, "give a wall-time limit in seconds, e.g. 300")
 
 
 def rnx2rtkp_options(config: RtklibSppConfig, systems: str, dual_frequency: bool = False) -> dict[str, str]:

@@ -14,7 +14,6 @@ for a few passes (iteratively reweighted least squares).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -22,67 +21,16 @@ import pandas as pd
 
 from estimators import register
 from estimators.base import Estimator, solution_frame
+from estimators.baselines.configs import HuberSppConfig, WlsSppConfig
 from estimators.model.measurement import PppObservations, prepare_ppp
-from estimators.model.ppp_config import (
-    GnssModelConfig,
-    IonosphereMode,
-    MeasurementMode,
-    SigmaModel,
-    StochasticModelConfig,
-    VarianceComponents,
-)
-from simbench.contract import Need, ReceiverData
-from simbench.errors import require_at_least, require_elevation_mask, require_positive
+from estimators.model.ppp_config import MeasurementMode
+from simbench.contract import ReceiverData
 from simbench.gnss.spp import SppSolution
-from simbench.typed import check_choices
 
-__all__ = ["HuberSpp", "HuberSppConfig", "WlsSpp", "WlsSppConfig"]
+__all__ = ["HuberSpp", "WlsSpp"]
 
 #: A single-point fix needs position and a clock: epochs with fewer rows are not solved.
 _MIN_SATELLITES = 4
-
-
-@dataclass
-class WlsSppConfig:
-    """Parameters of ``wls_spp``: the shared sigma model (defaults of :class:`GnssModelConfig` and
-    :class:`StochasticModelConfig`), so the baseline weighs rows as the other estimators do."""
-
-    code_sigma_m: float = StochasticModelConfig.code_sigma_m  #: zenith code sigma [m], scaled by ``sigma_model``
-    #: per-row scaling of the sigma: elevation | cn0 | elevation_cn0
-    sigma_model: SigmaModel = GnssModelConfig.sigma_model
-    cn0_ref_dbhz: float = StochasticModelConfig.cn0_ref_dbhz  #: C/N0 at which the ``cn0`` factor is 1 [dB-Hz]
-    elevation_mask_deg: float = StochasticModelConfig.elevation_mask_deg  #: [deg]
-    #: auto | broadcast | free (:class:`~estimators.model.ppp_config.IonosphereMode`)
-    ionosphere: IonosphereMode = GnssModelConfig.ionosphere
-    #: none | system | system_cn0 (:class:`~estimators.model.ppp_config.VarianceComponents`)
-    variance_components: VarianceComponents = GnssModelConfig.variance_components
-
-    def validate(self, where: str) -> None:
-        """Raise a one-line :class:`SimbenchError` for the first out-of-range field."""
-        check_choices(self, where)
-        require_positive(f"{where}.code_sigma_m", self.code_sigma_m, "give a standard deviation in metres")
-        require_positive(f"{where}.cn0_ref_dbhz", self.cn0_ref_dbhz, "give a reference C/N0 in dB-Hz, e.g. 45")
-        require_elevation_mask(
-            f"{where}.elevation_mask_deg", self.elevation_mask_deg, "give an elevation mask in degrees, e.g. 7"
-        )
-
-    def needs(self) -> frozenset[Need]:
-        """A second frequency for ``ionosphere=free``; nothing else (code only)."""
-        return frozenset({Need.dual_frequency} if self.ionosphere == IonosphereMode.free else ())
-
-
-@dataclass
-class HuberSppConfig(WlsSppConfig):
-    """Parameters of ``huber_spp``: ``wls_spp``'s plus the Huber loss."""
-
-    huber_k: float = 1.345  #: Huber threshold [standard deviations]: 95 % efficiency under Gaussian noise
-    reweightings: int = 5  #: iteratively reweighted least-squares passes after the plain fit
-
-    def validate(self, where: str) -> None:
-        """The ``wls_spp`` checks, then the loss's."""
-        super().validate(where)
-        require_positive(f"{where}.huber_k", self.huber_k, "give a threshold in standard deviations, e.g. 1.345")
-        require_at_least(f"{where}.reweightings", self.reweightings, 1, "give the number of IRLS passes, e.g. 5")
 
 
 @register

@@ -76,88 +76,24 @@ members' residuals. Selected features per iteration go to ``selected_features``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from sklearn.mixture import BayesianGaussianMixture
 
 from estimators import register
-from estimators.batch.robust import BatchConfig, BatchGraphEstimator, stop_reason
+from estimators.batch.configs import FEATURES, BceAdConfig, BceConfig
+from estimators.batch.robust import BatchGraphEstimator, stop_reason
 from estimators.model.clustering import Mixture, code_marginal_labels, conditioned_labels, fit_dpgmm, select_features
 from estimators.model.measurement import PppObservations
 from estimators.model.nlos_mixture import predictors
 from estimators.model.ppp_graph import PppGraph
 from simbench.contract import ReceiverData
-from simbench.errors import SimbenchError, require_at_least
 
-__all__ = ["FEATURES", "Bce", "BceAd", "BceAdConfig", "BceConfig"]
+__all__ = ["Bce", "BceAd"]
 
-#: Augmented feature columns of BCE-AD, in order.
-FEATURES = ("code_residual", "phase_residual", "elevation", "azimuth", "cn0")
 #: Clusters with fewer members keep the a-priori noise model (no covariance estimate from < 3 points).
 _MIN_CLUSTER = 3
-
-
-@dataclass
-class BceConfig(BatchConfig):
-    """BCE parameters (graph model and stopping rule: :class:`BatchConfig`).
-
-    ``lm_max_iterations`` bounds the first (a-priori) solve only; each re-weighted
-    re-solve is one Gauss-Newton step.
-    """
-
-    max_iterations: int = 100  #: robust re-weighting iterations at most
-    truncation: int = 10  #: largest number of DP-GMM components
-    dpgmm_max_iter: int = 1000  #: variational iterations per fit at most
-    #: lower-bound tolerance of the variational fit (per residual); 1e-4 stopped the warm-started
-    #: fits after 3 iterations and gave higher medians on the tuning seeds
-    dpgmm_tol: float = 1e-6
-    #: fit the mixture on at most this many random residuals (0: all); all rows are assigned
-    fit_sample: int = 5000
-    seed: int = 0  #: random state of the sub-sampling and the k-means initialisation
-    #: False: stop when the relative error change is below rel_tol (Sec. 5.2.3); True: also when
-    #: the error rises (the decrease is below rel_tol, Sec. 6.2.5), see the module notes
-    stop_on_increase: bool = False
-    #: component weights conditioned on C/N0 and elevation (:func:`~estimators.model.clustering.conditioned_labels`):
-    #: each row takes the component most likely under its own prior; False: one weight per component
-    conditioned: bool = False
-
-    def validate(self, where: str) -> None:
-        """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
-        super().validate(where)
-        for name, low in (("truncation", 1), ("dpgmm_max_iter", 1), ("fit_sample", 0)):
-            require_at_least(
-                f"{where}.{name}",
-                getattr(self, name),
-                low,
-                f"the defaults are in {type(self).__name__} (estimators/batch/bce.py)",
-            )
-
-
-@dataclass
-class BceAdConfig(BceConfig):
-    """BCE-AD parameters."""
-
-    # BCE-AD keeps the full-data fit and the looser tolerance: its accuracy was not re-checked
-    # with BCE's faster defaults
-    dpgmm_tol: float = 1e-4  #: lower-bound tolerance of the variational fit
-    fit_sample: int = 0  #: fit the mixture on at most this many random residuals (0: all)
-    n_features: int = 2  #: features kept by MCFS each iteration (of the 5 in FEATURES)
-    mcfs_clusters: int = 3  #: eigenvectors of the MCFS spectral embedding
-    mcfs_neighbors: int = 5  #: neighbours of the MCFS kNN graph
-    feature_sample: int = 2000  #: MCFS runs on at most this many random rows (kNN graph cost)
-    stop_on_increase: bool = True  #: stop when the error decrease is below rel_tol (Sec. 6.2.5)
-
-    def validate(self, where: str) -> None:
-        """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
-        super().validate(where)
-        if not 1 <= self.n_features <= len(FEATURES):
-            raise SimbenchError(
-                f"{where}.n_features",
-                f"must be 1..{len(FEATURES)}, got {self.n_features}",
-                "choose how many of code/phase residual, elevation, azimuth, C/N0 to keep",
-            )
 
 
 class _IterativeCovariance(BatchGraphEstimator):

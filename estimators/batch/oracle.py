@@ -22,28 +22,20 @@ One Levenberg-Marquardt solve, as ``l2``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 import pandas as pd
 
 from estimators import register
-from estimators.batch.robust import BatchConfig, BatchGraphEstimator
+from estimators.batch.configs import OracleConfig
+from estimators.batch.robust import BatchGraphEstimator
 from estimators.model.measurement import prepare_ppp
 from estimators.model.ppp_graph import PppGraph
 from simbench.contract import Need, ReceiverData
 from simbench.errors import SimbenchError
 
-__all__ = ["Oracle", "OracleConfig"]
-
-
-@dataclass
-class OracleConfig(BatchConfig):
-    """Oracle parameters: the graph model; the measurement sigmas come from the labels.
-
-    ``code_sigma_m`` and ``phase_sigma_m`` only serve preparing the data; the
-    oracle weights with the label sigmas.
-    """
+__all__ = ["Oracle"]
 
 
 @register

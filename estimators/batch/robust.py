@@ -42,7 +42,7 @@ a robust kernel would switch every phase factor off at the first linearisation.
 from __future__ import annotations
 
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from typing import Any, ClassVar
 
 import gtsam
@@ -51,53 +51,16 @@ import pandas as pd
 
 from estimators import register
 from estimators.base import Estimator, solution_frame
+from estimators.batch.configs import BatchConfig, DcsConfig, L2Config, MmConfig, MmEmConfig
 from estimators.batch.gauss_newton import GaussNewton
 from estimators.batch.whitened_rows import DcsKernel, WhitenedRows
 from estimators.model.measurement import PppObservations, prepare_ppp
-from estimators.model.nlos_mixture import NlosMixture, NlosMixtureFields, predictors, validate_nlos_mixture
-from estimators.model.ppp_graph import PppGraph, PppGraphConfig, solve
-from estimators.model.robust_models import (
-    DcsFields,
-    MaxMixtureFields,
-    max_mixture_outliers,
-    validate_dcs,
-    validate_max_mixture,
-)
+from estimators.model.nlos_mixture import NlosMixture, predictors
+from estimators.model.ppp_graph import PppGraph, solve
+from estimators.model.robust_models import max_mixture_outliers
 from simbench.contract import ReceiverData
-from simbench.errors import require_at_least, require_positive
 
-__all__ = [
-    "BatchConfig",
-    "BatchGraphEstimator",
-    "DcsBatch",
-    "DcsConfig",
-    "L2Batch",
-    "L2Config",
-    "MmBatch",
-    "MmConfig",
-    "MmEm",
-    "MmEmConfig",
-    "stop_reason",
-]
-
-
-@dataclass
-class BatchConfig(PppGraphConfig):
-    """Parameters shared by the batch graph estimators (graph model: :class:`PppGraphConfig`)."""
-
-    prior_scale: float = 1.0  #: s, multiplies the a-priori measurement covariance (Fig. 5.3.7 sensitivity)
-    max_iterations: int = 100  #: robust re-weighting iterations at most
-    rel_tol: float = 1e-5  #: stop when the relative change of the total error is below this
-    lm_max_iterations: int = 100  #: iterations of the L2 solve (Gauss-Newton, else Levenberg-Marquardt)
-
-    def validate(self, where: str) -> None:
-        """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
-        super().validate(where)
-        require_positive(
-            f"{where}.prior_scale", self.prior_scale, "give a covariance scale factor such as 1, 0.1 or 10"
-        )
-        for name in ("max_iterations", "lm_max_iterations"):
-            require_at_least(f"{where}.{name}", getattr(self, name), 1, "give an iteration limit, e.g. the default 100")
+__all__ = ["BatchGraphEstimator", "DcsBatch", "L2Batch", "MmBatch", "MmEm", "stop_reason"]
 
 
 #: The L2 solve stops when the relative error decrease is below this (Levenberg-Marquardt's default
@@ -211,11 +174,6 @@ class BatchGraphEstimator(Estimator):
 # --------------------------------------------------------------------------- L2
 
 
-@dataclass
-class L2Config(BatchConfig):
-    """Batch L2 (a-priori Gaussian noise)."""
-
-
 @register
 class L2Batch(BatchGraphEstimator):
     """Batch Levenberg-Marquardt PPP with the a-priori Gaussian noise model."""
@@ -228,16 +186,6 @@ class L2Batch(BatchGraphEstimator):
 
 
 # --------------------------------------------------------------------------- DCS
-
-
-@dataclass
-class DcsConfig(BatchConfig, DcsFields):
-    """Batch dynamic covariance scaling."""
-
-    def validate(self, where: str) -> None:
-        """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
-        super().validate(where)
-        validate_dcs(self.kernel_width, where)
 
 
 @register
@@ -287,16 +235,6 @@ class DcsBatch(BatchGraphEstimator):
 # --------------------------------------------------------------------------- max-mixtures
 
 
-@dataclass
-class MmConfig(BatchConfig, MaxMixtureFields):
-    """Batch max-mixtures with a static inlier/outlier model."""
-
-    def validate(self, where: str) -> None:
-        """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
-        super().validate(where)
-        validate_max_mixture(self.outlier_scale, self.outlier_weight, where)
-
-
 @register
 class MmBatch(BatchGraphEstimator):
     """Batch max-mixtures (static two-component model), iterated to convergence."""
@@ -337,20 +275,6 @@ class MmBatch(BatchGraphEstimator):
 
 
 # --------------------------------------------------------------------------- self-tuning max-mixtures
-
-
-@dataclass
-class MmEmConfig(BatchConfig, MaxMixtureFields, NlosMixtureFields):
-    """Batch max-mixtures whose code model is learned from the residuals (:mod:`estimators.model.nlos_mixture`);
-    the phase keeps MM's static inlier/outlier pair."""
-
-    max_iterations: int = 50  #: solve / EM alternations at most
-
-    def validate(self, where: str) -> None:
-        """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
-        super().validate(where)
-        validate_max_mixture(self.outlier_scale, self.outlier_weight, where)
-        validate_nlos_mixture(self, where)
 
 
 @register

@@ -99,6 +99,7 @@ from filterpy.kalman import ExtendedKalmanFilter
 
 from estimators import register
 from estimators.base import Estimator, solution_frame
+from estimators.filters.configs import EkfPppConfig
 from estimators.model.measurement import (
     N_BASE_STATES,
     PppObservations,
@@ -112,7 +113,6 @@ from estimators.model.ppp_config import (
     STANDSTILL_MPS,
     ClockModel,
     MotionModel,
-    MotionModelConfig,
     WetDelayMode,
 )
 from estimators.model.ppp_graph import WetDelayChoice, wet_delay_choice
@@ -131,19 +131,6 @@ _INIT_EPOCHS = 30
 GUARD_CHI2 = 25.9
 #: Indices of the base states.
 _POS, _CLK, _ZWD = slice(0, 3), 3, 4
-
-
-@dataclass
-class EkfPppConfig(MotionModelConfig):
-    """EKF-PPP parameters: the shared model of :class:`~estimators.model.ppp_config.MotionModelConfig`.
-
-    ``measurements = code`` makes it a code-only filter (no bias states);
-    ``motion_model = constant_velocity`` adds velocity and clock drift states.
-    """
-
-    #: with carrier phase, run the code-only filter too and fall back to it wherever the phase
-    #: filter's position departs from it beyond its covariance (:meth:`EkfPpp.run`'s ``anchor``)
-    phase_guard: bool = True
 
 
 @dataclass

@@ -35,27 +35,13 @@ Deviations from the paper, on purpose:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
 from estimators import register
-from estimators.gnss_ins.config import LssConfig
+from estimators.gnss_ins.config import CrtLssConfig
 from estimators.gnss_ins.driver import GnssInsEstimator, lss_arguments
-from simbench.errors import require_at_least
 
-__all__ = ["CrtLss", "CrtLssConfig"]
-
-
-@dataclass
-class CrtLssConfig(LssConfig):
-    """CRT-LSS parameters (paper Sec. 4, Algorithm 1)."""
-
-    window: int = 10  #: L, GNSS epochs in the window
-
-    def validate(self, where: str) -> None:
-        """The shared and Algorithm 1 checks, then a window of at least one epoch."""
-        super().validate(where)
-        require_at_least(f"{where}.window", int(self.window), 1, "the paper uses L = 1..20")
+__all__ = ["CrtLss"]
 
 
 @register

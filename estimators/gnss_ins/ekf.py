@@ -24,38 +24,13 @@ measurement models and the initialisation.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any
 
 from estimators import register
-from estimators.gnss_ins.config import GnssInsConfig, LssConfig
+from estimators.gnss_ins.config import EkfInsConfig, IekfInsConfig
 from estimators.gnss_ins.driver import GnssInsEstimator, lss_arguments
-from simbench.errors import require_positive
 
-__all__ = ["EkfIns", "EkfInsConfig", "IekfIns", "IekfInsConfig"]
-
-
-@dataclass
-class EkfInsConfig(GnssInsConfig):
-    """Error-state EKF parameters."""
-
-    #: innovation gate [innovation sigmas]; rows beyond it are not used. A tight gate locks the filter out
-    #: once it is off (a first fix tens of metres off in a canyon, then every good row gated): at 2 the
-    #: EKF sat at 73 m on urban seed 1001 and ran away to 19 km on 1002 with 4-6 satellites in view.
-    #: Tuning seeds urban 1000-1004, urban_deep 1000-1002, morgantown1 1000-1001, mean horizontal median
-    #: [m]: gate 2 / 4 / 6: lock-outs on 4 / 2 / 0 of the 8 urban runs; 10 / 16 / none: 3.03 / 2.94 / 2.95
-    #: (flat): 10 still drops a gross blunder (an 80 m code error, tests/test_gnss_ins.py)
-    gate: float = 10.0
-
-    def validate(self, where: str) -> None:
-        """The shared checks, then a positive gate."""
-        super().validate(where)
-        require_positive(f"{where}.gate", self.gate, "give the gate in innovation sigmas, e.g. 3")
-
-
-@dataclass
-class IekfInsConfig(LssConfig):
-    """Iterated EKF = CRT-LSS with a one-epoch window (the Algorithm 1 parameters of :class:`LssConfig`)."""
+__all__ = ["EkfIns", "IekfIns"]
 
 
 @register

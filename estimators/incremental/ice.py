@@ -73,65 +73,16 @@ from typing import Any
 import numpy as np
 
 from estimators import register
+from estimators.incremental.configs import IceConfig
 from estimators.incremental.isam2 import (
     EpochPrediction,
-    IncrementalConfig,
     IncrementalGraphEstimator,
 )
 from estimators.model.clustering import code_marginal_labels, fit_dpgmm
 from estimators.model.mixture_tests import MixtureModel
-from estimators.model.ppp_config import GnssModelConfig
 from estimators.model.ppp_graph import PppGraph
-from simbench.errors import SimbenchError
 
-__all__ = ["AdaptiveNoiseModel", "Ice", "IceConfig"]
-
-
-@dataclass
-class IceConfig(IncrementalConfig):
-    """ICE parameters (REFERENCE.md, original implementation) on top of the iSAM2 loop.
-
-    The measurement noise is ICE's mixture model; ``code_sigma_m`` and
-    ``phase_sigma_m`` only weight the per-epoch residual prediction.
-    """
-
-    z_threshold: float = 3.0  #: T_r, z-test threshold per channel [sigmas]
-    cluster_threshold: int = 1000  #: T_c, adapt when more outliers than this are buffered
-    alpha: float = 0.05  #: significance of the W and Hotelling merge tests
-    max_components: int = 20  #: components of the model at most
-    min_cluster_points: int = 2  #: new clusters with fewer points are dropped
-    #: the mixture models residuals divided by each row's sigma factor (``sigma_model``), not metres
-    scaled_mixture: bool = GnssModelConfig.scaled_mixture
-    prior_code_sigma_m: float = 2.5  #: a-priori model code sigma [m] (not elevation-scaled)
-    prior_phase_sigma_m: float = 0.25  #: a-priori model phase sigma [m]
-    dpgmm_truncation: int = 10  #: stick-breaking truncation of the DP-GMM fit
-    #: a priori position sigma at the first epoch [m] (the graph's 1 m, Table 4.4.2, is a surveyed start):
-    #: the z-test weighs each residual against the predicted position's uncertainty too, and a first
-    #: fix of 3-4 urban satellites is tens of metres off (tuning seeds >= 1000, docs/notebook.md)
-    pos_sigma_m: float = 100.0
-    #: keep the per-epoch inlier/outlier residuals in the diagnostics (for a Fig. 7.3.2 scatter)
-    record_residuals: bool = False
-
-    def validate(self, where: str) -> None:
-        """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
-        super().validate(where)
-        checks = (
-            ("z_threshold", self.z_threshold > 0),
-            ("cluster_threshold", self.cluster_threshold >= 1),
-            ("alpha", 0 < self.alpha < 1),
-            ("max_components", self.max_components >= 1),
-            ("min_cluster_points", self.min_cluster_points >= 1),
-            ("prior_code_sigma_m", self.prior_code_sigma_m > 0),
-            ("prior_phase_sigma_m", self.prior_phase_sigma_m > 0),
-            ("dpgmm_truncation", self.dpgmm_truncation >= 1),
-        )
-        for name, ok in checks:
-            if not ok:
-                raise SimbenchError(
-                    f"{where}.{name}",
-                    f"out of range: {getattr(self, name)}",
-                    "the defaults are in IceConfig (estimators/incremental/ice.py)",
-                )
+__all__ = ["AdaptiveNoiseModel", "Ice"]
 
 
 @dataclass

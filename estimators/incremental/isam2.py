@@ -58,12 +58,12 @@ import pandas as pd
 
 from estimators import register
 from estimators.base import Estimator, solution_frame
+from estimators.incremental.configs import IncrementalConfig, Isam2DcsConfig, Isam2MmConfig
 from estimators.incremental.fixed_lag import FixedLagSmoother, LagSchedule, restart_stale_arcs
 from estimators.model.measurement import predict_given_troposphere, prepare_ppp
 from estimators.model.ppp_graph import (
     ZERO_KEY,
     PppGraph,
-    PppGraphConfig,
     amb_key,
     clock_key,
     drift_key,
@@ -75,18 +75,11 @@ from estimators.model.ppp_graph import (
     vel_key,
     zwd_key,
 )
-from estimators.model.robust_models import (
-    DcsFields,
-    MaxMixtureFields,
-    max_mixture_outliers,
-    validate_dcs,
-    validate_max_mixture,
-)
+from estimators.model.robust_models import max_mixture_outliers
 from simbench.contract import ReceiverData
 from simbench.core.constants import C_LIGHT
-from simbench.errors import require_at_least, require_positive
 
-__all__ = ["EpochPrediction", "IncrementalConfig", "IncrementalGraphEstimator", "Isam2Dcs", "Isam2Mm", "Isam2Ppp"]
+__all__ = ["EpochPrediction", "IncrementalGraphEstimator", "Isam2Dcs", "Isam2Mm", "Isam2Ppp"]
 
 #: Huber threshold of the snapshot prediction, whitened units.
 _HUBER_K = 1.5
@@ -98,41 +91,6 @@ def _huber_weight(u: np.ndarray) -> np.ndarray:
     """IRLS weight of Huber's loss at whitened residuals ``u`` (threshold ``_HUBER_K``)."""
     a = np.abs(u)
     return np.where(a <= _HUBER_K, 1.0, _HUBER_K / np.maximum(a, 1e-12))
-
-
-@dataclass
-class IncrementalConfig(PppGraphConfig):
-    """iSAM2 settings on top of the graph model (:class:`PppGraphConfig`)."""
-
-    ambiguity_sigma_m: float = 10.0  #: a priori arc bias sigma [m] (original iSAM2-PPP code; Table 4.4.2: 100)
-    #: iSAM2 relinearisation threshold of the positions [m] (original code 0.01; see isam2_params)
-    relinearize_threshold: float = 1.0
-    relinearize_skip: int = 1  #: check for relinearisation every this many updates
-    #: iSAM2 back-substitution stops where the update changes by less than this (GTSAM default 0.001)
-    wildfire_threshold: float = 0.001
-    #: check relinearisation only in the cliques an update touches (GTSAM default False)
-    partial_relinearization_check: bool = False
-    #: fixed-lag window [s]: keys last used longer ago are marginalised (estimators.incremental.fixed_lag);
-    #: 0 keeps every epoch in plain iSAM2, whose update cost then grows with the run (module notes)
-    lag_s: float = 10.0
-    #: the window holds at least this many epochs, whatever the data interval (a 30 s station file)
-    lag_min_epochs: int = 5
-
-    def validate(self, where: str) -> None:
-        """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
-        super().validate(where)
-        require_positive(
-            f"{where}.relinearize_threshold",
-            self.relinearize_threshold,
-            "give a threshold in metres, e.g. the default 1.0",
-        )
-        require_at_least(
-            f"{where}.relinearize_skip", self.relinearize_skip, 1, "1 checks for relinearisation at every update"
-        )
-        require_at_least(f"{where}.lag_s", self.lag_s, 0, "give the fixed-lag window in seconds (0: keep every epoch)")
-        require_at_least(
-            f"{where}.lag_min_epochs", self.lag_min_epochs, 2, "the window keeps the previous epoch at least"
-        )
 
 
 @dataclass
@@ -394,16 +352,6 @@ class Isam2Ppp(IncrementalGraphEstimator):
     Config = IncrementalConfig
 
 
-@dataclass
-class Isam2DcsConfig(IncrementalConfig, DcsFields):
-    """Incremental dynamic covariance scaling (the kernel width as batch DCS's)."""
-
-    def validate(self, where: str) -> None:
-        """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
-        super().validate(where)
-        validate_dcs(self.kernel_width, where)
-
-
 @register
 class Isam2Dcs(IncrementalGraphEstimator):
     """iSAM2 with GTSAM's DCS m-estimator on every code and phase factor."""
@@ -413,16 +361,6 @@ class Isam2Dcs(IncrementalGraphEstimator):
 
     def _measurements(self, k, rows, g, pred):
         return {"robust": gtsam.noiseModel.mEstimator.DCS.Create(self.config.kernel_width)}
-
-
-@dataclass
-class Isam2MmConfig(IncrementalConfig, MaxMixtureFields):
-    """Incremental max-mixtures with a static two-component model."""
-
-    def validate(self, where: str) -> None:
-        """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
-        super().validate(where)
-        validate_max_mixture(self.outlier_scale, self.outlier_weight, where)
 
 
 @register

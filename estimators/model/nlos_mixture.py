@@ -49,15 +49,11 @@ from typing import Any
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from simbench.errors import SimbenchError, require_at_least
-from simbench.typed import Choice
+from estimators.model.robust_models import Assignment
 
 __all__ = [
-    "Assignment",
     "NlosMixture",
-    "NlosMixtureFields",
     "predictors",
-    "validate_nlos_mixture",
 ]
 
 #: Floor of the NLOS spread tau [m]: a component narrower than a code sigma is no longer a delay model.
@@ -74,36 +70,6 @@ _K_BOUNDS = (0.5, 3.0)
 _RIDGE = 1e-2
 #: Responsibilities are kept within (eps, 1 - eps) so the logistic fit never sees a certain label.
 _EPS = 1e-6
-
-
-class Assignment(Choice):
-    """How a solve uses the mixture (member names are the YAML words)."""
-
-    max = "max"  #: max-mixture: each row takes its more likely component's sigma and mean
-    soft = "soft"  #: EM: each row takes the responsibility-weighted sum of both components
-
-
-@dataclass
-class NlosMixtureFields:
-    """Config fields of an estimator that learns :class:`NlosMixture` (mixed into its ``Config``)."""
-
-    conditioned: bool = True  #: weights and NLOS mean depend on C/N0 and elevation (False: constants)
-    one_sided: bool = True  #: the NLOS mean is late only (>= 0); False: either sign
-    assignment: Assignment = Assignment.max  #: max-mixture or soft (EM) use of the model in the solve
-    em_iterations: int = 5  #: EM iterations on the residuals per re-solve (warm-started)
-    nlos_weight_init: float = 0.2  #: prior NLOS weight of the first fit [-]
-    learn_los_scale: bool = True  #: learn k, the LOS scale on the a-priori sigmas (False: k = 1)
-
-
-def validate_nlos_mixture(cfg: NlosMixtureFields, where: str) -> None:
-    """One-line :class:`SimbenchError` for the first out-of-range field of :class:`NlosMixtureFields`."""
-    require_at_least(f"{where}.em_iterations", cfg.em_iterations, 1, "give EM iterations per re-solve, e.g. 5")
-    if not 0 < cfg.nlos_weight_init < 1:
-        raise SimbenchError(
-            f"{where}.nlos_weight_init",
-            f"must be within (0, 1), got {cfg.nlos_weight_init}",
-            "give the first fit's NLOS prior weight, e.g. the default 0.2",
-        )
 
 
 def predictors(el_rad: np.ndarray, cn0_dbhz: np.ndarray) -> tuple[np.ndarray, list[str]]:

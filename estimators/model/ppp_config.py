@@ -32,6 +32,7 @@ __all__ = [
     "MeasurementMode",
     "MotionModel",
     "MotionModelConfig",
+    "PppGraphConfig",
     "SigmaModel",
     "StochasticModelConfig",
     "WetDelayMode",
@@ -427,3 +428,17 @@ class MotionModelConfig(StochasticModelConfig):
             "road_grade_sigma",
         ):
             require_positive(f"{where}.{name}", getattr(self, name), "give a positive sigma or density")
+
+
+class PppGraphConfig(MotionModelConfig):
+    """Stochastic model of the PPP graph: the shared model of :class:`~estimators.model.ppp_config.MotionModelConfig`.
+
+    In the graph the clock prior holds at every epoch and the slant ionosphere
+    residual is one key per row, a random walk along its arc. With
+    ``motion_model = constant_velocity`` each epoch also has a velocity, driven by
+    white acceleration, and a receiver clock drift (random walk), and the rows with
+    a Doppler give range-rate factors on them. The drift is a state of its own, not
+    the difference of consecutive clocks (GTSAM's ``DopplerFactor``): receivers that
+    keep their clock within a millisecond by jumps (u-blox) make that difference
+    jump by thousands of km/s.
+    """

@@ -122,6 +122,7 @@ from estimators.model.ppp_config import (
     ClockModel,
     MotionModel,
     MotionModelConfig,
+    PppGraphConfig,
     WetDelayMode,
 )
 from simbench.core.constants import C_LIGHT
@@ -135,7 +136,6 @@ from simbench.gnss.troposphere import troposphere_terms
 __all__ = [
     "ZERO_KEY",
     "PppGraph",
-    "PppGraphConfig",
     "WetDelayChoice",
     "amb_key",
     "isb_key",
@@ -226,20 +226,6 @@ def _split_phase(
     fac = 1.0 - rho_p
     meas = (zp - rho_p * zc) / fac
     return meas.tolist(), (sp / np.abs(fac)).tolist(), (iono_c * (1.0 + rho_p) / fac).tolist(), (1.0 / fac).tolist()
-
-
-class PppGraphConfig(MotionModelConfig):
-    """Stochastic model of the PPP graph: the shared model of :class:`~estimators.model.ppp_config.MotionModelConfig`.
-
-    In the graph the clock prior holds at every epoch and the slant ionosphere
-    residual is one key per row, a random walk along its arc. With
-    ``motion_model = constant_velocity`` each epoch also has a velocity, driven by
-    white acceleration, and a receiver clock drift (random walk), and the rows with
-    a Doppler give range-rate factors on them. The drift is a state of its own, not
-    the difference of consecutive clocks (GTSAM's ``DopplerFactor``): receivers that
-    keep their clock within a millisecond by jumps (u-blox) make that difference
-    jump by thousands of km/s.
-    """
 
 
 #: Random-walk sigmas never go below this (two epochs with the same time) [m or s].

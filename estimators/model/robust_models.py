@@ -1,5 +1,7 @@
 """The robust measurement models the batch and incremental graph estimators share: their config fields
-and checks (declared once, mixed into each estimator's ``Config``) and the max-mixture decision.
+and checks (declared once, mixed into each estimator's ``Config``; the learned LOS/NLOS model's too,
+:mod:`estimators.model.nlos_mixture`) and the max-mixture decision. Light (numpy only), so the command
+line checks a value without the solvers.
 
 DCS (dissertation eq. 3.18) scales a factor's covariance by its whitened residual with kernel width phi;
 max-mixtures (eq. 3.20) pick, per measurement, the more likely of an inlier and a broad outlier component.
@@ -12,9 +14,19 @@ from dataclasses import dataclass
 import numpy as np
 
 from estimators.model.ppp_config import GnssModelConfig
-from simbench.errors import SimbenchError, require_positive
+from simbench.errors import SimbenchError, require_at_least, require_positive
+from simbench.typed import Choice
 
-__all__ = ["DcsFields", "MaxMixtureFields", "validate_dcs", "validate_max_mixture", "max_mixture_outliers"]
+__all__ = [
+    "Assignment",
+    "DcsFields",
+    "MaxMixtureFields",
+    "NlosMixtureFields",
+    "validate_dcs",
+    "validate_max_mixture",
+    "validate_nlos_mixture",
+    "max_mixture_outliers",
+]
 
 
 @dataclass
@@ -67,3 +79,34 @@ def max_mixture_outliers(whitened: np.ndarray, outlier_scale: float, outlier_wei
         1.0 - 1.0 / outlier_scale
     )
     return whitened**2 > threshold
+
+
+class Assignment(Choice):
+    """How a solve uses the mixture (member names are the YAML words)."""
+
+    max = "max"  #: max-mixture: each row takes its more likely component's sigma and mean
+    soft = "soft"  #: EM: each row takes the responsibility-weighted sum of both components
+
+
+@dataclass
+class NlosMixtureFields:
+    """Config fields of an estimator that learns :class:`~estimators.model.nlos_mixture.NlosMixture` (mixed
+    into its ``Config``)."""
+
+    conditioned: bool = True  #: weights and NLOS mean depend on C/N0 and elevation (False: constants)
+    one_sided: bool = True  #: the NLOS mean is late only (>= 0); False: either sign
+    assignment: Assignment = Assignment.max  #: max-mixture or soft (EM) use of the model in the solve
+    em_iterations: int = 5  #: EM iterations on the residuals per re-solve (warm-started)
+    nlos_weight_init: float = 0.2  #: prior NLOS weight of the first fit [-]
+    learn_los_scale: bool = True  #: learn k, the LOS scale on the a-priori sigmas (False: k = 1)
+
+
+def validate_nlos_mixture(cfg: NlosMixtureFields, where: str) -> None:
+    """One-line :class:`SimbenchError` for the first out-of-range field of :class:`NlosMixtureFields`."""
+    require_at_least(f"{where}.em_iterations", cfg.em_iterations, 1, "give EM iterations per re-solve, e.g. 5")
+    if not 0 < cfg.nlos_weight_init < 1:
+        raise SimbenchError(
+            f"{where}.nlos_weight_init",
+            f"must be within (0, 1), got {cfg.nlos_weight_init}",
+            "give the first fit's NLOS prior weight, e.g. the default 0.2",
+        )

@@ -12,8 +12,10 @@ name, fields, types, choices, defaults), so composing refuses the same values wi
 
 Range checks are code (``Config.validate``): the record keeps the estimator nodes that passed them
 under this code (:func:`remember_valid`, :func:`known_valid`); any other node is checked by its real
-class, imported then. A source's check is called without its source when it is a function of a light
-module (the simulator's :func:`simbench.sim.config.check_simulation`).
+class, imported then from the module it was defined in (recorded): the built-in families keep their
+``Config`` classes in light modules (``estimators/<family>/configs.py``, no gtsam, scipy or sklearn), so
+that import costs milliseconds, not the estimator's solvers. A source's check is called without its
+source when it is a function of a light module (the simulator's :func:`simbench.sim.config.check_simulation`).
 """
 
 from __future__ import annotations

@@ -20,7 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators.baselines.spp import WlsSpp, WlsSppConfig
+from estimators.baselines.configs import WlsSppConfig
+from estimators.baselines.spp import WlsSpp
 from estimators.model.measurement import PppObservations
 from simbench.errors import require_at_least, require_positive
 from simbench.gnss.spp import SppSolution
