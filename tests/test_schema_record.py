@@ -123,7 +123,7 @@ def test_a_refused_value_imports_no_estimator_and_no_simulation() -> None:
     code, imported, err = _refuse("estimator.bce.truncation=0")
     assert code == "2" and err == (
         "error: estimator.bce.truncation: must be at least 1, got 0 -- the defaults are in BceConfig "
-        "(estimators/batch/bce.py)"
+        "(estimators/batch/configs.py)"
     )
     assert imported == ""
     code, imported, err = _refuse("estimator.crt_lss.window=0")

@@ -127,7 +127,7 @@ class BceConfig(BatchConfig):
                 f"{where}.{name}",
                 getattr(self, name),
                 low,
-                f"the defaults are in {type(self).__name__} (estimators/batch/bce.py)",
+                f"the defaults are in {type(self).__name__} (estimators/batch/configs.py)",
             )
 
 

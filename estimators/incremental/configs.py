@@ -114,5 +114,5 @@ class IceConfig(IncrementalConfig):
                 raise SimbenchError(
                     f"{where}.{name}",
                     f"out of range: {getattr(self, name)}",
-                    "the defaults are in IceConfig (estimators/incremental/ice.py)",
+                    "the defaults are in IceConfig (estimators/incremental/configs.py)",
                 )
