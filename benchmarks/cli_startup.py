@@ -48,6 +48,12 @@ CASES: list[tuple[str, list[str], float | None, int]] = [
     ("refused value: estimator.mm.outlier_weight=2", ["-m", "simbench", "estimator.mm.outlier_weight=2"], 2.0, 2),
     ("refused value: estimator.crt_lss.window=0", ["-m", "simbench", "estimator.crt_lss.window=0"], 2.0, 2),
     (
+        "refused value: a log source's scenario.truth_max_gap_s=-1",
+        ["-m", "simbench", "scenario=hk_tst_2019", "scenario.truth_max_gap_s=-1"],
+        2.0,
+        2,
+    ),
+    (
         "valid run: open_sky 10 s, wls_spp, report",
         [
             "-m",

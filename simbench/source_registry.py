@@ -82,6 +82,13 @@ class DataConfig(Protocol):
     def seed(self) -> int: ...
 
 
+def check_source_config(cfg: DataConfig) -> None:
+    """The check every source's config gets (:meth:`Source.check`'s default): the choice fields and the
+    bounds of every number (:func:`~simbench.bounds.check_bounds`), in one line each."""
+    check_choices(cfg.scenario, "scenario")
+    check_bounds(cfg.scenario, "scenario")
+
+
 class Source(ABC):
     """A scenario source: subclass it, set ``name`` and ``Config``, write :meth:`load`."""
 
@@ -94,8 +101,7 @@ class Source(ABC):
         Runs before any file is read or data generated; the default checks the choice fields and
         the bounds of every number (:func:`~simbench.bounds.check_bounds`).
         """
-        check_choices(cfg.scenario, "scenario")
-        check_bounds(cfg.scenario, "scenario")
+        check_source_config(cfg)
 
     def label(self, cfg: DataConfig) -> str:
         """The scenario's name in result tables, known before :meth:`load` (for rows of a job that fails).

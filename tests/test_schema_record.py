@@ -129,3 +129,7 @@ def test_a_refused_value_imports_no_estimator_and_no_simulation() -> None:
     code, imported, err = _refuse("estimator.crt_lss.window=0")
     assert code == "2" and err.startswith("error: estimator.crt_lss.window: must be at least 1, got 0")
     assert imported == ""
+    # a log source's check is a function beside its Config (simbench.data.log_sources): no estimator either
+    code, imported, err = _refuse("scenario=librsf", "scenario.truth_max_gap_s=-1")
+    assert code == "2" and err.startswith("error: scenario.truth_max_gap_s: must be positive and finite, got -1.0")
+    assert imported == ""

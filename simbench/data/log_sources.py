@@ -23,7 +23,7 @@ from simbench.data.rinex import NAV_SETTINGS, LogInputs, load_rinex_log
 from simbench.errors import SimbenchError
 from simbench.gnss.navigation import SYSTEM_NAMES, nav_header_system, nav_paths
 from simbench.paths import require_file
-from simbench.source_registry import DataConfig, Source, SourceConfig, scenario_config
+from simbench.source_registry import DataConfig, Source, SourceConfig, check_source_config, scenario_config
 
 __all__ = ["RinexConfig", "GnssLoggerConfig", "LibrsfConfig", "RinexSource", "GnssLoggerSource", "LibrsfSource"]
 
@@ -80,6 +80,31 @@ class LibrsfConfig(SourceConfig):
     truth_max_gap_s: float = 2.0  #: reference samples further apart are not interpolated [s]
 
 
+def check_rinex(cfg: DataConfig) -> None:
+    """The RINEX (and GnssLogger) source's check, before any file is read: the bounds and choices, every
+    named file present, and navigation data for every system of ``scenario.systems``."""
+    s = scenario_config(cfg, RinexConfig)
+    check_source_config(cfg)
+    require_files(s, ("obs", "nav", "truth"))
+    require_file("scenario.obs", s.obs)
+    for key in dict.fromkeys(NAV_SETTINGS.values()):
+        for path in nav_paths(getattr(s, key)):
+            require_file(f"scenario.{key}", path)
+    if not is_point(s.truth):
+        require_file("scenario.truth", s.truth)
+    check_systems(s)
+
+
+def check_librsf(cfg: DataConfig) -> None:
+    """The libRSF source's check, before any file is read: the bounds and choices, the files present."""
+    s = scenario_config(cfg, LibrsfConfig)
+    check_source_config(cfg)
+    require_files(s, ("obs",))
+    require_file("scenario.obs", s.obs)
+    if s.truth:
+        require_file("scenario.truth", s.truth)
+
+
 class RinexSource(Source):
     """A real RINEX 3 log (GPS, GLONASS, Galileo, BeiDou) scored against its reference trajectory."""
 
@@ -88,17 +113,8 @@ class RinexSource(Source):
     #: reads the observation file and builds the scenario; a raw format of its own overrides it (same arguments)
     loader = staticmethod(load_rinex_log)
 
-    def check(self, cfg: DataConfig) -> None:
-        s = scenario_config(cfg, RinexConfig)
-        super().check(cfg)
-        require_files(s, ("obs", "nav", "truth"))
-        require_file("scenario.obs", s.obs)
-        for key in dict.fromkeys(NAV_SETTINGS.values()):
-            for path in nav_paths(getattr(s, key)):
-                require_file(f"scenario.{key}", path)
-        if not is_point(s.truth):
-            require_file("scenario.truth", s.truth)
-        check_systems(s)
+    # a function, not a method: the command line's door runs it from its schema record without the source
+    check = staticmethod(check_rinex)
 
     def label(self, cfg: DataConfig) -> str:
         s = scenario_config(cfg, RinexConfig)
@@ -124,6 +140,7 @@ class GnssLoggerSource(RinexSource):
     Config = GnssLoggerConfig
 
     loader = staticmethod(load_gnsslogger)
+    check = staticmethod(check_rinex)  # its own entry: the schema record reads a class's own check
 
 
 class LibrsfSource(Source):
@@ -132,13 +149,7 @@ class LibrsfSource(Source):
     name = "librsf"
     Config = LibrsfConfig
 
-    def check(self, cfg: DataConfig) -> None:
-        s = scenario_config(cfg, LibrsfConfig)
-        super().check(cfg)
-        require_files(s, ("obs",))
-        require_file("scenario.obs", s.obs)
-        if s.truth:
-            require_file("scenario.truth", s.truth)
+    check = staticmethod(check_librsf)
 
     def input_files(self, cfg: DataConfig) -> dict[str, tuple[str, ...]]:
         s = scenario_config(cfg, LibrsfConfig)
