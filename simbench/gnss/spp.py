@@ -170,7 +170,7 @@ def solve_epochs(
     rows = rows[np.argsort(epoch[rows], kind="stable")]
     fit = _Fit.of(rows, epoch, sat_pos, code, w, sys_idx, el_rows, doy, int(sys_idx.max(initial=0)) + 1)
     n_rows = np.zeros(nk, np.int64)
-    n_rows[fit.present] = np.diff(np.append(fit.starts, len(rows)))
+    n_rows[fit.present] = fit.counts
     # systems present per epoch decide how many unknowns the epoch has
     has_sys = np.zeros((nk, fit.n_systems), bool)
     has_sys[fit.e, fit.sy] = True
@@ -240,6 +240,11 @@ class _Fit:
         return cls(e, sat_pos[rows], code[rows], w[rows], sy, el_r, doy, design, starts, present)
 
     @property
+    def counts(self) -> np.ndarray:
+        """Rows of each present epoch."""
+        return np.diff(np.append(self.starts, len(self.e)))
+
+    @property
     def n_systems(self) -> int:
         """Clock columns of the design matrix."""
         return int(self.A.shape[1]) - 3
@@ -251,7 +256,7 @@ class _Fit:
         [m] and redundancy number ``1 - w_i a_i^T N^-1 a_i`` of the final weighted fit where the row's
         epoch is trusted, and the final Huber weight factor."""
         n_inv = pinv_stack(_normal_matrices(self.A, self.w * robust, self.starts))
-        index = np.repeat(np.arange(len(self.present)), np.diff(np.append(self.starts, len(rows))))
+        index = np.repeat(np.arange(len(self.present)), self.counts)
         leverage = self.w * robust * np.einsum("ri,rij,rj->r", self.A, n_inv[index], self.A)
         own = trusted[self.e]
         residual = np.full(n, np.nan)
