@@ -140,7 +140,6 @@ class GnssLoggerSource(RinexSource):
     Config = GnssLoggerConfig
 
     loader = staticmethod(load_gnsslogger)
-    check = staticmethod(check_rinex)  # its own entry: the schema record reads a class's own check
 
 
 class LibrsfSource(Source):

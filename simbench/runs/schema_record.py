@@ -24,6 +24,7 @@ import dataclasses
 import functools
 import importlib
 import importlib.util
+import inspect
 import json
 import os
 import sys
@@ -303,8 +304,9 @@ def write_record(
 
 
 def _check_name(source: type) -> str | None:
-    """``module:name`` of a source's check when it is a plain function (a ``staticmethod``), else None."""
-    check = vars(source).get("check")
+    """``module:name`` of a source's check when it is a plain function (a ``staticmethod``, its own or
+    inherited), else None."""
+    check = inspect.getattr_static(source, "check", None)
     if not isinstance(check, staticmethod):
         return None
     return f"{check.__func__.__module__}:{check.__func__.__qualname__}"
