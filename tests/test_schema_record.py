@@ -104,32 +104,36 @@ def _refuse(*args: str) -> tuple[str, str, str]:
     return code, imported, proc.stderr.strip()
 
 
-def test_a_refused_value_imports_no_estimator_and_no_simulation() -> None:
-    _refuse("scenario.duration_s=-5")  # the first after an edit writes the record (every class imported)
-    code, imported, err = _refuse("scenario.duration_s=-5")
-    assert code == "2" and err == (
-        "error: scenario.duration_s: must be positive, got -5.0 -- give the scenario length in seconds, "
-        "e.g. scenario.duration_s=600"
-    )
-    assert imported == ""
-    code, imported, err = _refuse("estimator.dcs.kernel_width=nan")
-    assert code == "2" and err.startswith("error: estimator.dcs.kernel_width: must be finite, got nan")
-    assert imported == ""
+#: (overrides, the one-line error after ``error: ``) of values refused before any estimator or the simulation
+#: is imported; an error given with its fix (`` -- ``) is the whole line, else its start.
+REFUSED_LIGHT: list[tuple[tuple[str, ...], str]] = [
+    (
+        ("scenario.duration_s=-5",),
+        "scenario.duration_s: must be positive, got -5.0 -- give the scenario length in seconds, "
+        "e.g. scenario.duration_s=600",
+    ),
+    (("estimator.dcs.kernel_width=nan",), "estimator.dcs.kernel_width: must be finite, got nan"),
     # a range only the estimator's code knows: its ``Config`` is imported from the family's light config
     # module (no solver), and says it in the same words
-    code, imported, err = _refuse("estimator.dcs.kernel_width=-1")
-    assert code == "2" and err.startswith("error: estimator.dcs.kernel_width: must be positive, got -1.0")
-    assert imported == ""
-    code, imported, err = _refuse("estimator.bce.truncation=0")
-    assert code == "2" and err == (
-        "error: estimator.bce.truncation: must be at least 1, got 0 -- the defaults are in BceConfig "
-        "(estimators/batch/configs.py)"
-    )
-    assert imported == ""
-    code, imported, err = _refuse("estimator.crt_lss.window=0")
-    assert code == "2" and err.startswith("error: estimator.crt_lss.window: must be at least 1, got 0")
-    assert imported == ""
+    (("estimator.dcs.kernel_width=-1",), "estimator.dcs.kernel_width: must be positive, got -1.0"),
+    (
+        ("estimator.bce.truncation=0",),
+        "estimator.bce.truncation: must be at least 1, got 0 -- the defaults are in BceConfig "
+        "(estimators/batch/configs.py)",
+    ),
+    (("estimator.crt_lss.window=0",), "estimator.crt_lss.window: must be at least 1, got 0"),
     # a log source's check is a function beside its Config (simbench.data.log_sources): no estimator either
-    code, imported, err = _refuse("scenario=librsf", "scenario.truth_max_gap_s=-1")
-    assert code == "2" and err.startswith("error: scenario.truth_max_gap_s: must be positive and finite, got -1.0")
-    assert imported == ""
+    (
+        ("scenario=librsf", "scenario.truth_max_gap_s=-1"),
+        "scenario.truth_max_gap_s: must be positive and finite, got -1.0",
+    ),
+]
+
+
+def test_a_refused_value_imports_no_estimator_and_no_simulation() -> None:
+    _refuse("scenario.duration_s=-5")  # the first after an edit writes the record (every class imported)
+    for args, message in REFUSED_LIGHT:
+        code, imported, err = _refuse(*args)
+        assert (code, imported) == ("2", ""), (args, imported)
+        expected = f"error: {message}"
+        assert (err == expected) if " -- " in message else err.startswith(expected), err

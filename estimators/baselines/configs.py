@@ -20,7 +20,7 @@ from simbench.contract import Need
 from simbench.errors import require_at_least, require_elevation_mask, require_positive
 from simbench.typed import Choice, check_choices
 
-__all__ = ["HuberSppConfig", "IonosphereModel", "RtklibSppConfig", "TroposphereModel", "WlsSppConfig"]
+__all__ = ["HuberSppConfig", "IonosphereModel", "IrlsSppConfig", "RtklibSppConfig", "TroposphereModel", "WlsSppConfig"]
 
 
 @dataclass
@@ -53,17 +53,28 @@ class WlsSppConfig:
 
 
 @dataclass
-class HuberSppConfig(WlsSppConfig):
-    """Parameters of ``huber_spp``: ``wls_spp``'s plus the Huber loss."""
+class IrlsSppConfig(WlsSppConfig):
+    """``wls_spp``'s parameters plus the passes of an M-estimator loss solved by iteratively reweighted
+    least squares (IRLS); a subclass adds the loss's scale (``huber_spp``, the example plug-in's Cauchy)."""
 
-    huber_k: float = 1.345  #: Huber threshold [standard deviations]: 95 % efficiency under Gaussian noise
     reweightings: int = 5  #: iteratively reweighted least-squares passes after the plain fit
 
     def validate(self, where: str) -> None:
-        """The ``wls_spp`` checks, then the loss's."""
+        """The ``wls_spp`` checks, then the number of passes."""
+        super().validate(where)
+        require_at_least(f"{where}.reweightings", self.reweightings, 1, "give the number of IRLS passes, e.g. 5")
+
+
+@dataclass
+class HuberSppConfig(IrlsSppConfig):
+    """Parameters of ``huber_spp``: the IRLS passes plus the Huber loss's threshold."""
+
+    huber_k: float = 1.345  #: Huber threshold [standard deviations]: 95 % efficiency under Gaussian noise
+
+    def validate(self, where: str) -> None:
+        """The IRLS checks, then the loss's."""
         super().validate(where)
         require_positive(f"{where}.huber_k", self.huber_k, "give a threshold in standard deviations, e.g. 1.345")
-        require_at_least(f"{where}.reweightings", self.reweightings, 1, "give the number of IRLS passes, e.g. 5")
 
 
 class IonosphereModel(Choice):

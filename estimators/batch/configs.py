@@ -10,14 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from estimators.model.ppp_config import PppGraphConfig
-from estimators.model.robust_models import (
-    DcsFields,
-    MaxMixtureFields,
-    NlosMixtureFields,
-    validate_dcs,
-    validate_max_mixture,
-    validate_nlos_mixture,
-)
+from estimators.model.robust_models import DcsFields, MaxMixtureFields, NlosMixtureFields, validate_robust
 from simbench.errors import SimbenchError, require_at_least, require_positive
 
 __all__ = [
@@ -50,6 +43,7 @@ class BatchConfig(PppGraphConfig):
         )
         for name in ("max_iterations", "lm_max_iterations"):
             require_at_least(f"{where}.{name}", getattr(self, name), 1, "give an iteration limit, e.g. the default 100")
+        validate_robust(self, where)
 
 
 @dataclass
@@ -61,20 +55,10 @@ class L2Config(BatchConfig):
 class DcsConfig(BatchConfig, DcsFields):
     """Batch dynamic covariance scaling."""
 
-    def validate(self, where: str) -> None:
-        """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
-        super().validate(where)
-        validate_dcs(self.kernel_width, where)
-
 
 @dataclass
 class MmConfig(BatchConfig, MaxMixtureFields):
     """Batch max-mixtures with a static inlier/outlier model."""
-
-    def validate(self, where: str) -> None:
-        """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
-        super().validate(where)
-        validate_max_mixture(self.outlier_scale, self.outlier_weight, where)
 
 
 @dataclass
@@ -83,12 +67,6 @@ class MmEmConfig(BatchConfig, MaxMixtureFields, NlosMixtureFields):
     the phase keeps MM's static inlier/outlier pair."""
 
     max_iterations: int = 50  #: solve / EM alternations at most
-
-    def validate(self, where: str) -> None:
-        """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
-        super().validate(where)
-        validate_max_mixture(self.outlier_scale, self.outlier_weight, where)
-        validate_nlos_mixture(self, where)
 
 
 #: Augmented feature columns of BCE-AD, in order.

@@ -39,7 +39,7 @@ __all__ = ["Oracle"]
 
 
 @register
-class Oracle(BatchGraphEstimator):
+class Oracle(BatchGraphEstimator[OracleConfig]):
     """Batch PPP with the true per-observation sigmas and NLOS removed (reads labels)."""
 
     name = "oracle"

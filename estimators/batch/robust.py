@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import asdict
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Generic, TypeVar
 
 import gtsam
 import numpy as np
@@ -60,7 +60,7 @@ from estimators.model.ppp_graph import PppGraph, solve
 from estimators.model.robust_models import max_mixture_outliers
 from simbench.contract import ReceiverData
 
-__all__ = ["BatchGraphEstimator", "DcsBatch", "L2Batch", "MmBatch", "MmEm", "stop_reason"]
+__all__ = ["BatchGraphEstimator", "DcsBatch", "L2Batch", "MmBatch", "MmEm", "Reweighting", "stop_reason"]
 
 
 #: The L2 solve stops when the relative error decrease is below this (Levenberg-Marquardt's default
@@ -92,10 +92,18 @@ def stop_reason(previous: float, current: float, rel_tol: float, *, on_increase:
     return "error increased" if on_increase and decrease < 0 else None
 
 
-class BatchGraphEstimator(Estimator):
-    """Shared plumbing: prepare observations, build the graph, time the run, output the solution."""
+#: The config type of a batch estimator (its ``Config``), so that ``self.config`` is typed in its methods.
+C = TypeVar("C", bound=BatchConfig)
+
+
+class BatchGraphEstimator(Estimator, Generic[C]):
+    """Shared plumbing: prepare observations, build the graph, time the run, output the solution.
+
+    The type parameter is the subclass's ``Config``: ``self.config`` has that type.
+    """
 
     Config: ClassVar[type[BatchConfig]] = BatchConfig
+    config: C
 
     def _prepare(self, data: ReceiverData) -> tuple[PppObservations, PppGraph]:
         cfg = self.config
@@ -171,11 +179,26 @@ class BatchGraphEstimator(Estimator):
         raise NotImplementedError
 
 
+class Reweighting(BatchGraphEstimator[C]):
+    """A robust batch estimator: re-weights the measurements, starting from the batch L2 solution."""
+
+    def _run(self, data, obs, g, structure):
+        rows = self._l2(g, structure)
+        return self._reweight(obs, rows, *self._a_priori_sigmas(obs))
+
+    def _reweight(
+        self, obs: PppObservations, rows: WhitenedRows, sc: np.ndarray, sp: np.ndarray
+    ) -> tuple[gtsam.Values, dict[str, Any]]:
+        """Re-weight and re-solve from the L2 solution on ``rows`` (a-priori code and phase sigmas
+        ``sc``, ``sp`` [m], scaled by ``prior_scale``); the values and the diagnostics."""
+        raise NotImplementedError
+
+
 # --------------------------------------------------------------------------- L2
 
 
 @register
-class L2Batch(BatchGraphEstimator):
+class L2Batch(BatchGraphEstimator[L2Config]):
     """Batch Levenberg-Marquardt PPP with the a-priori Gaussian noise model."""
 
     name = "l2"
@@ -189,26 +212,23 @@ class L2Batch(BatchGraphEstimator):
 
 
 @register
-class DcsBatch(BatchGraphEstimator):
+class DcsBatch(Reweighting[DcsConfig]):
     """Batch PPP with GTSAM's DCS m-estimator on every code and phase factor."""
 
     name = "dcs"
     Config = DcsConfig
 
-    def _run(self, data, obs, g, structure):
-        cfg: DcsConfig = self.config
-        rows = self._l2(g, structure)
-        sc, sp = self._a_priori_sigmas(obs)
-        noise, kernel = {"code_sigma": sc, "phase_sigma": sp}, DcsKernel(cfg.kernel_width)
+    def _reweight(self, obs, rows, sc, sp):
+        noise, kernel = {"code_sigma": sc, "phase_sigma": sp}, DcsKernel(self.config.kernel_width)
         err = rows.error(noise, kernel)
         stop, iterations = "max_iterations", 0
         positions = rows.positions()
         history = []
-        for iterations in range(1, cfg.max_iterations + 1):
+        for iterations in range(1, self.config.max_iterations + 1):
             accepted = rows.snapshot()
             rows.step(noise, kernel)
             stepped_err = rows.error(noise, kernel)
-            reason = stop_reason(err, stepped_err, cfg.rel_tol, on_increase=True)
+            reason = stop_reason(err, stepped_err, self.config.rel_tol, on_increase=True)
             step = 0.0
             if reason != "error increased":  # a rise is rejected, as Levenberg-Marquardt would
                 err = stepped_err
@@ -227,8 +247,8 @@ class DcsBatch(BatchGraphEstimator):
             "iterations": iterations,
             "stop_reason": stop,
             "history": history,
-            "downweighted_code": int(np.sum(np.abs(r_c / sc) > cfg.kernel_width)),
-            "downweighted_phase": int(np.sum(np.abs(r_p / sp) > cfg.kernel_width)),
+            "downweighted_code": int(np.sum(np.abs(r_c / sc) > self.config.kernel_width)),
+            "downweighted_phase": int(np.sum(np.abs(r_p / sp) > self.config.kernel_width)),
         }
 
 
@@ -236,24 +256,22 @@ class DcsBatch(BatchGraphEstimator):
 
 
 @register
-class MmBatch(BatchGraphEstimator):
+class MmBatch(Reweighting[MmConfig]):
     """Batch max-mixtures (static two-component model), iterated to convergence."""
 
     name = "mm"
     Config = MmConfig
 
-    def _run(self, data, obs, g, structure):
-        cfg: MmConfig = self.config
-        rows = self._l2(g, structure)
-        sc, sp = self._a_priori_sigmas(obs)
-        inflate = np.sqrt(cfg.outlier_scale)
+    def _reweight(self, obs, rows, sc, sp):
+        scale, weight = self.config.outlier_scale, self.config.outlier_weight
+        inflate = np.sqrt(scale)
         prev_out: tuple[np.ndarray, np.ndarray] | None = None
         prev_err = None
         history = []
-        for it in range(cfg.max_iterations):
+        for it in range(self.config.max_iterations):
             r_c, r_p = rows.residuals
-            out_c = max_mixture_outliers(r_c / sc, cfg.outlier_scale, cfg.outlier_weight)
-            out_p = max_mixture_outliers(r_p / sp, cfg.outlier_scale, cfg.outlier_weight)
+            out_c = max_mixture_outliers(r_c / sc, scale, weight)
+            out_p = max_mixture_outliers(r_p / sp, scale, weight)
             if prev_out is not None and np.array_equal(out_c, prev_out[0]) and np.array_equal(out_p, prev_out[1]):
                 break
             prev_out = out_c, out_p
@@ -268,7 +286,7 @@ class MmBatch(BatchGraphEstimator):
                     "outlier_phase": int(out_p.sum()),
                 }
             )
-            if prev_err is not None and stop_reason(prev_err, err, cfg.rel_tol, on_increase=False):
+            if prev_err is not None and stop_reason(prev_err, err, self.config.rel_tol, on_increase=False):
                 break
             prev_err = err
         return rows.values, {"iterations": len(history), "history": history}
@@ -278,17 +296,15 @@ class MmBatch(BatchGraphEstimator):
 
 
 @register
-class MmEm(BatchGraphEstimator):
+class MmEm(Reweighting[MmEmConfig]):
     """Self-tuning max-mixtures: a LOS/NLOS code model conditioned on C/N0 and elevation, learned by EM
     from the residuals of the whole graph, alternating with the solve (libRSF's EM-tuned mixtures)."""
 
     name = "mm_em"
     Config = MmEmConfig
 
-    def _run(self, data, obs, g, structure):
-        cfg: MmEmConfig = self.config
-        rows = self._l2(g, structure)
-        sc, sp = self._a_priori_sigmas(obs)
+    def _reweight(self, obs, rows, sc, sp):
+        cfg = self.config
         x, names = predictors(obs.el, obs.cn0) if cfg.conditioned else (None, [])
         r_c, r_p = rows.residuals
         model = NlosMixture.start(r_c, sc, x, names, weight=cfg.nlos_weight_init, one_sided=cfg.one_sided)

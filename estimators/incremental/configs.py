@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from estimators.model.ppp_config import GnssModelConfig, PppGraphConfig
-from estimators.model.robust_models import DcsFields, MaxMixtureFields, validate_dcs, validate_max_mixture
+from estimators.model.robust_models import DcsFields, MaxMixtureFields, validate_robust
 from simbench.errors import SimbenchError, require_at_least, require_positive
 
 __all__ = ["IceConfig", "IncrementalConfig", "Isam2DcsConfig", "Isam2MmConfig"]
@@ -49,26 +49,17 @@ class IncrementalConfig(PppGraphConfig):
         require_at_least(
             f"{where}.lag_min_epochs", self.lag_min_epochs, 2, "the window keeps the previous epoch at least"
         )
+        validate_robust(self, where)
 
 
 @dataclass
 class Isam2DcsConfig(IncrementalConfig, DcsFields):
     """Incremental dynamic covariance scaling (the kernel width as batch DCS's)."""
 
-    def validate(self, where: str) -> None:
-        """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
-        super().validate(where)
-        validate_dcs(self.kernel_width, where)
-
 
 @dataclass
 class Isam2MmConfig(IncrementalConfig, MaxMixtureFields):
     """Incremental max-mixtures with a static two-component model."""
-
-    def validate(self, where: str) -> None:
-        """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
-        super().validate(where)
-        validate_max_mixture(self.outlier_scale, self.outlier_weight, where)
 
 
 @dataclass

@@ -453,8 +453,8 @@ def prepare_ppp(
     sigma_code, factors = _scaled_code_sigmas(
         variance_components,
         code_sigma_m * rows.sigma_scale,
-        rows.systems,
-        rows.system_index,
+        rows.sats.systems,
+        rows.sats.system_index,
         rows.cn0,
         rows.epoch_stop - rows.epoch_start,
         rows.sat_pos,
@@ -548,6 +548,24 @@ def _picked_rows(
     return _Picked(sub, sat, epoch, el, arc, choice, expected, declined, n_dropped, checked)
 
 
+@dataclass(frozen=True)
+class _Satellites:
+    """The satellites of the rows and their systems."""
+
+    names: np.ndarray  #: str, the satellites, sorted
+    index: np.ndarray  #: int, per row: index into ``names``
+    systems: tuple[str, ...]  #: RINEX letters, GPS first
+    system_index: np.ndarray  #: int, per row: index into ``systems``
+
+    @classmethod
+    def of(cls, sat: np.ndarray) -> _Satellites:
+        """From each row's satellite id."""
+        names, index = np.unique(sat, return_inverse=True)
+        letters = np.array([str(s)[:1] for s in names])
+        systems = tuple(sorted(set(letters.tolist()), key=lambda c: (c != "G", c)))
+        return cls(names, index, systems, np.array([systems.index(c) for c in letters], np.int64)[index])
+
+
 @dataclass
 class _Rows:
     """What :func:`prepare_ppp` reads off the picked rows: times, geometry, weights, systems, epochs."""
@@ -560,10 +578,7 @@ class _Rows:
     doy: float
     cn0: np.ndarray  #: [dB-Hz]
     sigma_scale: np.ndarray
-    sat_names: np.ndarray
-    sat_index: np.ndarray
-    systems: tuple[str, ...]
-    system_index: np.ndarray
+    sats: _Satellites
     epoch_ids: np.ndarray
     epoch_start: np.ndarray
     epoch_stop: np.ndarray
@@ -575,7 +590,6 @@ class _Rows:
         range_rate, sat_vel = _range_rates(sub)
         epoch_ids, epoch_start, n_per = np.unique(picked.epoch, return_index=True, return_counts=True)
         cn0 = _cn0(sub)
-        sat_names, sat_index, systems, system_index = _systems_of(picked.sat)
         return cls(
             t=sub["t"].to_numpy(float),
             az=sub["az"].to_numpy(float) * DEG,
@@ -585,10 +599,7 @@ class _Rows:
             doy=day_of_year(data.nav.gps_week, data.nav.start_sow_s),
             cn0=cn0,
             sigma_scale=weighting.factor(picked.el, cn0),
-            sat_names=sat_names,
-            sat_index=sat_index,
-            systems=systems,
-            system_index=system_index,
+            sats=_Satellites.of(picked.sat),
             epoch_ids=epoch_ids,
             epoch_start=epoch_start,
             epoch_stop=epoch_start + n_per,
@@ -625,7 +636,7 @@ def _without_ionosphere(data: ReceiverData, picked: _Picked, rows: _Rows, ionosp
         rows.t,
         rows.epoch_start,
         rows.epoch_stop,
-        rows.system_index,
+        rows.sats.system_index,
     )
     iono = _klobuchar_delay(data.nav, rows.t, rough, picked.el, rows.az, picked.sat)
     if out.choice == IonosphereMode.measured:
@@ -663,7 +674,7 @@ def _observations(
         epoch=picked.epoch,
         t=rows.t,
         sat=picked.sat,
-        sat_index=rows.sat_index.astype(np.int64),
+        sat_index=rows.sats.index.astype(np.int64),
         sat_pos=rows.sat_pos,
         code=corrected.code,
         phase=corrected.phase,
@@ -678,7 +689,7 @@ def _observations(
         epoch_t=epoch_t,
         epoch_start=rows.epoch_start,
         epoch_stop=rows.epoch_stop,
-        sat_names=tuple(str(s) for s in rows.sat_names),
+        sat_names=tuple(str(s) for s in rows.sats.names),
         n_arcs=int(arc.max(initial=-1)) + 1,
         ionosphere_free=picked.choice == IonosphereMode.free,
         ionosphere=corrected.choice,
@@ -686,8 +697,8 @@ def _observations(
         ionosphere_fits=corrected.fits,
         ionosphere_expected_m=picked.expected,
         doy=rows.doy,
-        systems=rows.systems,
-        system_index=rows.system_index,
+        systems=rows.sats.systems,
+        system_index=rows.sats.system_index,
         range_rate=rows.range_rate,
         sat_vel=rows.sat_vel,
         odometry=_odometry_per_epoch(data.odometry, epoch_t) if len(data.odometry) else None,
@@ -796,15 +807,6 @@ def _ranges(sub: pd.DataFrame, free: bool, arc: np.ndarray) -> tuple[np.ndarray,
         code = sub["code_l1"].to_numpy(float) + sat_clock
         phase = sub["phase_l1"].to_numpy(float) + sat_clock
     return code, np.where(arc >= 0, phase, np.nan)
-
-
-def _systems_of(sat: np.ndarray) -> tuple[np.ndarray, np.ndarray, tuple[str, ...], np.ndarray]:
-    """Satellite names, each row's index into them, the systems (GPS first) and each row's system index."""
-    sat_names, sat_index = np.unique(sat, return_inverse=True)
-    letters = np.array([str(s)[:1] for s in sat_names])
-    systems = tuple(sorted(set(letters.tolist()), key=lambda c: (c != "G", c)))
-    system_index = np.array([systems.index(c) for c in letters], np.int64)[sat_index]
-    return sat_names, sat_index, systems, system_index
 
 
 def _measured_delays(

@@ -25,6 +25,7 @@ __all__ = [
     "validate_dcs",
     "validate_max_mixture",
     "validate_nlos_mixture",
+    "validate_robust",
     "max_mixture_outliers",
 ]
 
@@ -110,3 +111,19 @@ def validate_nlos_mixture(cfg: NlosMixtureFields, where: str) -> None:
             f"must be within (0, 1), got {cfg.nlos_weight_init}",
             "give the first fit's NLOS prior weight, e.g. the default 0.2",
         )
+
+
+def validate_robust(cfg: object, where: str) -> None:
+    """One-line :class:`SimbenchError` for the first out-of-range field of the robust-model fields mixed
+    into ``cfg``'s class, checked in the order :class:`DcsFields`, :class:`MaxMixtureFields`,
+    :class:`NlosMixtureFields`; a config without any of them passes.
+
+    The batch and the incremental ``Config`` bases call it last in their ``validate``, so an estimator's
+    ``Config`` that mixes in a model's fields is checked without a ``validate`` of its own.
+    """
+    if isinstance(cfg, DcsFields):
+        validate_dcs(cfg.kernel_width, where)
+    if isinstance(cfg, MaxMixtureFields):
+        validate_max_mixture(cfg.outlier_scale, cfg.outlier_weight, where)
+    if isinstance(cfg, NlosMixtureFields):
+        validate_nlos_mixture(cfg, where)

@@ -294,6 +294,94 @@ def _crt_window(summary: pd.DataFrame, epochs: pd.DataFrame, diagnostics: dict) 
     )
 
 
+# --------------------------------------------------------------------------- the claims of a quality study
+
+
+#: Rule of a claim that one estimator's median is below the others' (:func:`_below`).
+LOWER_RULE = "< 1, 95 % CI < 1"
+#: How far apart the medians of comparable estimators may lie (relative spread).
+COMPARABLE_TOLERANCE = 0.15
+
+
+@dataclass(frozen=True)
+class QualityStudy:
+    """A thesis study of a proposed estimator against its competitors on a low- and a high-quality receiver.
+
+    Ch.5 (BCE) and Ch.7 (ICE) each publish two tables on three data collects: the median horizontal
+    errors on the low-quality receiver, where the proposed estimator is the lowest, and on the
+    high-quality one, where all are comparable. :func:`_study_claims` makes the two claims of a study.
+    """
+
+    #: the thesis tables of the low- and the high-quality receiver (``"5.3.3"``: Ch.5)
+    tables: tuple[str, str]
+    #: the proposed estimator first, then its competitors, each with its label in the statements
+    labels: dict[str, str]
+    #: per collect, the published median of the proposed estimator and of its best competitor [m]
+    low: tuple[tuple[float, float], ...]
+    #: per collect, the largest and the smallest published median [m]
+    high: tuple[tuple[float, float], ...]
+
+
+def _published(template: str, pairs: tuple[tuple[float, float], ...], measure: Callable[[float, float], float]) -> str:
+    """The published numbers of a claim, e.g. ``6.70/9.13 = 0.73, ... (collects 1-3)``: each collect's
+    pair and ``measure`` of it, formatted by ``template``."""
+    shown = ", ".join(template.format(a, b, measure(a, b)) for a, b in pairs)
+    return f"{shown} (collects 1-{len(pairs)})"
+
+
+def _and(labels: list[str]) -> str:
+    return ", ".join(labels[:-1]) + " and " + labels[-1]
+
+
+def _study_claims(study: QualityStudy) -> list[Claim]:
+    """The low-quality claim (``ch<N>_<proposed>_low``: the proposed estimator's median below each
+    competitor's) and the high-quality claim (``ch<N>_high_comparable``: all medians within
+    :data:`COMPARABLE_TOLERANCE`) of ``study``, measured on the sweep ``ch<N>_<proposed>``."""
+    chapter = study.tables[0].split(".")[0]
+    (proposed, label), *competitors = study.labels.items()
+    others, other_labels = [name for name, _ in competitors], [lab for _, lab in competitors]
+    sweep = f"ch{chapter}_{proposed}"
+    low = Claim(
+        f"{sweep}_low",
+        f"Watson 2019, Ch.{chapter} Table {study.tables[0]}",
+        f"on low-quality data {label} has a lower median horizontal error than {_and(other_labels)}",
+        f"median horizontal error, {label} / best of {', '.join(other_labels)}",
+        _published("{:.2f}/{:.2f} = {:.2f}", study.low, lambda a, b: a / b),
+        LOWER_RULE,
+        _lowest_median(sweep, proposed, others, "low"),
+        sweep=sweep,
+    )
+    tolerance = COMPARABLE_TOLERANCE
+    all_labels = _and([*other_labels, label])
+    high = Claim(
+        f"ch{chapter}_high_comparable",
+        f"Watson 2019, Ch.{chapter} Table {study.tables[1]}",
+        f"on high-quality data {all_labels} perform comparably (within about {100 * tolerance:.0f} %)",
+        "relative spread of median horizontal error",
+        _published("{:.2f}/{:.2f} - 1 = {:.2f}", study.high, lambda a, b: a / b - 1),
+        f"<= {tolerance}",
+        _comparable_medians(sweep, list(study.labels), "high", tolerance),
+        sweep=sweep,
+    )
+    return [low, high]
+
+
+#: Ch.5: BCE against batch L2, DCS and MM (Tables 5.3.3-5.3.4).
+BCE_STUDY = QualityStudy(
+    tables=("5.3.3", "5.3.4"),
+    labels={"bce": "BCE", "l2": "L2", "dcs": "DCS", "mm": "MM"},
+    low=((6.70, 9.13), (3.58, 4.11), (7.31, 8.02)),
+    high=((0.75, 0.67), (0.81, 0.42), (1.44, 1.20)),
+)
+#: Ch.7: ICE against incremental (iSAM2) L2, DCS and MM (Tables 7.3.1-7.3.2).
+ICE_STUDY = QualityStudy(
+    tables=("7.3.1", "7.3.2"),
+    labels={"ice": "ICE", "isam2_ppp": "iSAM2 L2", "isam2_dcs": "iSAM2 DCS", "isam2_mm": "iSAM2 MM"},
+    low=((0.56, 0.64), (0.93, 1.94), (1.48, 2.82)),
+    high=((0.37, 0.35), (0.84, 0.81), (1.00, 0.89)),
+)
+
+
 CLAIMS: list[Claim] = [
     Claim(
         "ch4_convergence",
@@ -316,26 +404,7 @@ CLAIMS: list[Claim] = [
         _ch4_medians,
         sweep="ch4_convergence",
     ),
-    Claim(
-        "ch5_bce_low",
-        "Watson 2019, Ch.5 Table 5.3.3",
-        "on low-quality data BCE has a lower median horizontal error than L2, DCS and MM",
-        "median horizontal error, BCE / best of L2, DCS, MM",
-        "6.70/9.13 = 0.73, 3.58/4.11 = 0.87, 7.31/8.02 = 0.91 (collects 1-3)",
-        "< 1, 95 % CI < 1",
-        _lowest_median("ch5_bce", "bce", ["l2", "dcs", "mm"], "low"),
-        sweep="ch5_bce",
-    ),
-    Claim(
-        "ch5_high_comparable",
-        "Watson 2019, Ch.5 Table 5.3.4",
-        "on high-quality data L2, DCS, MM and BCE perform comparably (within about 15 %)",
-        "relative spread of median horizontal error",
-        "0.75/0.67 - 1 = 0.12, 0.81/0.42 - 1 = 0.93, 1.44/1.20 - 1 = 0.20 (collects 1-3)",
-        "<= 0.15",
-        _comparable_medians("ch5_bce", ["bce", "l2", "dcs", "mm"], "high", 0.15),
-        sweep="ch5_bce",
-    ),
+    *_study_claims(BCE_STUDY),
     Claim(
         "ch5_sensitivity",
         "Watson 2019, Ch.5 Fig. 5.3.7",
@@ -361,31 +430,12 @@ CLAIMS: list[Claim] = [
         "Watson 2019, Ch.6 Tables 6.3.1",
         "BCE-AD is at or below BCE when errors correlate with C/N0 or elevation",
         "median horizontal error, BCE-AD / BCE",
-        "2.14/6.70 = 0.32, 3.58/3.58 = 1.00, 3.25/7.31 = 0.44 (collects 1-3)",
-        "< 1, 95 % CI < 1",
+        _published("{:.2f}/{:.2f} = {:.2f}", ((2.14, 6.70), (3.58, 3.58), (3.25, 7.31)), lambda a, b: a / b),
+        LOWER_RULE,
         _lowest_median("ch6_bce_ad", "bce_ad", ["bce"]),
         sweep="ch6_bce_ad",
     ),
-    Claim(
-        "ch7_ice_low",
-        "Watson 2019, Ch.7 Table 7.3.1",
-        "on low-quality data ICE has the lowest median among incremental L2, DCS and MM",
-        "median horizontal error, ICE / best of iSAM2 L2, DCS, MM",
-        "0.56/0.64 = 0.88, 0.93/1.94 = 0.48, 1.48/2.82 = 0.52 (collects 1-3)",
-        "< 1, 95 % CI < 1",
-        _lowest_median("ch7_ice", "ice", ["isam2_ppp", "isam2_dcs", "isam2_mm"], "low"),
-        sweep="ch7_ice",
-    ),
-    Claim(
-        "ch7_high_comparable",
-        "Watson 2019, Ch.7 Table 7.3.2",
-        "on high-quality data the incremental estimators are comparable (within about 15 %)",
-        "relative spread of median horizontal error",
-        "0.37/0.35 - 1 = 0.06, 0.84/0.81 - 1 = 0.04, 1.00/0.89 - 1 = 0.12 (collects 1-3)",
-        "<= 0.15",
-        _comparable_medians("ch7_ice", ["ice", "isam2_ppp", "isam2_dcs", "isam2_mm"], "high", 0.15),
-        sweep="ch7_ice",
-    ),
+    *_study_claims(ICE_STUDY),
     Claim(
         "ch7_adaptations",
         "Watson 2019, Ch.7 Sec. 7.3",

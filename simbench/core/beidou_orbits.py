@@ -26,19 +26,8 @@ import numpy as np
 from simbench.core.constants import C_LIGHT, DEG
 from simbench.core.orbits import BroadcastEphemeris
 
-__all__ = [
-    "BeidouEphemeris",
-    "BDS_MU",
-    "BDS_OMEGA_EARTH",
-    "BDS_F_REL",
-    "GPS_MINUS_BDT_S",
-    "BDT_WEEK_OFFSET",
-    "GEO_PRNS",
-]
+__all__ = ["BeidouEphemeris", "GPS_MINUS_BDT_S", "BDT_WEEK_OFFSET", "GEO_PRNS"]
 
-BDS_MU: float = 3.986004418e14  #: CGCS2000 gravitational parameter [m^3/s^2]
-BDS_OMEGA_EARTH: float = 7.2921150e-5  #: CGCS2000 Earth rotation rate [rad/s]
-BDS_F_REL: float = -2.0 * math.sqrt(BDS_MU) / C_LIGHT**2  #: relativistic clock constant [s/sqrt(m)]
 GPS_MINUS_BDT_S: float = 14.0  #: GPST - BDT [s]
 BDT_WEEK_OFFSET: int = 1356  #: GPS week of BDT week 0
 #: Geostationary PRNs (BDS-2 C01-C05, BDS-3 C59-C63).
@@ -54,9 +43,9 @@ class BeidouEphemeris(BroadcastEphemeris):
     ``toe``/``toc`` in continuous GPS seconds.
     """
 
-    mu = BDS_MU
-    omega_e = BDS_OMEGA_EARTH
-    f_rel = BDS_F_REL
+    mu = 3.986004418e14  #: CGCS2000 gravitational parameter [m^3/s^2]
+    omega_e = 7.2921150e-5  #: CGCS2000 Earth rotation rate [rad/s]
+    f_rel = -2.0 * math.sqrt(mu) / C_LIGHT**2  #: relativistic clock constant [s/sqrt(m)]
     week_origin_s = GPS_MINUS_BDT_S
     system_name = "BeiDou"
 
@@ -65,7 +54,7 @@ class BeidouEphemeris(BroadcastEphemeris):
         prn = np.array([int(s[1:3]) for s in self.sats.tolist()])
         self._geo_record = np.isin(prn, list(GEO_PRNS))[self._sat_idx]
         lamdot = super()._node_rate(omegadot)
-        return np.where(self._geo_record, lamdot + BDS_OMEGA_EARTH, lamdot)
+        return np.where(self._geo_record, lamdot + self.omega_e, lamdot)
 
     def _to_earth_fixed(self, gi: np.ndarray, tk: np.ndarray, pos: np.ndarray, vel: np.ndarray) -> None:
         """The GEO rotation from the inertial-like frame into BDCS."""
@@ -73,7 +62,7 @@ class BeidouEphemeris(BroadcastEphemeris):
         if not geo.any():
             return
         t = tk[geo]
-        th = BDS_OMEGA_EARTH * t
+        th = self.omega_e * t
         ct, st = np.cos(th), np.sin(th)
         cp, sp = math.cos(_GEO_TILT_RAD), math.sin(_GEO_TILT_RAD)
         x, v = pos[geo], vel[geo]
@@ -84,7 +73,7 @@ class BeidouEphemeris(BroadcastEphemeris):
 
         xr, vr = rx(x), rx(v)
         pos[geo] = np.stack([ct * xr[:, 0] + st * xr[:, 1], -st * xr[:, 0] + ct * xr[:, 1], xr[:, 2]], axis=1)
-        w = BDS_OMEGA_EARTH
+        w = self.omega_e
         vel[geo] = np.stack(
             [
                 ct * vr[:, 0] + st * vr[:, 1] + w * (-st * xr[:, 0] + ct * xr[:, 1]),

@@ -28,11 +28,7 @@ import math
 from simbench.core.constants import C_LIGHT
 from simbench.core.orbits import BroadcastEphemeris
 
-__all__ = ["GalileoEphemeris", "GAL_MU", "GAL_OMEGA_EARTH", "GAL_F_REL"]
-
-GAL_MU: float = 3.986004418e14  #: Galileo gravitational parameter (OS SIS ICD 5.1.1) [m^3/s^2]
-GAL_OMEGA_EARTH: float = 7.2921151467e-5  #: Galileo Earth rotation rate (OS SIS ICD 5.1.1) [rad/s]
-GAL_F_REL: float = -2.0 * math.sqrt(GAL_MU) / C_LIGHT**2  #: relativistic clock constant [s/sqrt(m)]
+__all__ = ["GalileoEphemeris"]
 
 
 class GalileoEphemeris(BroadcastEphemeris):
@@ -44,7 +40,7 @@ class GalileoEphemeris(BroadcastEphemeris):
     BGD(E1,E5a) for F/NAV [s].
     """
 
-    mu = GAL_MU
-    omega_e = GAL_OMEGA_EARTH
-    f_rel = GAL_F_REL
+    mu = 3.986004418e14  #: Galileo gravitational parameter (OS SIS ICD 5.1.1) [m^3/s^2]
+    omega_e = 7.2921151467e-5  #: Galileo Earth rotation rate (OS SIS ICD 5.1.1) [rad/s]
+    f_rel = -2.0 * math.sqrt(mu) / C_LIGHT**2  #: relativistic clock constant [s/sqrt(m)]
     system_name = "Galileo"

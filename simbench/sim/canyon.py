@@ -65,14 +65,6 @@ REFLECTION_TAU_S = 10.0
 #: Number of rays per satellite: direct/diffracted, single bounce, double bounce.
 N_RAYS = 3
 
-#: ITU-R P.2040-1 Table 3 at 1-10 GHz: relative permittivity ``a`` and conductivity ``c f_GHz^d`` [S/m].
-_MATERIALS: dict[FacadeMaterial, tuple[float, float, float]] = {
-    FacadeMaterial.concrete: (5.24, 0.0462, 0.7822),
-    FacadeMaterial.brick: (3.91, 0.0238, 0.16),
-    FacadeMaterial.glass: (6.31, 0.0036, 1.3394),
-    FacadeMaterial.metal: (1.0, 1e7, 0.0),
-}
-
 
 @dataclass(frozen=True)
 class CanyonRays:
@@ -132,7 +124,8 @@ def fresnel_circular(cos_incidence: np.ndarray, material: FacadeMaterial) -> tup
     -------
     co, cross : ndarray (complex)
     """
-    a, c_coef, d_exp = _MATERIALS[FacadeMaterial(material)]
+    facade = FacadeMaterial[str(material)]  # a member or its YAML word
+    a, (c_coef, d_exp) = facade.permittivity, facade.conductivity
     f_ghz = F_L1 / 1e9
     eps = a - 1j * 17.98 * c_coef * f_ghz**d_exp / f_ghz
     c = np.clip(cos_incidence, 0.0, 1.0)

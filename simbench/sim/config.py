@@ -71,12 +71,25 @@ class ConstellationKind(Choice):
 
 
 class FacadeMaterial(Choice):
-    """Building facade material: sets the Fresnel reflection coefficient (ITU-R P.2040 Table 3)."""
+    """Building facade material and its electrical properties, which set the Fresnel reflection
+    coefficients (:func:`simbench.sim.canyon.fresnel_circular`).
 
-    concrete = "concrete"
-    brick = "brick"
-    glass = "glass"
-    metal = "metal"
+    ITU-R P.2040-1 Table 3 at 1-10 GHz: relative permittivity ``a`` and conductivity ``c f_GHz^d`` [S/m].
+    """
+
+    permittivity: float  #: a [-]
+    conductivity: tuple[float, float]  #: (c [S/m], d [-])
+
+    def __new__(cls, word: str, a: float, c: float, d: float) -> FacadeMaterial:
+        member = str.__new__(cls, word)
+        member._value_ = word
+        member.permittivity, member.conductivity = a, (c, d)
+        return member
+
+    concrete = "concrete", 5.24, 0.0462, 0.7822
+    brick = "brick", 3.91, 0.0238, 0.16
+    glass = "glass", 6.31, 0.0036, 1.3394
+    metal = "metal", 1.0, 1e7, 0.0
 
 
 class HeightDistribution(Choice):

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 from typing import Any, Protocol
 
 import numpy as np
+import pymap3d
 
 from simbench.core.constants import CHIP_LENGTH_CA, IONO_L2_SCALE, LAMBDA_L1
 from simbench.core.orbits import Constellation
@@ -92,9 +93,10 @@ class SimState:
     traj: Trajectory  #: at the IMU rate
     idx: np.ndarray  #: IMU sample of each GNSS epoch
     start_sow_s: float  #: GPS seconds of week at t = 0 [s]
-    lat_rad: np.ndarray
-    lon_rad: np.ndarray
-    h_m: np.ndarray
+    #: the antenna's geodetic latitude, longitude [rad] and height [m] at each epoch (from ``traj``)
+    lat_rad: np.ndarray = field(init=False)
+    lon_rad: np.ndarray = field(init=False)
+    h_m: np.ndarray = field(init=False)
     los: LineOfSight
     constellation: Constellation
     iono_alpha: tuple[float, ...]  #: Klobuchar coefficients handed to the receiver
@@ -123,6 +125,8 @@ class SimState:
     _sky_cells: tuple[np.ndarray, np.ndarray] | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self) -> None:
+        pos = self.traj.pos[self.idx]
+        self.lat_rad, self.lon_rad, self.h_m = pymap3d.ecef2geodetic(pos[:, 0], pos[:, 1], pos[:, 2], deg=False)
         self.in_view = self.above.copy()
         self.delay_m = self.los.range_m
         self.iono_l1_m = np.zeros(self.shape)

@@ -37,7 +37,6 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-import pymap3d
 
 from simbench.contract import LABEL_COLUMNS, OBSERVATION_COLUMNS, TRUTH_COLUMNS, NavInfo, Scenario, empty_odometry
 from simbench.core.constants import C_LIGHT, CHIP_LENGTH_CA, DEG, F_L1, F_L2, SECONDS_PER_WEEK
@@ -113,7 +112,6 @@ def _sky(cfg: SimConfig) -> SimState:
         )
     idx = traj.valid_every(step)
     pos = traj.pos[idx]
-    lat, lon, h = pymap3d.ecef2geodetic(pos[:, 0], pos[:, 1], pos[:, 2], deg=False)
     constellation, alpha, beta = _constellation(cfg)
     t_gps = sc.gps_week * SECONDS_PER_WEEK + start_sow + traj.t[idx]
     los = line_of_sight(pos, traj.vel[idx], t_gps, constellation)
@@ -126,9 +124,6 @@ def _sky(cfg: SimConfig) -> SimState:
         traj=traj,
         idx=idx,
         start_sow_s=start_sow,
-        lat_rad=lat,
-        lon_rad=lon,
-        h_m=h,
         los=los.satellites(keep),
         constellation=constellation,
         iono_alpha=alpha,

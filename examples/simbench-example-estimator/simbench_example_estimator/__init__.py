@@ -11,7 +11,9 @@ The built-in per-epoch baselines are ``wls_spp`` and ``huber_spp``
 (``estimators/baselines/spp.py``); this example shows how a package adds a further
 loss on the same shared measurement model: it subclasses ``wls_spp``, so it keeps its
 row preparation (ionosphere mode, sigma model, per-system variance components,
-elevation mask) and its diagnostics, and replaces only the per-epoch solve.
+elevation mask) and its diagnostics, and replaces only the per-epoch solve. Its config
+extends :class:`~estimators.baselines.configs.IrlsSppConfig` (``wls_spp``'s parameters and
+the IRLS passes, as ``huber_spp``'s does) by the loss's scale and its check.
 """
 
 from __future__ import annotations
@@ -20,26 +22,24 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from estimators.baselines.configs import WlsSppConfig
+from estimators.baselines.configs import IrlsSppConfig
 from estimators.baselines.spp import WlsSpp
 from estimators.model.measurement import PppObservations
-from simbench.errors import require_at_least, require_positive
+from simbench.errors import require_positive
 from simbench.gnss.spp import SppSolution
 
 
 @dataclass
-class CauchySppConfig(WlsSppConfig):
-    """``wls_spp``'s parameters (the shared sigma model) plus the Cauchy loss."""
+class CauchySppConfig(IrlsSppConfig):
+    """``wls_spp``'s parameters (the shared sigma model) and the IRLS passes, plus the Cauchy scale."""
 
     #: Cauchy scale [standard deviations]: 95 % efficiency under Gaussian noise
     cauchy_c: float = 2.385
-    reweightings: int = 5  #: iteratively reweighted least-squares passes after the plain fit
 
     def validate(self, where: str) -> None:
-        """The ``wls_spp`` checks, then the loss's."""
+        """The inherited checks, then the scale's."""
         super().validate(where)
         require_positive(f"{where}.cauchy_c", self.cauchy_c, "give a scale in standard deviations, e.g. 2.385")
-        require_at_least(f"{where}.reweightings", self.reweightings, 1, "give the number of IRLS passes, e.g. 5")
 
 
 class CauchySpp(WlsSpp):
