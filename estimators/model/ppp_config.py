@@ -20,7 +20,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from simbench.contract import Need
-from simbench.errors import require_at_least, require_elevation_mask, require_positive
+from simbench.errors import SimbenchError, require_at_least, require_elevation_mask, require_positive
 from simbench.typed import Choice, check_choices
 
 __all__ = [
@@ -45,6 +45,10 @@ class ClockModel(Choice):
 
     white = "white"  #: re-initialised each epoch (correlation time 0, Table 4.4.2)
     random_walk = "random_walk"  #: random walk with ``clock_noise_m_rts``
+    #: an oscillator: the offset advanced by the drift state (``motion_model = constant_velocity``)
+    #: with white frequency noise ``oscillator_noise_m_rts``; re-initialised where the single point
+    #: clock jumps (:func:`estimators.model.clock.clock_links`)
+    two_state = "two_state"
 
 
 class MeasurementMode(Choice):
@@ -378,6 +382,13 @@ class MotionModelConfig(StochasticModelConfig):
     doppler_sigma_mps: float = 0.3
     drift_sigma_mps: float = 1000.0  #: a priori receiver clock drift sigma [m/s] around the first epoch's fit
     drift_rw_mps_rts: float = 0.5  #: receiver clock drift random walk [m/s/sqrt(s)]
+    #: ``clock_model = two_state``: the offset's random walk about ``drift x dt``, the oscillator's white
+    #: frequency noise times c [m/sqrt(s)] (the simulated TCXO, Allan h0 = 2e-19: 0.095)
+    oscillator_noise_m_rts: float = 1.0
+    #: ``clock_model = two_state``: a single point clock step this far from the drift's prediction is a
+    #: jump (a receiver holding its clock or time tags by steps: u-blox 300-3000 km) and starts the
+    #: clock afresh [m]
+    clock_jump_m: float = 1000.0
     #: constant velocity only: add the vehicle's wheel odometry (speed, yaw rate) when the data have it
     use_odometry: bool = True
     #: sigma of the non-holonomic constraint (no sideways velocity of a car) [m/s]
@@ -423,11 +434,19 @@ class MotionModelConfig(StochasticModelConfig):
             "doppler_sigma_mps",
             "drift_sigma_mps",
             "drift_rw_mps_rts",
+            "oscillator_noise_m_rts",
+            "clock_jump_m",
             "nhc_sigma_mps",
             "standstill_vertical_sigma_mps",
             "road_grade_sigma",
         ):
             require_positive(f"{where}.{name}", getattr(self, name), "give a positive sigma or density")
+        if self.clock_model == ClockModel.two_state and self.motion_model != MotionModel.constant_velocity:
+            raise SimbenchError(
+                f"{where}.clock_model",
+                "two_state needs a clock drift state, which only motion_model=constant_velocity has",
+                f"set {where}.motion_model=constant_velocity or {where}.clock_model=white",
+            )
 
 
 class PppGraphConfig(MotionModelConfig):

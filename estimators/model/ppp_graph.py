@@ -112,6 +112,7 @@ from typing import Any
 import gtsam
 import numpy as np
 
+from estimators.model.clock import clock_links, offset_step_sigma, single_point_drift
 from estimators.model.measurement import PppObservations, content_digest, zenith_wet_delay_m
 from estimators.model.ppp_config import (
     DIRECTION_MIN_SPEED_MPS,
@@ -310,9 +311,15 @@ class PppGraph:
                 nk,
             )
             self.drift0 = _carry_forward(drift)
+            if not np.isfinite(drift).any():  # no Doppler (a libRSF log): the single point clocks' rate
+                self.drift0[:] = single_point_drift(obs.epoch_t, self.spp_clock_m, cfg.clock_jump_m)
             if self.with_odometry:
                 self.enu = enu_basis(self.spp_pos)
                 self.heading_ref = self._directions_of_travel(doppler_vel)
+        # where the clock offset is predicted from the last epoch's (two_state only)
+        self.clock_link = np.zeros(nk, bool)
+        if cfg.clock_model == ClockModel.two_state:
+            self.clock_link = clock_links(obs.epoch_t, self.spp_clock_m, self.drift0, cfg.clock_jump_m)
         self.isb0_m = system_clock_offsets(spp, self.row_epoch, self.row_system)
         lat, _, h = geodetic_from_ecef(self.spp_pos)
         hydro, self.wet_mapping = troposphere_terms(obs.el, lat[self.row_epoch], h[self.row_epoch], obs.doy)
@@ -387,7 +394,7 @@ class PppGraph:
             g.add(gtsam.PriorFactorDouble(ZERO_KEY, 0.0, self._sigma1(_ZERO_SIGMA)))
         if self.constant_velocity:  # the epoch's range rates (a measurement, but not reweighted)
             g.push_back(self._doppler_factor(k))
-        if k == 0 or cfg.clock_model == ClockModel.white:
+        if k == 0 or (cfg.clock_model != ClockModel.random_walk and not self.clock_link[k]):
             g.add(
                 gtsam.PriorFactorDouble(
                     clock_key(k), self.spp_clock_m[k] / C_LIGHT, self._sigma1(cfg.clock_sigma_m / C_LIGHT)
@@ -449,6 +456,8 @@ class PppGraph:
                     clock_key(k - 1), clock_key(k), 0.0, self._sigma1(self._rw(cfg.clock_noise_m_rts, dt) / C_LIGHT)
                 )
             )
+        elif self.clock_link[k]:
+            g.add(self._oscillator_factor(k, dt))
         for s in range(1, obs.n_isb + 1):
             g.add(
                 gtsam.BetweenFactorDouble(
@@ -466,6 +475,24 @@ class PppGraph:
                     )
                 )
         return g
+
+    def _oscillator_factor(self, k: int, dt: float) -> gtsam.NonlinearFactor:
+        """``c clock(k) - c clock(k - 1) - drift(k - 1) dt ~ N(0, sigma^2)``, the two-state clock's offset
+        step (:func:`~estimators.model.clock.offset_step_sigma`); a linear factor on three keys."""
+        cfg = self.cfg
+        keys = (clock_key(k - 1), drift_key(k - 1), clock_key(k))
+        sigma = max(offset_step_sigma(dt, cfg.oscillator_noise_m_rts, cfg.drift_rw_mps_rts), _MIN_RW_SIGMA)
+        step = gtsam.JacobianFactor(
+            keys[0],
+            np.array([[-C_LIGHT]]),
+            keys[1],
+            np.array([[-dt]]),
+            keys[2],
+            np.array([[C_LIGHT]]),
+            np.zeros(1),
+            gtsam.noiseModel.Isotropic.Sigma(1, sigma),
+        )
+        return _linear(step, dict.fromkeys(keys, 0.0))
 
     def _constant_velocity_factors(self, k: int, dt: float) -> gtsam.NonlinearFactorGraph:
         """White-acceleration motion and clock-drift random walk from ``k - 1`` to ``k``.
@@ -795,16 +822,20 @@ class PppGraph:
         return g, self.new_values(k, previous)
 
     def elimination_ordering(self, graph: gtsam.NonlinearFactorGraph) -> gtsam.Ordering:
-        """COLAMD ordering of ``graph`` with every receiver clock eliminated first.
+        """COLAMD ordering of ``graph`` with every receiver clock that no clock factor chains eliminated first.
 
         Computing it costs about a tenth of a linear solve; iterative batch estimators
         compute it once (the structure does not change between their solves). With the
         clocks first, sequential Cholesky (:func:`solve`) eliminates their
         ``c``-sized columns before anything else and was slightly faster than plain COLAMD.
         """
+        nk = self.obs.n_epochs
+        # a two-state clock chains the epochs: eliminating a chained clock first would join every
+        # earlier epoch's states into one dense factor, so only the clocks that stand alone go first
+        alone = ~(self.clock_link | np.r_[self.clock_link[1:], False])
         clocks = gtsam.KeyVector(
-            [clock_key(k) for k in range(self.obs.n_epochs)]
-            + [sysclock_key(s, k) for s in range(1, self.obs.n_isb + 1) for k in range(self.obs.n_epochs)]
+            [clock_key(k) for k in np.flatnonzero(alone)]
+            + [sysclock_key(s, k) for s in range(1, self.obs.n_isb + 1) for k in range(nk)]
         )
         return gtsam.Ordering.ColamdConstrainedFirstNonlinearFactorGraph(graph, clocks)
 
