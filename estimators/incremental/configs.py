@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from estimators.model.ppp_config import GnssModelConfig, PppGraphConfig
+from estimators.model.ppp_config import GnssModelConfig, NlosModel, PppGraphConfig
 from estimators.model.robust_models import DcsFields, MaxMixtureFields, validate_robust
 from simbench.errors import SimbenchError, require_at_least, require_positive
 
@@ -86,6 +86,13 @@ class IceConfig(IncrementalConfig):
     pos_sigma_m: float = 100.0
     #: keep the per-epoch inlier/outlier residuals in the diagnostics (for a Fig. 7.3.2 scatter)
     record_residuals: bool = False
+    #: late code rows: ``conditioned`` (a learned late-only NLOS mean and weight; the urban preset) or
+    #: ``none`` (the dissertation's)
+    nlos_model: NlosModel = GnssModelConfig.nlos_model
+    nlos_window_s: float = 60.0  #: the NLOS model is fitted on the code rows of the last this many seconds [s]
+    nlos_min_rows: int = 100  #: no NLOS model before the window holds this many code rows
+    nlos_em_iterations: int = 2  #: EM iterations per epoch, warm-started from the last fit
+    nlos_weight_init: float = 0.2  #: prior NLOS weight of the first fit [-]
 
     def validate(self, where: str) -> None:
         """One-line :class:`SimbenchError` for the first out-of-range field (``where``: config node name)."""
@@ -99,6 +106,10 @@ class IceConfig(IncrementalConfig):
             ("prior_code_sigma_m", self.prior_code_sigma_m > 0),
             ("prior_phase_sigma_m", self.prior_phase_sigma_m > 0),
             ("dpgmm_truncation", self.dpgmm_truncation >= 1),
+            ("nlos_window_s", self.nlos_window_s > 0),
+            ("nlos_min_rows", self.nlos_min_rows >= 10),
+            ("nlos_em_iterations", self.nlos_em_iterations >= 1),
+            ("nlos_weight_init", 0 < self.nlos_weight_init < 1),
         )
         for name, ok in checks:
             if not ok:

@@ -33,6 +33,15 @@ Where this departs from the text, and why (issues 44 and 48, docs/notebook.md):
   (``pos_sigma_m``): with the component's variance alone a filter that is off gates
   out the satellites that see it and holds the error.
 
+``nlos_model = conditioned`` (the ``urban`` preset's; ``none`` in the dissertation's; issue 48)
+adds a model of late code rows beside the mixture: a LOS/NLOS
+:class:`~estimators.model.nlos_mixture.NlosMixture` whose NLOS prior weight and late-only mean
+depend on C/N0 and elevation, refitted each epoch on the window's predicted code residuals
+(:mod:`estimators.incremental.nlos_window`). A code row more likely NLOS than LOS is z-tested and
+weighted against the NLOS component (its mean subtracted; where no predictor tells the late rows the
+mean is 0 and the component a broad one, as in ``mm_em``) and is neither counted nor buffered by
+the mixture; every other row is the mixture's as above.
+
 An epoch with fewer than ``min_satellites`` inlier satellites gets no GNSS
 update (the motion model carries the state; 4 in the dissertation's model). The
 a-priori model is one zero-mean component ``diag(2.5^2, 0.25^2)`` m^2
@@ -78,8 +87,11 @@ from estimators.incremental.isam2 import (
     EpochPrediction,
     IncrementalGraphEstimator,
 )
+from estimators.incremental.nlos_window import NlosAssignment, NlosWindow
 from estimators.model.clustering import code_marginal_labels, fit_dpgmm
 from estimators.model.mixture_tests import MixtureModel
+from estimators.model.nlos_mixture import predictors
+from estimators.model.ppp_config import NlosModel
 from estimators.model.ppp_graph import PppGraph
 
 __all__ = ["AdaptiveNoiseModel", "Ice"]
@@ -118,7 +130,9 @@ class AdaptiveNoiseModel:
             truncation = self.cfg.dpgmm_truncation
             self.cluster = lambda x: fit_dpgmm(x, truncation=truncation).labels
 
-    def classify(self, res: np.ndarray, pred_var: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def classify(
+        self, res: np.ndarray, pred_var: np.ndarray | None = None, code_z: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Most likely component and z-test of each residual.
 
         Parameters
@@ -129,6 +143,10 @@ class AdaptiveNoiseModel:
             Variance the prediction adds to each residual (the predicted position's along the
             line of sight), in the model's units: the z-test's variance is the component's plus
             this one (the innovation's). None: the component's alone.
+        code_z : ndarray, shape (m,), optional
+            The code channel's z-score where another model tests it (the NLOS model's for its rows,
+            :mod:`estimators.incremental.nlos_window`), NaN where the component tests it; None: the
+            component's everywhere.
 
         Returns
         -------
@@ -146,13 +164,21 @@ class AdaptiveNoiseModel:
         var = np.diagonal(mdl.covs, axis1=1, axis2=2)[comp]
         sig = np.sqrt(var if pred_var is None else var + pred_var)
         z = np.abs(res - mdl.means[comp]) / sig
+        if code_z is not None:
+            z[:, 0] = np.where(np.isnan(code_z), z[:, 0], code_z)
         inlier = (z[:, 0] < self.cfg.z_threshold) & ((z[:, -1] < self.cfg.z_threshold) | ~full)
         return inlier, comp
 
-    def observe(self, res: np.ndarray, inlier: np.ndarray, comp: np.ndarray) -> bool:
-        """Count the inliers, buffer the full outlier residuals, adapt past ``T_c``; True if adapted."""
+    def observe(
+        self, res: np.ndarray, inlier: np.ndarray, comp: np.ndarray, explained: np.ndarray | None = None
+    ) -> bool:
+        """Count the inliers, buffer the full outlier residuals, adapt past ``T_c``; True if adapted.
+
+        ``explained``: inlier rows another model weighs (the NLOS model's), not counted as points of
+        their component."""
         self.n_residuals += len(res)
-        np.add.at(self.model.counts, comp[inlier], 1.0)
+        counted = inlier if explained is None else inlier & ~explained
+        np.add.at(self.model.counts, comp[counted], 1.0)
         out = res[~inlier & np.isfinite(res[:, -1])]
         self.n_outliers += int((~inlier).sum())
         if len(out):
@@ -194,19 +220,34 @@ class Ice(IncrementalGraphEstimator):
 
     def _start_run(self) -> None:
         self._noise: AdaptiveNoiseModel | None = None
+        self._late: NlosWindow | None = None
+        self._predictors = np.empty((0, 0))
         self._records: list[dict] = []
 
+    def _start_models(self, g: PppGraph) -> AdaptiveNoiseModel:
+        """ICE's mixture, its dimension following the data (code-only logs get a 1-D model), and the
+        NLOS model of ``nlos_model = conditioned``."""
+        cfg = self.config
+        self._noise = AdaptiveNoiseModel(cfg, code_only=g.obs.n_arcs == 0)
+        if NlosModel(cfg.nlos_model) == NlosModel.conditioned:
+            self._predictors, names = predictors(g.obs.el, g.obs.cn0)
+            self._late = NlosWindow(
+                cfg.nlos_window_s, cfg.nlos_min_rows, cfg.nlos_em_iterations, cfg.nlos_weight_init, tuple(names)
+            )
+        return self._noise
+
     def _measurements(self, k: int, rows: slice, g: PppGraph, pred: EpochPrediction) -> dict[str, Any] | None:
-        if self._noise is None:  # the model's dimension follows the data: code-only logs get a 1-D model
-            self._noise = AdaptiveNoiseModel(self.config, code_only=g.obs.n_arcs == 0)
-        code_only = self._noise.code_only
+        noise = self._noise if self._noise is not None else self._start_models(g)
+        code_only = noise.code_only
         res = pred.res_code[:, None] if code_only else np.column_stack([pred.res_code, pred.res_phase])
         scale = self._channel_scales(rows, g)[:, : res.shape[1]]
         res = res / scale  # the model's units
+        late = self._assign_late(k, rows, g, pred)
         # tested as an innovation: a residual measures the prediction's error as well as the row's
-        inlier, comp = self._noise.classify(res, pred.los_var[:, None] / np.square(scale))
+        code_z = None if late is None else np.where(late.nlos, late.z, np.nan)
+        inlier, comp = noise.classify(res, pred.los_var[:, None] / np.square(scale), code_z)
         # the model used for this epoch's inliers is the one they were tested against (zero-mean: no offsets)
-        covs = self._noise.model.covs[comp] * scale[:, :, None] * scale[:, None, :]
+        covs = noise.model.covs[comp] * scale[:, :, None] * scale[:, None, :]
         if self.config.record_residuals:
             self._records.append(
                 {
@@ -217,18 +258,34 @@ class Ice(IncrementalGraphEstimator):
                     "inlier": inlier.tolist(),
                 }
             )
-        self._noise.observe(res, inlier, comp)
+        noise.observe(res, inlier, comp, None if late is None else late.nlos)
         if inlier.sum() < self.config.min_satellites:
             return None
-        if code_only:  # the data have no phase rows, so there are no phase factors to weight
-            return {"code_sigma": np.sqrt(covs[:, 0, 0]), "use_code": inlier}
+        out: dict[str, Any] = {"code_sigma": np.sqrt(covs[:, 0, 0]), "use_code": inlier}
+        cross = covs[:, 0, 1] if covs.shape[1] > 1 else None
+        if late is not None:  # a late row: the NLOS mean off its code, the NLOS spread, no tie to its phase
+            out.update(
+                code_sigma=np.where(late.nlos, late.sigma, out["code_sigma"]), code_offset=late.offset * late.nlos
+            )
+            cross = None if cross is None else np.where(late.nlos, 0.0, cross)
+        if cross is None:  # code only: the data have no phase rows, so there are no phase factors to weight
+            return out
         return {
-            "code_sigma": np.sqrt(covs[:, 0, 0]),
+            **out,
             "phase_sigma": np.sqrt(covs[:, 1, 1]),
-            "code_phase_cov": np.where(pred.new_arc, 0.0, covs[:, 0, 1]),
-            "use_code": inlier,
+            "code_phase_cov": np.where(pred.new_arc, 0.0, cross),
             "use_phase": inlier,
         }
+
+    def _assign_late(self, k: int, rows: slice, g: PppGraph, pred: EpochPrediction) -> NlosAssignment | None:
+        """The NLOS model's verdict on the epoch's code rows from the model of the epochs before, then
+        the model refitted with them; None without a NLOS model."""
+        if self._late is None:
+            return None
+        sigma, x = g.obs.sigma_code[rows], self._predictors[rows]
+        late = self._late.assign(pred.res_code, sigma, pred.los_var, x)
+        self._late.add(float(g.obs.epoch_t[k]), pred.res_code, sigma, pred.los_var, x)
+        return late
 
     def _channel_scales(self, rows: slice, g: PppGraph) -> np.ndarray:
         """Per row, the factors that turn metres into the mixture's units, shape (m, 2): code, phase.
@@ -248,6 +305,8 @@ class Ice(IncrementalGraphEstimator):
         if self._noise is None:
             self._noise = AdaptiveNoiseModel(self.config)
         out = self._noise.diagnostics()
+        if self._late is not None:
+            out["nlos_model"] = self._late.summary()
         if self.config.record_residuals:
             out["residuals"] = self._records
         return out

@@ -32,6 +32,7 @@ __all__ = [
     "MeasurementMode",
     "MotionModel",
     "MotionModelConfig",
+    "NlosModel",
     "PppGraphConfig",
     "SigmaModel",
     "StochasticModelConfig",
@@ -139,6 +140,15 @@ class VarianceComponents(Choice):
     system_cn0 = "system_cn0"
 
 
+class NlosModel(Choice):
+    """ICE's model of late (NLOS) code rows (member names are the YAML words)."""
+
+    none = "none"  #: the dissertation's: ICE's zero-mean scale mixture alone
+    #: a LOS/NLOS mixture whose NLOS weight and late-only mean depend on C/N0 and elevation, learned
+    #: on ICE's window (:mod:`estimators.incremental.nlos_window`)
+    conditioned = "conditioned"
+
+
 class MotionModel(Choice):
     """Process model of the receiver position between epochs (member names are the YAML words)."""
 
@@ -178,6 +188,11 @@ class GnssModelConfig:
     min_satellites: int = 1
     #: ICE's adaptive mixture over residuals in units of each row's sigma factor (False: metres)
     scaled_mixture: bool = True
+    #: ICE's late code rows: a windowed LOS/NLOS mixture conditioned on C/N0 and elevation (``none``:
+    #: Table 4.4.2's ICE). Tuning seeds 1000-1002 (libRSF stand-ins of ``street_canyon`` and ``urban``
+    #: at 5 Hz, ``urban`` and ``urban_deep`` at 1 Hz): horizontal median lower on 11 of 12 runs
+    #: (geometric mean -13 %), 3-D RMSE -3 % (docs/notebook.md, "ICE learns the street's late signals")
+    nlos_model: NlosModel = NlosModel.conditioned
     #: max-mixture outlier covariance over the inlier's (MM, iSAM2-MM). C/N0 sigmas already widen a
     #: weak (often reflected) row to 10-25 m, so an NLOS excess of tens of metres sits 1.5-3 sigma out:
     #: the batch code's 1e6 (outlier beyond 3.7 sigma) keeps every row and MM equals L2; 10 (beyond
