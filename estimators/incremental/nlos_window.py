@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from estimators.model.nlos_mixture import NlosMixture
+from estimators.model.nlos_mixture import NlosMixture, quartile_table
 
 __all__ = ["NlosAssignment", "NlosWindow"]
 
@@ -150,37 +150,10 @@ class NlosWindow:
         first fit left out) and the share of rows that entered as NLOS."""
         out: dict[str, Any] = {"predictors": list(self.names)}
         if self.model is not None:
-            mdl = self.model
-            out.update(
-                los_scale=mdl.los_scale,
-                los_spread_m=mdl.los_spread,
-                nlos_tau_m=mdl.tau,
-                weight_coef=mdl.weight_coef.tolist(),
-                mean_coef_m=mdl.mean_coef.tolist(),
-            )
+            out.update(self.model.parameters())
         if not self._applied:
             return out
         x, pi, mu, nlos = (np.concatenate([a[i] for a in self._applied]) for i in range(4))
         out.update(nlos_rows=int(nlos.sum()), nlos_share=float(nlos.mean()))
-        for j, name in enumerate(self.names):
-            edges = np.unique(np.quantile(x[:, j], np.linspace(0.0, 1.0, 5)))
-            bins = np.clip(np.searchsorted(edges, x[:, j], side="right") - 1, 0, len(edges) - 2)
-            out[f"by_{name}"] = [
-                {
-                    "low": float(edges[b]),
-                    "high": float(edges[b + 1]),
-                    "rows": int(np.sum(bins == b)),
-                    "nlos_weight": _mean(pi[bins == b]),
-                    "nlos_mean_m": _mean(mu[bins == b]),
-                    "nlos_share": float(nlos[bins == b].mean()),
-                }
-                for b in range(len(edges) - 1)
-                if np.any(bins == b)
-            ]
+        out.update(quartile_table(self.names, x, pi, mu, nlos))
         return out
-
-
-def _mean(values: np.ndarray) -> float | None:
-    """Mean of the finite values, None without any (JSON has no NaN)."""
-    finite = values[np.isfinite(values)]
-    return float(finite.mean()) if len(finite) else None

@@ -54,6 +54,7 @@ from estimators.model.robust_models import Assignment
 __all__ = [
     "NlosMixture",
     "predictors",
+    "quartile_table",
 ]
 
 #: Floor of the NLOS spread tau [m]: a component narrower than a code sigma is no longer a delay model.
@@ -259,40 +260,73 @@ class NlosMixture:
 
     # ------------------------------------------------------------------ reporting
 
-    def summary(self, r: np.ndarray, sigma: np.ndarray, x: np.ndarray | None) -> dict[str, Any]:
-        """JSON record: the parameters, and per predictor bin the mean prior weight, mean NLOS delay
-        and the share of rows the model calls NLOS (responsibility > 0.5)."""
-        n = len(r)
-        record: dict[str, Any] = {
+    def parameters(self) -> dict[str, Any]:
+        """JSON record of the learned parameters."""
+        return {
             "predictors": list(self.names),
             "los_scale": self.los_scale,
             "los_spread_m": self.los_spread,
             "nlos_tau_m": self.tau,
             "weight_coef": self.weight_coef.tolist(),
             "mean_coef_m": self.mean_coef.tolist(),
-            "nlos_weight_mean": float(self.weight(x, n).mean()),
-            "nlos_share": float(np.mean(self.responsibility(r, sigma, x) > 0.5)),
         }
+
+    def summary(self, r: np.ndarray, sigma: np.ndarray, x: np.ndarray | None) -> dict[str, Any]:
+        """JSON record: the parameters, and per predictor bin the mean prior weight, mean NLOS delay
+        and the share of rows the model calls NLOS (responsibility > 0.5)."""
+        n = len(r)
+        record = self.parameters()
+        record["nlos_weight_mean"] = float(self.weight(x, n).mean())
+        record["nlos_share"] = float(np.mean(self.responsibility(r, sigma, x) > 0.5))
         if x is None or not self.names:
             record["nlos_mean_m"] = float(self.mean(x, n).mean())
             return record
         pi, mu, nlos = self.weight(x, n), self.mean(x, n), self.responsibility(r, sigma, x) > 0.5
-        for j, name in enumerate(self.names):
-            edges = np.unique(np.quantile(x[:, j], np.linspace(0.0, 1.0, 5)))
-            bins = np.clip(np.searchsorted(edges, x[:, j], side="right") - 1, 0, len(edges) - 2)
-            record[f"by_{name}"] = [
-                {
-                    "low": float(edges[b]),
-                    "high": float(edges[b + 1]),
-                    "rows": int(np.sum(bins == b)),
-                    "nlos_weight": float(pi[bins == b].mean()),
-                    "nlos_mean_m": float(mu[bins == b].mean()),
-                    "nlos_share": float(nlos[bins == b].mean()),
-                }
-                for b in range(len(edges) - 1)
-                if np.any(bins == b)
-            ]
+        record.update(quartile_table(self.names, x, pi, mu, nlos))
         return record
+
+
+def quartile_table(
+    names: tuple[str, ...] | list[str], x: np.ndarray, weight: np.ndarray, mean_m: np.ndarray, nlos: np.ndarray
+) -> dict[str, list[dict[str, Any]]]:
+    """Per predictor (``by_<name>``), its quartile bins of the rows with the mean NLOS prior weight, the
+    mean NLOS delay [m] (of the finite values; None without any: JSON has no NaN) and the share of rows
+    called NLOS.
+
+    Parameters
+    ----------
+    names : sequence of str
+        Predictor names, one per column of ``x``.
+    x : ndarray, shape (n, len(names))
+        Predictor values of the rows.
+    weight, mean_m : ndarray, shape (n,)
+        Each row's NLOS prior weight and NLOS mean [m].
+    nlos : ndarray of bool, shape (n,)
+        Whether the row was called NLOS.
+    """
+    out: dict[str, list[dict[str, Any]]] = {}
+    for j, name in enumerate(names):
+        edges = np.unique(np.quantile(x[:, j], np.linspace(0.0, 1.0, 5)))
+        bins = np.clip(np.searchsorted(edges, x[:, j], side="right") - 1, 0, len(edges) - 2)
+        out[f"by_{name}"] = [
+            {
+                "low": float(edges[b]),
+                "high": float(edges[b + 1]),
+                "rows": int(np.sum(bins == b)),
+                "nlos_weight": _finite_mean(weight[bins == b]),
+                "nlos_mean_m": _finite_mean(mean_m[bins == b]),
+                "nlos_share": float(nlos[bins == b].mean()),
+            }
+            for b in range(len(edges) - 1)
+            if np.any(bins == b)
+        ]
+    return out
+
+
+def _finite_mean(values: np.ndarray) -> float | None:
+    """Mean of the finite values, None without any."""
+    finite = values[np.isfinite(values)]
+    return float(finite.mean()) if len(finite) else None
 
 
 def _weighted_line(design: np.ndarray, y: np.ndarray, w: np.ndarray, *, falling: bool) -> np.ndarray:
