@@ -10,6 +10,8 @@ import pytest
 import simbench
 from estimators.batch.configs import L2Config
 from estimators.batch.robust import L2Batch
+from estimators.filters.configs import EkfPppConfig
+from estimators.filters.ekf_ppp import EkfPpp
 from estimators.model.clock import clock_links, offset_step_sigma, single_point_drift
 from estimators.model.ppp_config import ClockModel, MotionModel
 from simbench.errors import SimbenchError
@@ -61,3 +63,22 @@ def test_two_state_needs_the_drift_state() -> None:
     cfg = dataclasses.replace(L2Config(), clock_model=ClockModel.two_state, motion_model=MotionModel.random_walk)
     with pytest.raises(SimbenchError, match="motion_model=constant_velocity"):
         cfg.validate("estimator.l2")
+
+
+def test_the_filter_restarts_its_clock_at_a_jump() -> None:
+    """EKF-PPP with the two-state clock: the 1 ms jump is counted once and moves no position by more
+    than 20 cm (the filter forgets the clock once); taken for a clock step it costs metres."""
+    sc = simbench.simulate("urban", "low", seed=1000, **{"scenario.duration_s": 60})
+    obs = sc.observations.copy()
+    late = obs["epoch"] >= 30
+    obs.loc[late, ["code_l1", "code_l2", "phase_l1", "phase_l2"]] += MILLISECOND_M
+    cfg = dataclasses.replace(
+        EkfPppConfig(), clock_model=ClockModel.two_state, motion_model=MotionModel.constant_velocity
+    )
+    runs = [EkfPpp(cfg).estimate(s.receiver_view()) for s in (sc, dataclasses.replace(sc, observations=obs))]
+    steady, jumped = (r.epochs[["x", "y", "z"]].to_numpy() for r in runs)
+    assert runs[0].diagnostics["n_clock_jumps"] == 0
+    assert runs[1].diagnostics["n_clock_jumps"] == 1
+    assert np.abs(jumped - steady).max() < 0.2
+    blind = EkfPpp(dataclasses.replace(cfg, clock_jump_m=1e9)).estimate(dataclasses.replace(sc, observations=obs))
+    assert np.linalg.norm(blind.epochs[["x", "y", "z"]].to_numpy() - steady, axis=1).max() > 5.0

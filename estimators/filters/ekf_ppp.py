@@ -35,7 +35,9 @@ with density ``q = accel_sigma_mps2_rts^2``, ``F = [[1, dt], [0, 1]]`` and
 ``Q = q [[dt^3/3, dt^2/2], [dt^2/2, dt]]``; the drift is a random walk
 (``drift_rw_mps_rts``). With ``clock_model = "random_walk"`` the clock offset and the
 drift form the usual two-state clock (offset advanced by ``drift dt``, ``Q`` of the
-same form plus the offset's own ``clock_noise_m_rts``); with the default white clock
+same form plus the offset's own ``clock_noise_m_rts``; ``"two_state"`` is the same with the
+oscillator's ``oscillator_noise_m_rts``, and the clock restarts where the epoch's median code
+innovation exceeds ``clock_jump_m``, a receiver's millisecond jump); with the default white clock
 the offset is re-initialised each epoch, so the drift is seen through the
 Doppler only (the graph keeps the drift apart from the clock in both cases, for
 receivers whose clock jumps by milliseconds). Each epoch's Doppler rows give
@@ -283,6 +285,10 @@ class EkfPass:
         self.n_doppler = self.n_odometry = self.n_resets = self.n_fallbacks = 0
         self.estimate_zwd = wet.mode == WetDelayMode.estimate
         self.white_clock = cfg.clock_model == ClockModel.white
+        self.two_state = cfg.clock_model == ClockModel.two_state
+        # the offset's own noise density about the drift's prediction [m/sqrt(s)]
+        self.clock_noise = cfg.oscillator_noise_m_rts if self.two_state else cfg.clock_noise_m_rts
+        self.n_clock_jumps = 0
         # the time update's indices, once: it runs every epoch
         self.pos_diag, self.vel_diag = np.arange(3), lay.vel0 + np.arange(3)
         self.iono_diag, self.isb_diag = np.arange(lay.iono0, lay.isb0), np.arange(lay.isb0, lay.vel0)
@@ -381,7 +387,7 @@ class EkfPass:
                 P[:, _CLK] = 0.0
                 P[_CLK, _CLK] = cfg.clock_noise_m_rts**2 * dt
             else:
-                P[_CLK, _CLK] += cfg.clock_noise_m_rts**2 * dt
+                P[_CLK, _CLK] += self.clock_noise**2 * dt
 
     def epoch_rows(self, rows: slice) -> EpochRows:
         """The epoch's troposphere terms at the predicted position (once per epoch: insensitive to
@@ -432,13 +438,18 @@ class EkfPass:
             H[np.flatnonzero(e.has_phase), lay.iono0 + e.slots[e.has_phase]] = 1.0
             pred = pred + np.where(e.has_phase, kf.x[lay.iono0 + e.slots], 0.0)
         pred[e.isb_rows] += kf.x[e.isb_cols]
-        if self.white_clock:
+        if self.white_clock or self.two_state:
             # a white clock keeps nothing from the last epoch: centre it on this epoch's code, so a
             # receiver that holds its clock within a millisecond by jumps (u-blox: 300-2100 km, a
-            # thousand sigma of the clock's 2 km) leaks no metres into the position
+            # thousand sigma of the clock's 2 km) leaks no metres into the position; a two-state
+            # clock is restarted so only where the code says it jumped
             shift = float(np.median(obs.code[e.rows] - pred))
-            kf.x[_CLK] += shift
-            pred += shift
+            if self.white_clock or abs(shift) > self.cfg.clock_jump_m:
+                if self.two_state:
+                    _reset(kf, np.array([_CLK]), kf.x[_CLK], self.cfg.clock_sigma_m**2)
+                    self.n_clock_jumps += 1
+                kf.x[_CLK] += shift
+                pred += shift
         kf.update(obs.code[e.rows], _const(H), _const(pred), R=np.diag(obs.sigma_code[e.rows] ** 2))
 
     def update_phase(self, e: EpochRows) -> None:
@@ -543,6 +554,7 @@ class EkfPass:
             "n_arcs": int(obs.n_arcs),
             "n_ambiguity_resets": self.n_resets,
             "n_phase_fallbacks": self.n_fallbacks,
+            "n_clock_jumps": self.n_clock_jumps,
             **obs.model_info(),
             **self.wet.info(),
             "iono_states": bool(lay.n_iono),
