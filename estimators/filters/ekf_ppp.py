@@ -37,7 +37,8 @@ with density ``q = accel_sigma_mps2_rts^2``, ``F = [[1, dt], [0, 1]]`` and
 drift form the usual two-state clock (offset advanced by ``drift dt``, ``Q`` of the
 same form plus the offset's own ``clock_noise_m_rts``; ``"two_state"`` is the same with the
 oscillator's ``oscillator_noise_m_rts``, and the clock restarts where the epoch's median code
-innovation exceeds ``clock_jump_m``, a receiver's millisecond jump); with the default white clock
+innovation exceeds ``clock_jump_m``, a receiver's millisecond jump, and at epochs with fewer than
+``clock_link_min_satellites`` code rows); with the default white clock
 the offset is re-initialised each epoch, so the drift is seen through the
 Doppler only (the graph keeps the drift apart from the clock in both cases, for
 receivers whose clock jumps by milliseconds). Each epoch's Doppler rows give
@@ -444,10 +445,11 @@ class EkfPass:
             # thousand sigma of the clock's 2 km) leaks no metres into the position; a two-state
             # clock is restarted so only where the code says it jumped
             shift = float(np.median(obs.code[e.rows] - pred))
-            if self.white_clock or abs(shift) > self.cfg.clock_jump_m:
+            few = len(pred) < self.cfg.clock_link_min_satellites
+            if self.white_clock or few or abs(shift) > self.cfg.clock_jump_m:
                 if self.two_state:
                     _reset(kf, np.array([_CLK]), kf.x[_CLK], self.cfg.clock_sigma_m**2)
-                    self.n_clock_jumps += 1
+                    self.n_clock_jumps += int(not few)
                 kf.x[_CLK] += shift
                 pred += shift
         kf.update(obs.code[e.rows], _const(H), _const(pred), R=np.diag(obs.sigma_code[e.rows] ** 2))

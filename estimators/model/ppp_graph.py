@@ -320,6 +320,7 @@ class PppGraph:
         self.clock_link = np.zeros(nk, bool)
         if cfg.clock_model == ClockModel.two_state:
             self.clock_link = clock_links(obs.epoch_t, self.spp_clock_m, self.drift0, cfg.clock_jump_m)
+            self.clock_link &= obs.epoch_stop - obs.epoch_start >= cfg.clock_link_min_satellites
         self.isb0_m = system_clock_offsets(spp, self.row_epoch, self.row_system)
         lat, _, h = geodetic_from_ecef(self.spp_pos)
         hydro, self.wet_mapping = troposphere_terms(obs.el, lat[self.row_epoch], h[self.row_epoch], obs.doy)
