@@ -398,8 +398,8 @@ class MotionModelConfig(StochasticModelConfig):
     drift_sigma_mps: float = 1000.0  #: a priori receiver clock drift sigma [m/s] around the first epoch's fit
     drift_rw_mps_rts: float = 0.5  #: receiver clock drift random walk [m/s/sqrt(s)]
     #: ``clock_model = two_state``: the offset's random walk about ``drift x dt``, the oscillator's white
-    #: frequency noise times c [m/sqrt(s)] (the simulated TCXO, Allan h0 = 2e-19: 0.095)
-    oscillator_noise_m_rts: float = 1.0
+    #: frequency noise times c [m/sqrt(s)]: a TCXO's (Brown and Hwang, Allan h0 = 2e-19, the simulator's)
+    oscillator_noise_m_rts: float = 0.1
     #: ``clock_model = two_state``: a single point clock step this far from the drift's prediction is a
     #: jump (a receiver holding its clock or time tags by steps: u-blox 300-3000 km) and starts the
     #: clock afresh [m]
