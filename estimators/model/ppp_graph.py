@@ -271,6 +271,9 @@ class PppGraph:
         Code-only single point position per epoch [m] (initial values, troposphere).
     spp_clock_m : ndarray, shape (n_epochs,)
         Single point receiver clock times c [m].
+    clock_link : ndarray of bool, shape (n_epochs,)
+        Whether epoch ``k``'s clock offset is predicted from ``k - 1``'s (``clock_model = two_state``:
+        no jump between them and at least ``clock_link_min_satellites`` rows at ``k``; else all False).
     with_iono : bool
         Whether per-row ionosphere keys are estimated.
     """
