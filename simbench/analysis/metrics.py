@@ -19,6 +19,7 @@ import numpy as np
 import pandas as pd
 import pymap3d
 from scipy import stats
+from scipy.spatial import cKDTree
 
 from simbench.errors import SimbenchError
 
@@ -48,6 +49,33 @@ def enu_errors(solution: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
     out["e"], out["n"], out["u"] = e, n, u
     out["horizontal"] = np.hypot(e, n)
     out["error_3d"] = np.sqrt(e * e + n * n + u * u)
+    return out
+
+
+def nearest_reference_distance(position: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """3-D distance from each position to the nearest reference point, whatever its time [m].
+
+    libRSF's published numbers are the RMS of this over the estimates (``ATE`` of its
+    ``test/TestUtils.cpp``: the closest ground-truth point, no alignment); an error along the
+    track, or a late solution, costs less here than against the reference of its own epoch.
+
+    Parameters
+    ----------
+    position : numpy.ndarray
+        (n, 3) estimated ECEF positions [m]; a row with a NaN gives NaN.
+    reference : numpy.ndarray
+        (m, 3) reference ECEF positions of the run [m].
+
+    Returns
+    -------
+    numpy.ndarray
+        (n,) distances [m].
+    """
+    position = np.asarray(position, float).reshape(-1, 3)
+    out = np.full(len(position), np.nan)
+    finite = np.isfinite(position).all(axis=1)
+    if finite.any() and len(reference):
+        out[finite] = cKDTree(np.asarray(reference, float)).query(position[finite])[0]
     return out
 
 

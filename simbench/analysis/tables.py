@@ -95,6 +95,7 @@ CI_STATISTICS = {
     "error_3d_p95_ref": "error_3d_p95",
     "horizontal_rmse": "horizontal_rmse",
     "error_3d_rmse": "error_3d_rmse",
+    "error_3d_nearest_rmse": "error_3d_nearest_rmse",
 }
 #: Resamples of a block bootstrap over one run's epochs (each is a whole run: 1000 keep the 2.5 and 97.5 %
 #: order statistics within a few per cent of their limit, at half the time of the seeds' 2000).
@@ -109,17 +110,23 @@ SERIES_STATISTICS = {
     "error_3d_p95_ref": ("error_3d", "p95"),
     "horizontal_rmse": ("horizontal", "rmse"),
     "error_3d_rmse": ("error_3d", "rmse"),
+    "error_3d_nearest_rmse": ("error_3d_nearest", "rmse"),
 }
+#: The epoch series :func:`with_rmse` takes the RMSE of (their summary column: ``<series>_rmse``).
+RMSE_SERIES = ("horizontal", "error_3d", "error_3d_nearest")
 
 
 def with_rmse(summary: pd.DataFrame, epochs: pd.DataFrame) -> pd.DataFrame:
-    """``summary`` with ``horizontal_rmse`` and ``error_3d_rmse`` [m] of each job, over its solved epochs
-    (:func:`~simbench.analysis.metrics.rmse`) in ``epochs``; NaN for a job without epoch rows."""
+    """``summary`` with ``horizontal_rmse``, ``error_3d_rmse`` and ``error_3d_nearest_rmse`` [m] of each job
+    (:data:`RMSE_SERIES`), over its solved epochs (:func:`~simbench.analysis.metrics.rmse`) in ``epochs``;
+    NaN for a job without epoch rows, or where results written before a series existed lack it."""
+    columns = [f"{series}_rmse" for series in RMSE_SERIES]
     if epochs.empty or summary.empty:
-        return summary.assign(horizontal_rmse=np.nan, error_3d_rmse=np.nan)
-    keyed = with_variant_columns(epochs)[JOB + ["horizontal", "error_3d"]].astype(dict.fromkeys(JOB, str))
-    per_job = keyed.groupby(JOB, observed=True)[["horizontal", "error_3d"]].agg(rmse)
-    per_job.columns = ["horizontal_rmse", "error_3d_rmse"]
+        return summary.assign(**dict.fromkeys(columns, np.nan))
+    epochs = epochs.reindex(columns=list(dict.fromkeys([*epochs.columns, *RMSE_SERIES])))
+    keyed = with_variant_columns(epochs)[JOB + list(RMSE_SERIES)].astype(dict.fromkeys(JOB, str))
+    per_job = keyed.groupby(JOB, observed=True)[list(RMSE_SERIES)].agg(rmse)
+    per_job.columns = columns
     keys = with_variant_columns(summary)[JOB].astype(str)
     found = per_job.reindex(pd.MultiIndex.from_frame(keys))
     return summary.assign(**{c: found[c].to_numpy() for c in per_job.columns})
@@ -188,7 +195,9 @@ def _epoch_intervals(rows: pd.DataFrame, reference: np.ndarray) -> dict[str, tup
     """Block-bootstrap intervals of every :data:`SERIES_STATISTICS` of one job's epoch rows."""
     position = pd.Series(np.arange(len(reference)), index=reference)
     out = {}
-    for series in ("horizontal", "error_3d"):
+    for series in RMSE_SERIES:
+        if series not in rows:  # results written before the series existed
+            continue
         errors = np.full(len(reference), np.inf)
         at = position.reindex(rows["epoch"].to_numpy()).to_numpy()
         values = rows[series].to_numpy(float)

@@ -21,7 +21,14 @@ from tqdm.auto import tqdm
 
 import estimators
 from estimators.base import COVARIANCE_COLUMNS, COVARIANCE_INDEX
-from simbench.analysis.metrics import enu_errors, local_enu, nees, reference_stats, summary_stats
+from simbench.analysis.metrics import (
+    enu_errors,
+    local_enu,
+    nearest_reference_distance,
+    nees,
+    reference_stats,
+    summary_stats,
+)
 from simbench.contract import Need, Scenario, available_needs, unmet_needs_reason
 from simbench.errors import one_line
 from simbench.source_registry import SIMULATED
@@ -107,6 +114,8 @@ EPOCH_COLUMNS: dict[str, str] = {
     "u": "m, up error",
     "horizontal": "m, sqrt(e^2 + n^2)",
     "error_3d": "m",
+    "error_3d_nearest": "m, 3-D distance to the nearest reference point of the run, whatever its time (libRSF's "
+    "published statistic is the RMS of it: simbench.analysis.metrics.nearest_reference_distance)",
     "update_s": "s, update wall time",
 }
 
@@ -217,6 +226,7 @@ def score_solution(scenario: Scenario, solution: pd.DataFrame, total_s: float) -
     for column, (i, j) in COVARIANCE_INDEX.items():
         covariance[:, i, j] = covariance[:, j, i] = err[column].to_numpy(float)
     err["nees"] = nees(position - truth, covariance)
+    err["error_3d_nearest"] = nearest_reference_distance(position, scenario.truth[["x", "y", "z"]].to_numpy(float))
     horizontal = err["horizontal"].to_numpy()
     finite = np.isfinite(horizontal)
     status, message = "ok", ""
