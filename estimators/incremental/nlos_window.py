@@ -109,7 +109,7 @@ class NlosWindow:
         mdl = self.model
         mu = mdl.mean(x, m)
         nlos = mdl.responsibility(r, self._innovation_sigma(sigma, los_var), x) > 0.5
-        var_n = (mdl.los_scale * sigma) ** 2 + mdl.los_spread**2 + mdl.tau**2
+        _, var_n = mdl.variances(sigma)
         z = np.abs(r - mu) / np.sqrt(var_n + los_var)
         self._applied.append((x, mdl.weight(x, m), mu, nlos))
         return NlosAssignment(nlos, np.sqrt(var_n), mu, z)

@@ -187,14 +187,16 @@ class NlosMixture:
         mu = self._design(x, n) @ self.mean_coef
         return np.maximum(mu, 0.0) if self.one_sided else mu
 
-    def _variances(self, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def variances(self, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """LOS and NLOS variances [m^2] of rows with a-priori sigmas ``sigma`` [m]: ``(k s)^2 + t^2`` and
+        that plus ``tau^2``."""
         los = (self.los_scale * sigma) ** 2 + self.los_spread**2
         return los, los + self.tau**2
 
     def responsibility(self, r: np.ndarray, sigma: np.ndarray, x: np.ndarray | None) -> np.ndarray:
         """E-step: the posterior probability that each row is NLOS given its residual ``r`` [m]."""
         n = len(r)
-        var_l, var_n = self._variances(sigma)
+        var_l, var_n = self.variances(sigma)
         logit = self._design(x, n) @ self.weight_coef
         log_ratio = _log_normal(r, self.mean(x, n), var_n) - _log_normal(r, 0.0, var_l)
         return _sigmoid(logit + log_ratio)
@@ -206,7 +208,7 @@ class NlosMixture:
         NLOS responsibility, for residuals ``r`` [m] at the current solution (module notes)."""
         n = len(r)
         g = self.responsibility(r, sigma, x)
-        var_l, var_n = self._variances(sigma)
+        var_l, var_n = self.variances(sigma)
         mu = self.mean(x, n)
         if Assignment(assignment) == Assignment.max:
             nlos = g > 0.5

@@ -113,7 +113,7 @@ SERIES_STATISTICS = {
     "error_3d_nearest_rmse": ("error_3d_nearest", "rmse"),
 }
 #: The epoch series :func:`with_rmse` takes the RMSE of (their summary column: ``<series>_rmse``).
-RMSE_SERIES = ("horizontal", "error_3d", "error_3d_nearest")
+RMSE_SERIES = tuple(series for series, kind in SERIES_STATISTICS.values() if kind == "rmse")
 
 
 def with_rmse(summary: pd.DataFrame, epochs: pd.DataFrame) -> pd.DataFrame:
@@ -195,7 +195,7 @@ def _epoch_intervals(rows: pd.DataFrame, reference: np.ndarray) -> dict[str, tup
     """Block-bootstrap intervals of every :data:`SERIES_STATISTICS` of one job's epoch rows."""
     position = pd.Series(np.arange(len(reference)), index=reference)
     out = {}
-    for series in RMSE_SERIES:
+    for series in dict.fromkeys(series for series, _ in SERIES_STATISTICS.values()):
         if series not in rows:  # results written before the series existed
             continue
         errors = np.full(len(reference), np.inf)
